@@ -1,0 +1,3 @@
+from rcmlconf.cli import main
+
+main()

@@ -1,0 +1,69 @@
+"""The `rcmlconf` command: a thin click layer over importable modules.
+
+Commands are imported only when run, so `rcmlconf validate` never pays for what `dissect` needs.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+
+import click
+
+from rcmlconf import __version__
+
+#: name -> (module, function, one-line help)
+COMMANDS = {
+    "validate": (
+        "rcmlconf.cli.validate",
+        "validate",
+        "Check RCML 2.0 and RXID 2.0 files against specs/.",
+    ),
+}
+
+
+class LazyGroup(click.Group):
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted(COMMANDS)
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name not in COMMANDS:
+            return None
+        module, name, _ = COMMANDS[cmd_name]
+        command = getattr(importlib.import_module(module), name)
+        assert isinstance(command, click.Command)
+        return command
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        rows = [(name, COMMANDS[name][2]) for name in self.list_commands(ctx)]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="rcmlconf")
+def cli() -> None:
+    """Conformance suite and protocol analyser for RCML 2.0, RXID 2.0, RCTP/2.0 and RSP.
+
+    Every finding names the requirement of specs/ it checks (R-RCML-16, R-XML-2, ...).
+    Run `rcmlconf COMMAND --help` for what each command does.
+    """
+
+
+def main() -> None:
+    """Console entry point: no traceback ever reaches a user."""
+    try:
+        cli.main(prog_name="rcmlconf")
+    except BrokenPipeError:
+        # The reader went away (`rcmlconf ... | head`): not an error of ours.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        sys.exit(1)
+    except Exception as exc:
+        if os.environ.get("RCMLCONF_TRACEBACK"):
+            raise
+        sys.stderr.write(
+            f"rcmlconf: internal error: {type(exc).__name__}: {exc}\n"
+            "This is a bug in rcmlconf. Set RCMLCONF_TRACEBACK=1 to see where it happened.\n"
+        )
+        sys.exit(2)

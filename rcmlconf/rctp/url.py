@@ -1,0 +1,48 @@
+"""The RCTP URL `rctp://host[:port][/path]` (D-RCML-17)."""
+
+from __future__ import annotations
+
+import ipaddress
+import re
+from dataclasses import dataclass
+
+from rcmlconf.errors import ValueTextError
+
+_URL = re.compile(
+    r"(?i:rctp)://(?P<host>\[[^\]]*\]|[A-Za-z0-9._~%-]+)(?::(?P<port>[0-9]*))?(?P<path>/[^\s?#]*)?"
+)
+
+
+@dataclass(frozen=True, slots=True)
+class RctpUrl:
+    host: str
+    #: None: the default port of RCTP.
+    port: int | None
+    path: str
+
+    def __str__(self) -> str:
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        port = "" if self.port is None else f":{self.port}"
+        return f"rctp://{host}{port}{self.path}"
+
+
+def parse_rctp_url(text: str) -> RctpUrl:
+    match = _URL.fullmatch(text)
+    if match is None:
+        raise ValueTextError(
+            f"{text!r} is not an RCTP URL of the form rctp://host[:port][/path] "
+            "(no user, query or fragment)"
+        )
+    host = match.group("host")
+    if host.startswith("["):
+        try:
+            host = str(ipaddress.IPv6Address(host[1:-1]))
+        except ValueError:
+            raise ValueTextError(f"{host} is not an IPv6 address") from None
+    port_text = match.group("port")
+    port = None
+    if port_text is not None:
+        if not port_text or len(port_text) > 5 or not 1 <= int(port_text) <= 65535:
+            raise ValueTextError(f"port {port_text!r} is not between 1 and 65535")
+        port = int(port_text)
+    return RctpUrl(host, port, match.group("path") or "/")

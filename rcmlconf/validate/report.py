@@ -1,0 +1,46 @@
+"""Summaries of a validation run, as data (for `--format json`) and as a sentence."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from rcmlconf.validate.validator import FileReport
+from rcmlconf.wording import plural
+
+
+def to_json(reports: Sequence[FileReport]) -> dict[str, object]:
+    return {
+        "files": [
+            {
+                "path": r.path,
+                "kind": r.kind,
+                "valid": r.valid,
+                "errors": r.errors,
+                "warnings": r.warnings,
+            }
+            for r in reports
+        ],
+        "diagnostics": [d.to_json() for r in reports for d in r.diagnostics],
+        "summary": {
+            "files": len(reports),
+            "valid": sum(r.valid for r in reports),
+            "invalid": sum(not r.valid for r in reports),
+            "errors": sum(r.errors for r in reports),
+            "warnings": sum(r.warnings for r in reports),
+        },
+    }
+
+
+def summary_line(reports: Sequence[FileReport]) -> str:
+    invalid = sum(not r.valid for r in reports)
+    errors = sum(r.errors for r in reports)
+    warnings = sum(r.warnings for r in reports)
+    counts = ", ".join(
+        text
+        for n, text in ((errors, plural(errors, "error")), (warnings, plural(warnings, "warning")))
+        if n
+    )
+    if invalid:
+        return f"{plural(len(reports), 'file')} checked: {invalid} invalid ({counts})"
+    suffix = f" ({counts})" if counts else ""
+    return f"{plural(len(reports), 'file')} checked: all valid{suffix}"
