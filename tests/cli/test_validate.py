@@ -1,0 +1,159 @@
+"""`rcmlconf validate` as a user runs it: the installed command, real files, exit statuses."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from support.xml_vectors import XML_VECTORS
+
+SCRIPT = Path(sys.executable).parent / "rcmlconf"
+COMMAND = [str(SCRIPT)] if SCRIPT.exists() else [sys.executable, "-m", "rcmlconf"]
+VALID = XML_VECTORS / "valid"
+INVALID = XML_VECTORS / "invalid"
+LINE = re.compile(r"^\S+:\d+:\d+: (error|warning): \[R-[A-Z]+-\d+\] .+$")
+
+
+def run(
+    *args: str, stdin: bytes | None = None, cwd: Path | None = None
+) -> subprocess.CompletedProcess[str]:
+    done = subprocess.run(
+        [*COMMAND, *args],
+        input=stdin.decode() if stdin else None,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=cwd,
+        check=False,
+    )
+    assert "Traceback" not in done.stderr, done.stderr
+    return done
+
+
+def test_valid_files_exit_0_quietly() -> None:
+    done = run("validate", str(VALID / "appendix-a-corrected.rcml"), str(VALID / "sample.rxid"))
+    assert done.returncode == 0
+    assert done.stdout == ""
+    assert "2 files checked: all valid" in done.stderr
+
+
+def test_the_paper_as_printed_exits_1_at_line_21_column_14() -> None:
+    done = run("validate", str(INVALID / "appendix-a-as-printed.rcml"))
+    assert done.returncode == 1
+    assert done.stdout.strip() == (
+        f"{INVALID / 'appendix-a-as-printed.rcml'}:21:14: error: [R-XML-1] attributes construct "
+        "error (hint: missing whitespace between attributes)"
+    )
+
+
+def test_every_error_of_a_file_one_a_line() -> None:
+    done = run("validate", str(INVALID / "rcml-types.rcml"))
+    lines = done.stdout.splitlines()
+    assert done.returncode == 1
+    assert len(lines) == 12
+    assert all(LINE.match(line) for line in lines), lines
+
+
+def test_directories_are_searched_for_rcml_and_rxid_files() -> None:
+    done = run("validate", "-q", "--format", "json", str(XML_VECTORS))
+    report = json.loads(done.stdout)
+    paths = {Path(f["path"]).name for f in report["files"]}
+    assert "appendix-a-as-printed.rcml" in paths
+    assert "testbot.rxid" in paths
+    assert not any(p.endswith(".expected") for p in paths)
+    assert done.returncode == 1
+    assert done.stderr == ""
+
+
+def test_json_holds_the_same_diagnostics() -> None:
+    path = INVALID / "rxid-values.rxid"
+    text = run("validate", str(path)).stdout.splitlines()
+    report = json.loads(run("validate", "--format", "json", str(path)).stdout)
+    assert report["summary"] == {"files": 1, "valid": 0, "invalid": 1, "errors": 6, "warnings": 0}
+    assert set(report["diagnostics"][0]) == {
+        "path",
+        "line",
+        "column",
+        "severity",
+        "rule",
+        "message",
+        "hint",
+    }
+    rebuilt = [
+        f"{d['path']}:{d['line']}:{d['column']}: {d['severity']}: [{d['rule']}] {d['message']}"
+        + (f" (hint: {d['hint']})" if d["hint"] else "")
+        for d in report["diagnostics"]
+    ]
+    assert rebuilt == text
+
+
+def test_standard_input() -> None:
+    data = (INVALID / "rcml-version.rcml").read_bytes()
+    done = run("validate", "-", stdin=data)
+    assert done.returncode == 1
+    assert done.stdout.startswith("<stdin>:2:7: error: [R-RCML-1]")
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["validate", "no-such-file.rcml"],
+        ["validate", "--frobnicate", "x"],
+        ["validate"],
+        ["validate", "--format", "xml", str(VALID)],
+        ["validate", "--map", "nothing", str(VALID)],
+        ["no-such-command"],
+    ],
+)
+def test_usage_errors_exit_2(args: list[str]) -> None:
+    done = run(*args)
+    assert done.returncode == 2
+    assert done.stdout == ""
+    assert "Error" in done.stderr
+
+
+@pytest.mark.skipif(not Path("/proc/self/mem").exists(), reason="needs Linux /proc")
+def test_unreadable_files_exit_2_and_the_others_are_still_checked() -> None:
+    # Reading /proc/self/mem at offset 0 fails with EIO, for root too.
+    done = run("validate", "/proc/self/mem", str(INVALID / "rcml-version.rcml"))
+    assert done.returncode == 2
+    assert "error: cannot read /proc/self/mem" in done.stderr
+    assert "[R-RCML-1]" in done.stdout
+
+
+def test_warnings_pass_unless_strict() -> None:
+    path = str(VALID / "empty-access.rcml")
+    assert run("validate", path).returncode == 0
+    assert run("validate", "--strict", path).returncode == 1
+
+
+def test_map_lets_a_url_session_be_checked() -> None:
+    path = str(VALID / "unresolved-session.rxid")
+    mapped = run(
+        "validate",
+        "--map",
+        f"http://robot.example/camera.rcml={VALID / 'appendix-a-corrected.rcml'}",
+        path,
+    )
+    assert mapped.returncode == 0
+    assert mapped.stdout == ""
+    assert "R-RXID-10" in run("validate", path).stdout
+
+
+def test_help_teaches() -> None:
+    done = run("validate", "--help")
+    for words in ("RULE-ID", "--map", "Exit status", "never fetched", "Examples"):
+        assert words in done.stdout
+    top = run("--help")
+    assert "validate" in top.stdout
+    assert top.returncode == 0
+
+
+def test_the_bundled_robots_are_valid_without_a_warning() -> None:
+    done = run("validate", "--strict", "rcmlconf/reference/robots", cwd=Path(__file__).parents[2])
+    assert done.returncode == 0, done.stdout
+    assert "4 files checked: all valid" in done.stderr

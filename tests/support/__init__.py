@@ -1,0 +1,1 @@
+"""Helpers the tests share: reading vectors/ and their expectations."""
