@@ -12,7 +12,7 @@ from rcmlconf.cli.console import Output
 from rcmlconf.markup.document import MAX_DOCUMENT_BYTES
 from rcmlconf.validate.languages import EXTENSIONS
 from rcmlconf.validate.report import summary_line, to_json
-from rcmlconf.validate.validator import FileReport, Validator
+from rcmlconf.validate.validator import DEFAULT_MAX_FINDINGS, FileReport, Validator
 
 
 def _parse_map(
@@ -67,18 +67,29 @@ def _expand(paths: tuple[str, ...]) -> list[str]:
     "An HREF ending in / maps a URL prefix to a directory. Repeatable.",
 )
 @click.option("--strict", is_flag=True, help="Exit 1 on warnings as well as errors.")
+@click.option(
+    "--max-findings",
+    type=click.IntRange(min=0),
+    default=DEFAULT_MAX_FINDINGS,
+    show_default=True,
+    metavar="N",
+    help="Stop checking a file after N findings (0: never). Bounds the time a hostile "
+    "document takes; a file cut short is reported invalid.",
+)
 @click.option("-q", "--quiet", is_flag=True, help="Do not print the summary line on stderr.")
 def validate(
     paths: tuple[str, ...],
     output_format: str,
     session_map: dict[str, Path],
     strict: bool,
+    max_findings: int,
     quiet: bool,
 ) -> None:
     """Check RCML 2.0 (.rcml) and RXID 2.0 (.rxid) documents.
 
     PATH is a file, a directory (every *.rcml and *.rxid file below it) or - for standard
-    input. Every schema and semantic error of a file is reported, one a line:
+    input. Every schema and semantic error of a file is reported (up to --max-findings), one a
+    line:
 
     \b
         path:line:col: error|warning: [RULE-ID] message (hint: ...)
@@ -102,7 +113,7 @@ def validate(
     # short-lived and ours, so it runs without it.
     gc.disable()
     output = Output()
-    validator = Validator(session_map)
+    validator = Validator(session_map, max_findings)
     reports: list[FileReport] = []
     unreadable = False
     for name in _expand(paths):

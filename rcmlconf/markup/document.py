@@ -89,6 +89,8 @@ def parse_document(data: bytes) -> XmlDocument | ParseFailure:
             f"document is {len(data):,} bytes, more than the limit of {MAX_DOCUMENT_BYTES:,}",
         )
     codec = python_codec(data)
+    if codec is None:
+        return _unknown_encoding(data)
     text = decode_document(data, codec)
     doctype = screen_prolog(text)
     if doctype is not None and doctype.subset_offset is not None:
@@ -174,6 +176,19 @@ def _entity_references(text: str) -> tuple[EntityReference, ...]:
             line, column = text_position(text, match.start())
             found.append(EntityReference(name, line, column))
     return tuple(found)
+
+
+def _unknown_encoding(data: bytes) -> ParseFailure:
+    """D-XML-2: libxml2's own refusal, or ours where libxml2 knows an encoding Python does not."""
+    from rcmlconf.markup.wellformed import libxml2_failure
+
+    return libxml2_failure(data) or ParseFailure(
+        "R-XML-1",
+        1,
+        1,
+        "the declared encoding is not one rcmlconf can read",
+        "use UTF-8 (D-XML-2)",
+    )
 
 
 def _syntax_failure(data: bytes, exc: expat.ExpatError) -> ParseFailure:

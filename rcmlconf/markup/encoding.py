@@ -19,8 +19,11 @@ _BOMS = (
 )
 
 
-def python_codec(data: bytes) -> str:
-    """The Python codec matching the document's byte order mark or XML declaration."""
+def python_codec(data: bytes) -> str | None:
+    """The Python codec matching the document's byte order mark or XML declaration.
+
+    None when the declared encoding is one Python does not know (D-XML-2).
+    """
     for prefix, name in _BOMS:
         if data.startswith(prefix):
             return name
@@ -30,8 +33,7 @@ def python_codec(data: bytes) -> str:
     try:
         return codecs.lookup(match.group(1).decode("ascii")).name
     except LookupError:
-        # libxml2 will refuse or decode it; positions are only needed in ASCII-compatible form.
-        return "latin-1"
+        return None
 
 
 def decode_document(data: bytes, codec: str) -> str:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import difflib
 import re
 from collections.abc import Callable, Iterable
-from functools import cache
+from functools import cache, lru_cache
 
 from rcmlconf.errors import ValueTextError
 
@@ -111,8 +111,20 @@ BOOLEAN = enumeration("true", "false")
 
 
 def closest(word: str, choices: Iterable[str]) -> str | None:
-    """The near miss among `choices` that `word` was probably meant to be."""
-    close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.7)
+    """The near miss among `choices` that `word` was probably meant to be.
+
+    Cached, and not tried for words far longer than any choice: a hostile document may misspell
+    a hundred thousand names, or one name a million characters long.
+    """
+    options = tuple(choices)
+    if len(word) > 2 * max(map(len, options), default=0) + 8:
+        return None
+    return _closest(word, options)
+
+
+@lru_cache(maxsize=1024)
+def _closest(word: str, options: tuple[str, ...]) -> str | None:
+    close = difflib.get_close_matches(word, options, n=1, cutoff=0.7)
     return close[0] if close else None
 
 

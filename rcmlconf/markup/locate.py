@@ -9,8 +9,9 @@ from __future__ import annotations
 import bisect
 import re
 
-_START_TAG = re.compile(rb"<[^\s/>]+(?:[^>\"']|\"[^\"]*\"|'[^']*')*>")
-_ATTRIBUTE = re.compile(rb"([^\s=/>]+)\s*=\s*(?:\"[^\"]*\"|'[^']*')")
+# Possessive quantifiers: linear, and no backtracking state, even for a tag megabytes long.
+_START_TAG = re.compile(rb"<[^\s/>]++(?:[^>\"']++|\"[^\"]*+\"|'[^']*+')*+>")
+_ATTRIBUTE = re.compile(rb"([^\s=/>]++)\s*+=\s*+(?:\"[^\"]*+\"|'[^']*+')")
 
 
 class SourceMap:

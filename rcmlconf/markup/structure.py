@@ -14,6 +14,7 @@ from rcmlconf.diagnostics import Diagnostic, Severity
 from rcmlconf.errors import ValueTextError
 from rcmlconf.markup.document import NAMESPACE_SEPARATOR, XmlDocument, XmlElement
 from rcmlconf.markup.lexical import TextParser, closest
+from rcmlconf.wording import shorten
 
 
 @dataclass(frozen=True, slots=True)
@@ -87,17 +88,37 @@ class _Finding:
     column: int = 0
 
 
+class TooManyFindings(Exception):
+    """The checker's limit is reached: checking stops, and the report says it was cut short."""
+
+
 class Checker:
-    """Collects the findings of one document; positions are resolved once, at the end."""
+    """Collects the findings of one document; positions are resolved once, at the end.
+
+    With a limit (`max_findings`), the finding that reaches it raises `TooManyFindings`, which
+    bounds the time a hostile document with a finding on every element can take.
+    """
 
     def __init__(
-        self, document: XmlDocument, path: str, elements: Mapping[str, ElementDef]
+        self,
+        document: XmlDocument,
+        path: str,
+        elements: Mapping[str, ElementDef],
+        max_findings: int = 0,
     ) -> None:
         self.document = document
         self.path = path
         self._elements = elements
         self._findings: list[_Finding] = []
+        self._limit = max_findings
         self.error_count = 0
+
+    def _add(self, finding: _Finding) -> None:
+        if finding.severity is Severity.ERROR:
+            self.error_count += 1
+        self._findings.append(finding)
+        if len(self._findings) == self._limit:
+            raise TooManyFindings
 
     def error(
         self,
@@ -107,10 +128,7 @@ class Checker:
         attribute: str | None = None,
         hint: str | None = None,
     ) -> None:
-        self.error_count += 1
-        self._findings.append(
-            _Finding(rule, Severity.ERROR, message, hint, element.offset, attribute)
-        )
+        self._add(_Finding(rule, Severity.ERROR, message, hint, element.offset, attribute))
 
     def warning(
         self,
@@ -120,9 +138,7 @@ class Checker:
         attribute: str | None = None,
         hint: str | None = None,
     ) -> None:
-        self._findings.append(
-            _Finding(rule, Severity.WARNING, message, hint, element.offset, attribute)
-        )
+        self._add(_Finding(rule, Severity.WARNING, message, hint, element.offset, attribute))
 
     def at(
         self,
@@ -134,9 +150,7 @@ class Checker:
         hint: str | None = None,
     ) -> None:
         """A finding outside any element (the DOCTYPE, an entity reference)."""
-        if severity is Severity.ERROR:
-            self.error_count += 1
-        self._findings.append(_Finding(rule, severity, message, hint, None, None, line, column))
+        self._add(_Finding(rule, severity, message, hint, None, None, line, column))
 
     def attributes(self, element: XmlElement, spec: ElementDef) -> Attributes:
         """The element's attributes in their lexical forms; reports unknown, bad, missing ones."""
@@ -178,7 +192,7 @@ class Checker:
         self.error(
             "R-XML-8",
             element,
-            f"<{tag}> has no attribute {name!r}",
+            f"<{tag}> has no attribute {shorten(name)!r}",
             name,
             f"did you mean {close}?"
             if close
@@ -212,7 +226,7 @@ class Checker:
                 self.error(
                     "R-XML-8",
                     child,
-                    f"unknown element <{tag}>",
+                    f"unknown element <{shorten(tag)}>",
                     None,
                     f"did you mean <{close}>?"
                     if close
@@ -287,4 +301,4 @@ def check_prolog(checker: Checker, dtd_name: str) -> None:
 
 
 def _quote(text: str) -> str:
-    return '"' + (text if len(text) <= 40 else text[:37] + "...") + '"'
+    return f'"{shorten(text)}"'

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import re
+from functools import lru_cache
 from operator import attrgetter
 from pathlib import Path
 from urllib.parse import unquote, urlsplit
@@ -37,6 +38,7 @@ from rcmlconf.rcml.model import (
     RcmlDocument,
 )
 from rcmlconf.rcml.schema import ELEMENTS
+from rcmlconf.rctp.url import RctpUrl
 from rcmlconf.values import ValueType, lookup_type, parse_value_text
 
 #: D-RCML-3, D-RCML-13, D-RCML-15, D-RCML-17.
@@ -58,9 +60,12 @@ _TIMING = ("readInterval", "writeInterval", "readTimeout", "writeTimeout")
 
 #: A finding to report against each element that has the attributes it was found for.
 _Problem = tuple[str, str, str | None, str | None]  # rule, message, attribute, hint
+Number = int | float
+#: What a plain data node's attributes make: type, effective permission, min, max.
+_Kind = tuple[ValueType, Permission, Number | None, Number | None]
 
 #: Attributes a data node may have and still take the fast path.
-_PLAIN_DATA = frozenset({"name", "type", "permission", "count", "size"})
+_PLAIN_DATA = frozenset({"name", "type", "permission", "count", "size", "min", "max"})
 #: ASCII names, one a line (others take the element-by-element path, which knows all of XML's).
 _NAME_LINES = re.compile(f"(?:{ASCII_NAME_PATTERN}\n)*{ASCII_NAME_PATTERN}")
 _by_name = attrgetter("name")
@@ -87,10 +92,8 @@ class _Walk:
         self.check = checker
         self.base_dir = base_dir
         self.nodes: dict[str, Node] = {}
-        self._types: dict[
-            tuple[object, object, object], tuple[ValueType | None, list[_Problem]]
-        ] = {}
-        self._plain: dict[tuple[str | None, ...], tuple[ValueType, Permission] | None] = {}
+        # Plain data nodes by attribute texts and inherited permission (a document repeats few).
+        self._plain: dict[tuple[str | None, ...], _Kind | None] = {}
 
     # -- the root ------------------------------------------------------------------------------
 
@@ -113,8 +116,10 @@ class _Walk:
         children, links, meta = self._children(root, _ROOT, "", ROOT_PERMISSION)
         if self.check.error_count:
             return None
+        site = attrs["site"]
+        assert isinstance(site, RctpUrl)  # the element table's form for `site`
         return RcmlDocument(
-            site=str(attrs["site"]),
+            site=site,
             children=children,
             time_source=time_source,
             time_precision=attrs.number("timePrecision"),
@@ -342,7 +347,7 @@ class _Walk:
     ) -> list[DataNode] | None:
         """The data nodes, when every element is plain and valid; None sends them one by one."""
         names: list[str] = []
-        kinds: list[tuple[ValueType, Permission]] = []
+        kinds: list[_Kind] = []
         memo = self._plain
         ceiling = inherited.to_text()
         for element in elements:
@@ -355,12 +360,14 @@ class _Walk:
                 attrs.get("count"),
                 attrs.get("size"),
                 attrs.get("permission"),
+                attrs.get("min"),
+                attrs.get("max"),
                 ceiling,
             )
             try:
                 kind = memo[key]
             except KeyError:
-                kind = memo[key] = _plain_kind(key[:4], inherited)
+                kind = memo[key] = _plain_kind(key[:6], inherited)
             if kind is None or name is None:
                 return None
             names.append(name)
@@ -379,8 +386,8 @@ class _Walk:
         paths = [prefix + name for name in names]
         # tuple.__new__ is what DataNode(...) does after filling in defaults, at C speed.
         nodes = [
-            tuple.__new__(DataNode, (path, name, vtype, permission, None, None, (), ()))
-            for path, name, (vtype, permission) in zip(paths, names, kinds, strict=True)
+            tuple.__new__(DataNode, (path, name, vtype, permission, low, high, (), ()))
+            for path, name, (vtype, permission, low, high) in zip(paths, names, kinds, strict=True)
         ]
         self.nodes.update(zip(paths, nodes, strict=True))
         return nodes
@@ -397,53 +404,30 @@ class _Walk:
         vtype = self._value_type(element, attrs)
         if vtype is None:
             return None
-        low = high = None
-        if "min" in attrs or "max" in attrs:
-            low = self._bound(element, attrs, "min", vtype)
-            high = self._bound(element, attrs, "max", vtype)
-            if low is not None and high is not None and low > high:
-                self.check.error(
-                    "R-RCML-20", element, f"min {low} is greater than max {high}", "min"
-                )
+        low, high = self._bounds(element, attrs, vtype)
         node = DataNode(path, name, vtype, permission, low, high, tuple(links), tuple(meta))
         self.nodes[path] = node
         return node
 
     def _value_type(self, element: XmlElement, attrs: Attributes) -> ValueType | None:
-        """R-RCML-18 and -21, memoized: they depend on `type`, `count` and `size` alone."""
-        key = (attrs.get("type"), attrs.get("count"), attrs.get("size"))
-        known = self._types.get(key)
-        if known is None:
-            known = self._types[key] = _value_type(*key)
-        vtype, problems = known
-        for rule, message, attribute, hint in problems:
-            self.check.error(rule, element, message, attribute, hint)
+        """R-RCML-18 and -21, which depend on `type`, `count` and `size` alone."""
+        vtype, problems = _value_type(
+            attrs.text("type"), attrs.integer("count"), attrs.integer("size")
+        )
+        self._report(element, problems)
         return vtype
 
-    def _bound(
-        self, element: XmlElement, attrs: Attributes, name: str, vtype: ValueType
-    ) -> int | float | None:
-        text = attrs.text(name)
-        if text is None:
-            return None
-        if not vtype.base.numeric:
-            self.check.error(
-                "R-RCML-20",
-                element,
-                f"{name} applies to numbers only, not to {vtype.base.name}",
-                name,
-            )
-            return None
-        try:
-            value = parse_value_text(vtype.base, text)
-        except ValueTextError as exc:
-            self.check.error("R-RCML-20", element, f"{name}: {exc}", name)
-            return None
-        assert isinstance(value, int | float)
-        if isinstance(value, float) and not math.isfinite(value):
-            self.check.error("R-RCML-20", element, f"{name} must be finite, not {text}", name)
-            return None
-        return value
+    def _bounds(
+        self, element: XmlElement, attrs: Attributes, vtype: ValueType
+    ) -> tuple[Number | None, Number | None]:
+        """R-RCML-20, which depends on the type, `min` and `max` alone."""
+        low, high, problems = _bounds(vtype, attrs.text("min"), attrs.text("max"))
+        self._report(element, problems)
+        return low, high
+
+    def _report(self, element: XmlElement, problems: tuple[_Problem, ...]) -> None:
+        for rule, message, attribute, hint in problems:
+            self.check.error(rule, element, message, attribute, hint)
 
     # -- link ------------------------------------------------------------------------------------
 
@@ -476,38 +460,29 @@ class _Walk:
             )
 
 
+@lru_cache(maxsize=4096)
 def _value_type(
-    type_name: object, count: object, size: object
-) -> tuple[ValueType | None, list[_Problem]]:
+    type_name: str | None, count: int | None, size: int | None
+) -> tuple[ValueType | None, tuple[_Problem, ...]]:
     """The node type these attribute values make, and what is wrong with them."""
-    base = lookup_type(type_name) if isinstance(type_name, str) else None
+    base = lookup_type(type_name) if type_name is not None else None
     if base is None:  # missing or unknown: reported with the attribute
-        return None, []
-    problems: list[_Problem] = []
+        return None, ()
     if base.sized and size is None:
-        problems.append(
+        return None, (
             (
                 "R-RCML-18",
                 f"{base.name} nodes need a size (1 to 65535)",
                 "type",
                 'add size="N", the largest length in bytes',
-            )
+            ),
         )
-        return None, problems
+    problems: list[_Problem] = []
     if not base.sized and size is not None:
         problems.append(
-            (
-                "R-RCML-18",
-                f"{base.name} nodes take no size; only string and bytes do",
-                "size",
-                None,
-            )
+            ("R-RCML-18", f"{base.name} nodes take no size; only string and bytes do", "size", None)
         )
-    vtype = ValueType(
-        base,
-        count if isinstance(count, int) else 1,
-        size if base.sized and isinstance(size, int) else 0,
-    )
+    vtype = ValueType(base, count or 1, size if base.sized and size is not None else 0)
     if vtype.max_encoded_size > MAX_NODE_BYTES:
         problems.append(
             (
@@ -518,18 +493,54 @@ def _value_type(
                 None,
             )
         )
-    return vtype, problems
+    return vtype, tuple(problems)
 
 
-def _plain_kind(
-    texts: tuple[str | None, ...], inherited: Permission
-) -> tuple[ValueType, Permission] | None:
-    """Type and effective permission from a plain data node's attribute texts, if all are valid.
+@lru_cache(maxsize=4096)
+def _bounds(
+    vtype: ValueType, low_text: str | None, high_text: str | None
+) -> tuple[Number | None, Number | None, tuple[_Problem, ...]]:
+    """`min` and `max` as values of the node's type, and what is wrong with them (R-RCML-20)."""
+    problems: list[_Problem] = []
+    bounds: list[Number | None] = []
+    for name, text in (("min", low_text), ("max", high_text)):
+        value: Number | None = None
+        if text is None:
+            pass
+        elif not vtype.base.numeric:
+            problems.append(
+                (
+                    "R-RCML-20",
+                    f"{name} applies to numbers only, not to {vtype.base.name}",
+                    name,
+                    None,
+                )
+            )
+        else:
+            try:
+                parsed = parse_value_text(vtype.base, text)
+            except ValueTextError as exc:
+                problems.append(("R-RCML-20", f"{name}: {exc}", name, None))
+            else:
+                assert isinstance(parsed, int | float)
+                if isinstance(parsed, float) and not math.isfinite(parsed):
+                    problems.append(("R-RCML-20", f"{name} must be finite, not {text}", name, None))
+                else:
+                    value = parsed
+        bounds.append(value)
+    low, high = bounds
+    if low is not None and high is not None and low > high:
+        problems.append(("R-RCML-20", f"min {low} is greater than max {high}", "min", None))
+    return low, high, tuple(problems)
 
-    Uses the element table's own lexical forms and `_value_type`, so it accepts exactly what the
-    element-by-element path accepts without a finding.
+
+def _plain_kind(texts: tuple[str | None, ...], inherited: Permission) -> _Kind | None:
+    """Type, effective permission and range of a plain data node, if every attribute is valid.
+
+    Uses the element table's own lexical forms and the same checks as the element walk, so it
+    accepts exactly what the element walk accepts without a finding.
     """
-    type_text, count_text, size_text, permission_text = texts
+    type_text, count_text, size_text, permission_text, low_text, high_text = texts
     try:
         type_name = _parse_type(type_text) if type_text is not None else None
         count = _parse_count(count_text) if count_text is not None else None
@@ -538,10 +549,18 @@ def _plain_kind(
             _parse_permission(permission_text)
     except ValueTextError:
         return None
+    assert type_name is None or isinstance(type_name, str)
+    assert count is None or isinstance(count, int)
+    assert size is None or isinstance(size, int)
     vtype, problems = _value_type(type_name, count, size)
     if vtype is None or problems:
         return None
-    if permission_text is None:
-        return vtype, inherited
-    own = Permission.from_text(permission_text)
-    return (vtype, own) if not own & ~inherited else None
+    low, high, problems = _bounds(vtype, low_text, high_text)
+    if problems:
+        return None
+    permission = inherited
+    if permission_text is not None:
+        permission = Permission.from_text(permission_text)
+        if permission & ~inherited:
+            return None
+    return vtype, permission, low, high

@@ -14,6 +14,7 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
+from rcmlconf.rctp.url import RctpUrl
 from rcmlconf.values import ValueType
 
 
@@ -114,7 +115,8 @@ Node = GroupNode | AccessNode | DataNode
 class RcmlDocument:
     """A valid RCML 2.0 document."""
 
-    site: str
+    #: Where the robot's RCTP server listens (D-RCML-17).
+    site: RctpUrl
     #: Top-level groups and access nodes, canonical order.
     children: tuple[GroupNode | AccessNode, ...]
     time_source: str = "local"
@@ -130,6 +132,17 @@ class RcmlDocument:
 
     def node(self, path: str) -> Node | None:
         return self.nodes.get(path)
+
+    def children_of(self, path: str) -> tuple[Node, ...]:
+        """The nodes directly below `path` (`/` or "" for the top of the tree)."""
+        if path in ("", "/"):
+            return self.children
+        node = self.nodes.get(path)
+        if isinstance(node, GroupNode):
+            return node.children
+        if isinstance(node, AccessNode):
+            return node.data
+        return ()
 
     def data_nodes(self) -> Iterator[DataNode]:
         return (n for n in self.nodes.values() if isinstance(n, DataNode))

@@ -6,12 +6,12 @@ Links are checked against the RCML each session names, which the caller's resolv
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass
 from pathlib import Path
 
 from rcmlconf.errors import ValueTextError
 from rcmlconf.markup.document import NAMESPACE_SEPARATOR, XmlElement
+from rcmlconf.markup.lexical import closest
 from rcmlconf.markup.structure import Attributes, Checker
 from rcmlconf.rcml.model import (
     AccessNode,
@@ -80,7 +80,7 @@ class _Walk:
         spec = ELEMENTS["window"]
         attrs = self.check.attributes(element, spec)
         self._id(element, attrs)
-        children = list(self.check.children(element, spec))
+        children = self.check.children(element, spec)
         session_elements = [c for c in children if c.tag == "session"]
         if not session_elements:
             self.check.error(
@@ -169,23 +169,13 @@ class _Walk:
         node = rcml.node(path)
         if node is None:
             parent_path, _, name = path.rpartition("/")
-            parent = rcml.node(parent_path) if parent_path else None
-            siblings = (
-                [child.name for child in parent.children]
-                if isinstance(parent, GroupNode)
-                else [child.name for child in parent.data]
-                if isinstance(parent, AccessNode)
-                else [child.name for child in rcml.children]
-                if not parent_path
-                else []
-            )
-            close = difflib.get_close_matches(name, siblings, n=1, cutoff=0.6)
+            close = closest(name, (child.name for child in rcml.children_of(parent_path)))
             self.check.error(
                 "R-RXID-9",
                 element,
                 f"{path} is not a node of {rcml.site}",
                 attribute,
-                f"did you mean {parent_path}/{close[0]}?" if close else None,
+                f"did you mean {parent_path}/{close}?" if close else None,
             )
         return node
 
@@ -245,7 +235,7 @@ class _Walk:
         spec = ELEMENTS[element.tag]
         attrs = self.check.attributes(element, spec)
         self._id(element, attrs)
-        item_elements = list(self.check.children(element, spec))
+        item_elements = self.check.children(element, spec)
         items = [self._item(item) for item in item_elements]
         if widget.items and not item_elements:
             self.check.error("R-RXID-20", element, f"<{element.tag}> holds no <item>")
@@ -327,7 +317,7 @@ class _Walk:
             text = attrs.text(name)
             if text is not None and node is not None:
                 self._value(element, name, text, node)
-        seen: dict[object, XmlElement] = {}
+        seen: set[Scalar] = set()
         for item_element, item in zip(item_elements, items, strict=True):
             if item is None:
                 continue
@@ -341,15 +331,12 @@ class _Walk:
                     f"another item already has value {item[1]!r}",
                     "value",
                 )
-            seen[value] = item_element
+            seen.add(value)
         if widget.ranged:
             self._range(element, attrs, node)
 
-    def _value(
-        self, element: XmlElement, name: str, text: str, node: DataNode | None
-    ) -> Scalar | None:
-        if node is None:
-            return None
+    def _value(self, element: XmlElement, name: str, text: str, node: DataNode) -> Scalar | None:
+        """A value the widget writes, as a value of the node's type within its range."""
         try:
             value = parse_value_text(node.type.base, text, node.type.size)
         except ValueTextError as exc:

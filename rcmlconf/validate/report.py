@@ -17,6 +17,7 @@ def to_json(reports: Sequence[FileReport]) -> dict[str, object]:
                 "valid": r.valid,
                 "errors": r.errors,
                 "warnings": r.warnings,
+                "truncated": r.truncated,
             }
             for r in reports
         ],
@@ -40,7 +41,14 @@ def summary_line(reports: Sequence[FileReport]) -> str:
         for n, text in ((errors, plural(errors, "error")), (warnings, plural(warnings, "warning")))
         if n
     )
+    cut = sum(r.truncated for r in reports)
+    stopped = (
+        f"; checking stopped at the limit of findings in {plural(cut, 'file')} "
+        "(--max-findings 0 checks everything)"
+        if cut
+        else ""
+    )
     if invalid:
-        return f"{plural(len(reports), 'file')} checked: {invalid} invalid ({counts})"
+        return f"{plural(len(reports), 'file')} checked: {invalid} invalid ({counts}){stopped}"
     suffix = f" ({counts})" if counts else ""
     return f"{plural(len(reports), 'file')} checked: all valid{suffix}"

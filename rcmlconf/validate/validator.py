@@ -14,14 +14,19 @@ from urllib.parse import unquote, urlsplit
 
 from rcmlconf.diagnostics import Diagnostic, Severity
 from rcmlconf.markup.document import MAX_DOCUMENT_BYTES, ParseFailure, parse_document
-from rcmlconf.markup.structure import Checker, check_prolog
+from rcmlconf.markup.structure import Checker, TooManyFindings, check_prolog
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rxid.sessions import Broken, SessionTarget, Unresolved
-from rcmlconf.validate.languages import LANGUAGES
+from rcmlconf.validate.languages import LANGUAGES, Language
+from rcmlconf.wording import plural, shorten
 
 if TYPE_CHECKING:
     from rcmlconf.validate.languages import Model
-from rcmlconf.wording import plural
+
+
+#: Findings after which a document's checking stops (like a compiler's error limit): a hostile
+#: document with a finding on each of 100,000 elements would otherwise take seconds.
+DEFAULT_MAX_FINDINGS = 1000
 
 
 @dataclass(frozen=True, slots=True)
@@ -30,6 +35,8 @@ class FileReport:
     #: The language by root element; None when the document could not be parsed or is neither.
     kind: str | None
     diagnostics: tuple[Diagnostic, ...]
+    #: Checking stopped at the validator's limit of findings; more may follow.
+    truncated: bool = False
 
     @property
     def errors(self) -> int:
@@ -41,7 +48,8 @@ class FileReport:
 
     @property
     def valid(self) -> bool:
-        return self.errors == 0
+        """No error found, and the whole document checked."""
+        return self.errors == 0 and not self.truncated
 
 
 def read_document(path: Path) -> bytes:
@@ -51,9 +59,15 @@ def read_document(path: Path) -> bytes:
 
 
 class Validator:
-    def __init__(self, session_map: Mapping[str, Path] | None = None) -> None:
+    def __init__(
+        self,
+        session_map: Mapping[str, Path] | None = None,
+        max_findings: int = DEFAULT_MAX_FINDINGS,
+    ) -> None:
+        """`max_findings` stops checking a document at that many findings (0: never)."""
         #: `--map`: an href, or an href prefix ending in '/', to a local file or directory.
         self._map = dict(session_map or {})
+        self._max_findings = max_findings
         self._done: dict[Path, tuple[FileReport, Model | None]] = {}
 
     def validate_file(self, path: Path, display: str | None = None) -> FileReport:
@@ -74,8 +88,10 @@ class Validator:
             )
         report, model = done
         if report.path != display:  # the same file reached by another name
-            report = FileReport(
-                display, report.kind, tuple(replace(d, path=display) for d in report.diagnostics)
+            report = replace(
+                report,
+                path=display,
+                diagnostics=tuple(replace(d, path=display) for d in report.diagnostics),
             )
         return report, model
 
@@ -96,22 +112,32 @@ class Validator:
             return FileReport(display, None, (diagnostic,)), None
         root = parsed.root
         language = LANGUAGES.get(root.tag)
-        checker = Checker(parsed, display, language.elements if language else {})
+        checker = Checker(
+            parsed, display, language.elements if language else {}, self._max_findings
+        )
         if language is None:
             checker.error(
-                "R-XML-7", root, f"root element <{root.tag}> is neither <rcml> nor <rxid>"
+                "R-XML-7", root, f"root element <{shorten(root.tag)}> is neither <rcml> nor <rxid>"
             )
             return FileReport(display, None, tuple(checker.diagnostics())), None
+        try:
+            model = self._load(checker, language, base_dir, suffix)
+        except TooManyFindings:
+            return FileReport(display, language.root, tuple(checker.diagnostics()), True), None
+        return FileReport(display, language.root, tuple(checker.diagnostics())), model
+
+    def _load(
+        self, checker: Checker, language: Language, base_dir: Path | None, suffix: str | None
+    ) -> Model | None:
         check_prolog(checker, language.dtd)
         if suffix is not None and suffix != language.extension:
             checker.warning(
                 "R-XML-10",
-                root,
+                checker.document.root,
                 f"an {language.root} document in a {suffix or 'extensionless'} file",
                 hint=f"name it *{language.extension}",
             )
-        model = language.load(checker, base_dir, lambda href: self._session(href, base_dir))
-        return FileReport(display, language.root, tuple(checker.diagnostics())), model
+        return language.load(checker, base_dir, lambda href: self._session(href, base_dir))
 
     # -- D-RXID-3: sessions are followed only where that is safe ------------------------------
 

@@ -157,3 +157,18 @@ def test_the_bundled_robots_are_valid_without_a_warning() -> None:
     done = run("validate", "--strict", "rcmlconf/reference/robots", cwd=Path(__file__).parents[2])
     assert done.returncode == 0, done.stdout
     assert "4 files checked: all valid" in done.stderr
+
+
+def test_a_hostile_file_is_cut_short_and_says_so(tmp_path: Path) -> None:
+    body = "".join(f'<dta name="d{i}"/>' for i in range(1500))
+    path = tmp_path / "hostile.rcml"
+    path.write_text(f'<rcml version="2.0" site="rctp://r"><access name="a">{body}</access></rcml>')
+    cut = run("validate", str(path))
+    assert cut.returncode == 1
+    assert len(cut.stdout.splitlines()) == 1000
+    assert "checking stopped at the limit of findings in 1 file" in cut.stderr
+    report = json.loads(run("validate", "--format", "json", str(path)).stdout)
+    assert report["files"][0]["truncated"] is True
+    everything = run("validate", "--max-findings", "0", str(path))
+    # 1,500 unknown elements, and the access holds no data node (R-RCML-24, a warning)
+    assert len(everything.stdout.splitlines()) == 1501

@@ -70,7 +70,7 @@ def test_access_defaults_and_directions() -> None:
 
 def test_root_attributes() -> None:
     bot = load_testbot()
-    assert bot.site == "rctp://testbot.example:5000/"
+    assert (bot.site.host, bot.site.port, bot.site.path) == ("testbot.example", 5000, "/")
     assert (bot.time_source, bot.time_precision) == ("NTP", 1e-3)
     assert [link.kind for link in bot.links] == ["UserInterface", "Documentation"]
 
@@ -121,6 +121,8 @@ plain_data = st.fixed_dictionaries(
         "count": st.sampled_from(["1", "3", "0", "+2", "70000"]),
         "size": st.sampled_from(["1", "16", "0"]),
         "permission": st.sampled_from(["r", "w", "rw", "none", "x"]),
+        "min": st.sampled_from(["-1", "0", "1.5", "300", "INF", "x"]),
+        "max": st.sampled_from(["-1", "0", "10", "1e3", "NaN"]),
     },
 )
 

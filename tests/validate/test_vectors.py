@@ -43,3 +43,21 @@ def test_one_validator_checks_a_shared_rcml_once() -> None:
     again = validator.validate_file(rcml, "camera.rcml")
     assert again.path == "camera.rcml"
     assert again.valid
+
+
+def test_checking_stops_at_the_limit_of_findings() -> None:
+    path = next(v.path for v in VECTORS if v.path.name == "rcml-types.rcml")
+    full = Validator(max_findings=0).validate_file(path)
+    cut = Validator(max_findings=5).validate_file(path)
+    assert len(full.diagnostics) == 12
+    assert not full.truncated
+    assert cut.diagnostics == full.diagnostics[:5]
+    assert cut.truncated
+    assert not cut.valid
+
+
+def test_a_document_cut_short_by_warnings_alone_is_not_called_valid() -> None:
+    path = next(v.path for v in VECTORS if v.path.name == "empty-access.rcml")
+    report = Validator(max_findings=1).validate_file(path)
+    assert report.errors == 0
+    assert not report.valid
