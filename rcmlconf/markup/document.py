@@ -47,6 +47,12 @@ class XmlElement:
         return f"<XmlElement {self.tag} at byte {self.offset}>"
 
 
+def display_name(name: str) -> str:
+    """A name as people write it: `{uri}local` (Clark notation) for one in a namespace."""
+    uri, separator, local = name.rpartition(NAMESPACE_SEPARATOR)
+    return f"{{{uri}}}{local}" if separator else name
+
+
 @dataclass(frozen=True, slots=True)
 class ParseFailure:
     """Why a document could not be read at all: one located finding."""
@@ -130,7 +136,9 @@ def _build(source: bytes) -> XmlElement:
 
     def start(tag: str, attrs: dict[str, str]) -> None:
         nonlocal skipping
-        if skipping or NAMESPACE_SEPARATOR in tag:
+        # Below the root, an element in a namespace is an extension; the root itself stays, to
+        # be reported as a language rcmlconf does not know (R-XML-7).
+        if skipping or (NAMESPACE_SEPARATOR in tag and len(stack) > 1):
             skipping += 1
             return
         element = XmlElement(tag, attrs, parser.CurrentByteIndex)
@@ -147,7 +155,8 @@ def _build(source: bytes) -> XmlElement:
             stack.pop()
 
     def characters(data: str) -> None:
-        if stack and not skipping and not data.isspace():
+        # XML white space is these four characters; str.isspace() would also pass U+00A0.
+        if not skipping and data.strip(" \t\r\n"):
             stack[-1].has_text = True
 
     parser.StartElementHandler = start

@@ -38,9 +38,13 @@ def _is_name(text: str, ascii_pattern: re.Pattern[str], full: str) -> bool:
     return not text.isascii() and _unicode(full).fullmatch(text) is not None
 
 
-# A URI reference has no whitespace, control characters, or characters RFC 3986 never allows.
-_URI_REFERENCE = re.compile(r"[^\x00-\x20\x7f<>\"{}|\\^`]+")
-_ABSOLUTE_URI = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*:[^\x00-\x20\x7f<>\"{}|\\^`]+")
+# A URI (or IRI) reference has no white space, no control character (C0, DEL, C1) and none of
+# the characters RFC 3986 never allows; Unicode white space is excluded too (RFC 3987 ucschar).
+URI_CHARACTERS = (
+    r"[^\x00-\x20\x7f-\xa0<>\"{}|\\^`\u1680\u2000-\u200a\u2028\u2029\u202f\u205f\u3000\ufeff]"
+)
+_URI_REFERENCE = re.compile(f"{URI_CHARACTERS}+")
+_ABSOLUTE_URI = re.compile(f"[A-Za-z][A-Za-z0-9+.-]*:{URI_CHARACTERS}+")
 _UNSIGNED = re.compile(r"\+?[0-9]+")
 
 TextParser = Callable[[str], object]
@@ -67,7 +71,9 @@ def ncname(text: str) -> str:
 
 def uri_reference(text: str) -> str:
     if _URI_REFERENCE.fullmatch(text) is None:
-        raise ValueTextError(f"{text!r} is not a URI reference (no spaces or control characters)")
+        raise ValueTextError(
+            f"{text!r} is not a URI reference (no white space or control characters)"
+        )
     return text
 
 
@@ -92,19 +98,27 @@ def unsigned(low: int, high: int) -> TextParser:
     return parse
 
 
-def enumeration(*choices: str) -> TextParser:
-    """One of `choices`, exactly as written."""
-    allowed = frozenset(choices)
-    listing = ", ".join(choices)
+class Enumeration:
+    """The lexical form "one of these texts, exactly as written", which says what they are."""
 
-    def parse(text: str) -> str:
-        if text not in allowed:
-            if len(choices) == 1:
-                raise ValueTextError(f"must be {choices[0]!r}, not {text!r}")
-            raise ValueTextError(f"{text!r} is not one of {listing}{did_you_mean(text, choices)}")
+    def __init__(self, *choices: str) -> None:
+        self.choices = choices
+        self._allowed = frozenset(choices)
+
+    def __call__(self, text: str) -> str:
+        if text not in self._allowed:
+            if len(self.choices) == 1:
+                raise ValueTextError(f"must be {self.choices[0]!r}, not {text!r}")
+            listing = ", ".join(self.choices)
+            raise ValueTextError(
+                f"{text!r} is not one of {listing}{did_you_mean(text, self.choices)}"
+            )
         return text
 
-    return parse
+
+def enumeration(*choices: str) -> Enumeration:
+    """One of `choices`, exactly as written."""
+    return Enumeration(*choices)
 
 
 BOOLEAN = enumeration("true", "false")

@@ -301,4 +301,6 @@ def check_prolog(checker: Checker, dtd_name: str) -> None:
 
 
 def _quote(text: str) -> str:
-    return f'"{shorten(text)}"'
+    """A value for a message: quoted, shortened, with invisible characters escaped."""
+    short = shorten(text)
+    return f'"{short}"' if short.isprintable() else repr(short)

@@ -8,8 +8,10 @@ from dataclasses import dataclass
 
 from rcmlconf.errors import ValueTextError
 
+# An IPv6 literal may carry a zone as RFC 6874 writes it in URIs: "%25" and unreserved characters.
 _URL = re.compile(
-    r"(?i:rctp)://(?P<host>\[[^\]]*\]|[A-Za-z0-9._~%-]+)(?::(?P<port>[0-9]*))?(?P<path>/[^\s?#]*)?"
+    r"(?i:rctp)://(?P<host>\[[0-9A-Fa-f:.]+(?:%25[A-Za-z0-9._~-]+)?\]|[A-Za-z0-9._~%-]+)"
+    r"(?::(?P<port>[0-9]*))?(?P<path>/[^\s?#]*)?"
 )
 
 
@@ -21,7 +23,7 @@ class RctpUrl:
     path: str
 
     def __str__(self) -> str:
-        host = f"[{self.host}]" if ":" in self.host else self.host
+        host = f"[{self.host.replace('%', '%25')}]" if ":" in self.host else self.host
         port = "" if self.port is None else f":{self.port}"
         return f"rctp://{host}{port}{self.path}"
 
@@ -35,8 +37,9 @@ def parse_rctp_url(text: str) -> RctpUrl:
         )
     host = match.group("host")
     if host.startswith("["):
+        address, _, zone = host[1:-1].partition("%25")
         try:
-            host = str(ipaddress.IPv6Address(host[1:-1]))
+            host = str(ipaddress.IPv6Address(address)) + (f"%{zone}" if zone else "")
         except ValueError:
             raise ValueTextError(f"{host} is not an IPv6 address") from None
     port_text = match.group("port")

@@ -13,7 +13,13 @@ from typing import TYPE_CHECKING
 from urllib.parse import unquote, urlsplit
 
 from rcmlconf.diagnostics import Diagnostic, Severity
-from rcmlconf.markup.document import MAX_DOCUMENT_BYTES, ParseFailure, parse_document
+from rcmlconf.markup.document import (
+    MAX_DOCUMENT_BYTES,
+    NAMESPACE_SEPARATOR,
+    ParseFailure,
+    display_name,
+    parse_document,
+)
 from rcmlconf.markup.structure import Checker, TooManyFindings, check_prolog
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rxid.sessions import Broken, SessionTarget, Unresolved
@@ -116,8 +122,12 @@ class Validator:
             parsed, display, language.elements if language else {}, self._max_findings
         )
         if language is None:
+            in_namespace = NAMESPACE_SEPARATOR in root.tag
             checker.error(
-                "R-XML-7", root, f"root element <{shorten(root.tag)}> is neither <rcml> nor <rxid>"
+                "R-XML-7",
+                root,
+                f"root element <{shorten(display_name(root.tag))}> is neither <rcml> nor <rxid>",
+                hint="RCML and RXID elements are in no namespace" if in_namespace else None,
             )
             return FileReport(display, None, tuple(checker.diagnostics())), None
         try:
