@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 from rcmlconf.errors import ValueTextError
 from rcmlconf.markup.document import NAMESPACE_SEPARATOR, XmlElement
@@ -27,6 +28,7 @@ from rcmlconf.rxid.sessions import Broken, Resolver, SessionTarget, Unresolved
 from rcmlconf.rxid.widgets import ACTIONS, WIDGETS, Widget
 from rcmlconf.values import DATA_TYPES, Scalar, parse_value_text
 
+_N = TypeVar("_N", AccessNode, DataNode)
 _STREAMING = (AccessType.EVENT, AccessType.STREAM)
 _WRITTEN = ("value", "releaseValue", "onValue", "offValue")
 _FLOAT64 = DATA_TYPES["float64"]
@@ -179,6 +181,28 @@ class _Walk:
             )
         return node
 
+    def _linked(
+        self,
+        element: XmlElement,
+        attrs: Attributes,
+        scope: _Scope,
+        path: str,
+        kind: type[_N],
+        expected: str,
+    ) -> _N | None:
+        """The node of `kind` that `dataPath` names in the element's session (R-RXID-9).
+
+        None when there is none, or when the session's RCML could not be had to look.
+        """
+        rcml = self._rcml(element, attrs, scope)
+        node = self._lookup(element, rcml, path, "dataPath") if rcml else None
+        if node is None or isinstance(node, kind):
+            return node
+        self.check.error(
+            "R-RXID-9", element, f"{path} is {_kind(node)} node; {expected}", "dataPath"
+        )
+        return None
+
     # -- access ----------------------------------------------------------------------------------
 
     def _access(self, element: XmlElement, scope: _Scope) -> AccessSetting | None:
@@ -188,16 +212,10 @@ class _Walk:
         path = attrs.text("dataPath")
         if path is None:
             return None
-        rcml = self._rcml(element, attrs, scope)
-        node = self._lookup(element, rcml, path, "dataPath") if rcml else None
-        if node is not None and not isinstance(node, AccessNode):
-            self.check.error(
-                "R-RXID-9",
-                element,
-                f"{path} is {_kind(node)} node; <access> names an access node",
-                "dataPath",
-            )
-        elif isinstance(node, AccessNode):
+        node = self._linked(
+            element, attrs, scope, path, AccessNode, "<access> names an access node"
+        )
+        if node is not None:
             self._intervals(element, attrs, node)
         return AccessSetting(
             path,
@@ -243,16 +261,7 @@ class _Walk:
         if element.tag == "actionButton":
             path = self._action(element, attrs, scope)
         elif widget.linked and path is not None:
-            rcml = self._rcml(element, attrs, scope)
-            node = self._lookup(element, rcml, path, "dataPath") if rcml else None
-            if node is not None and not isinstance(node, DataNode):
-                self.check.error(
-                    "R-RXID-9",
-                    element,
-                    f"{path} is {_kind(node)} node; widgets link to data nodes",
-                    "dataPath",
-                )
-            data = node if isinstance(node, DataNode) else None
+            data = self._linked(element, attrs, scope, path, DataNode, "widgets link to data nodes")
             # Values are checked against the node only when the widget can link to it at all.
             if data is not None and not self._link(element, widget, attrs, data):
                 data = None

@@ -161,6 +161,11 @@ def mutated(draw: st.DrawFn) -> bytes:
                         b"<!DOCTYPE r [",
                         b"\x00",
                         b"\xff",
+                        b'xmlns:x="urn:x" ',
+                        b"x:",
+                        b"&#xA0;",
+                        b"&x;",
+                        b"\xc2\xa0",
                     ]
                 )
             )
