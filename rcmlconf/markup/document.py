@@ -179,11 +179,15 @@ _PREDEFINED = frozenset({"lt", "gt", "amp", "quot", "apos"})
 def _entity_references(text: str) -> tuple[EntityReference, ...]:
     """R-XML-11: references that a parser, having named but not read a DTD, drops in silence."""
     found = []
+    line, line_start, counted = 1, 0, 0  # positions advance with the matches: one pass in all
     for match in _REFERENCES.finditer(text):
         name = match.group(1)
         if name is not None and name not in _PREDEFINED:
-            line, column = text_position(text, match.start())
-            found.append(EntityReference(name, line, column))
+            offset = match.start()
+            line += text.count("\n", counted, offset)
+            line_start = max(line_start, text.rfind("\n", counted, offset) + 1)
+            counted = offset
+            found.append(EntityReference(name, line, offset - line_start + 1))
     return tuple(found)
 
 

@@ -242,25 +242,23 @@ class Checker:
     def diagnostics(self) -> list[Diagnostic]:
         """Every finding, located, in document order."""
         source = self.document.source
-        located = []
-        for index, f in enumerate(self._findings):
-            if f.offset is None:
-                line, column = f.line, f.column
-            else:
-                offset = (
-                    f.offset
-                    if f.attribute is None
-                    else source.attribute_offset(f.offset, f.attribute)
-                )
-                line, column = source.position(offset)
-            located.append(
-                (
-                    (line, column, index),
-                    Diagnostic(self.path, line, column, f.severity, f.rule, f.message, f.hint),
-                )
-            )
-        located.sort(key=lambda pair: pair[0])
-        return [diagnostic for _, diagnostic in located]
+        findings = self._findings
+        # Findings at elements: byte offsets, resolved to positions in one pass, in order.
+        placed = sorted(
+            (f.offset if f.attribute is None else source.attribute_offset(f.offset, f.attribute), i)
+            for i, f in enumerate(findings)
+            if f.offset is not None
+        )
+        where = {i: (f.line, f.column) for i, f in enumerate(findings) if f.offset is None}
+        offsets = [offset for offset, _ in placed]
+        for (_, i), position in zip(placed, source.positions(offsets), strict=True):
+            where[i] = position
+        order = sorted(where, key=lambda i: (*where[i], i))
+        return [self._diagnostic(findings[i], *where[i]) for i in order]
+
+    def _diagnostic(self, finding: _Finding, line: int, column: int) -> Diagnostic:
+        f = finding
+        return Diagnostic(self.path, line, column, f.severity, f.rule, f.message, f.hint)
 
 
 def check_prolog(checker: Checker, dtd_name: str) -> None:
