@@ -75,6 +75,8 @@ class Validator:
         self._map = dict(session_map or {})
         self._max_findings = max_findings
         self._done: dict[Path, tuple[FileReport, Model | None]] = {}
+        #: Files being checked now: a session leading back to one is a loop, not a recursion.
+        self._checking: set[Path] = set()
 
     def validate_file(self, path: Path, display: str | None = None) -> FileReport:
         """Raises OSError when the file cannot be read."""
@@ -89,9 +91,12 @@ class Validator:
         key = path.resolve()
         done = self._done.get(key)
         if done is None:
-            done = self._done[key] = self._check(
-                read_document(path), display, path.parent, path.suffix
-            )
+            self._checking.add(key)
+            try:
+                done = self._check(read_document(path), display, path.parent, path.suffix)
+            finally:
+                self._checking.discard(key)
+            self._done[key] = done
         report, model = done
         if report.path != display:  # the same file reached by another name
             report = replace(
@@ -162,6 +167,8 @@ class Validator:
             if base_dir is None:
                 return Unresolved("the RXID came from standard input; use --map")
             path = base_dir / unquote(parts.path)
+        if path.resolve() in self._checking:
+            return Broken(f"{path} leads back to a document being checked (a loop of sessions)")
         try:
             report, model = self._file(path, str(path))
         except FileNotFoundError:

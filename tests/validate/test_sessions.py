@@ -80,3 +80,17 @@ def test_a_session_naming_a_panel_is_broken(tmp_path: Path) -> None:
     ((rule, message),) = rules(report)
     assert rule == "R-RXID-11"
     assert "rxid document, not RCML" in message
+
+
+def test_sessions_that_lead_round_in_a_loop_are_broken_not_followed(tmp_path: Path) -> None:
+    for name, other in (("a.rcml", "b.rcml"), ("b.rcml", "a.rcml")):
+        (tmp_path / name).write_bytes(panel(other))
+    report = Validator().validate_file(tmp_path / "a.rcml")
+    assert [d.rule for d in report.diagnostics] == ["R-XML-10", "R-RXID-11"]
+    assert "b.rcml is an rxid document, not RCML" in report.diagnostics[1].message
+    # Checking b checks a on the way, while b is in progress: a's report names the loop, and
+    # the same validator gives that report again when asked for a.
+    validator = Validator()
+    validator.validate_file(tmp_path / "b.rcml")
+    again = validator.validate_file(tmp_path / "a.rcml")
+    assert "b.rcml leads back to a document being checked" in again.diagnostics[1].message
