@@ -1,9 +1,10 @@
 """How fast is `rcmlconf validate`? (issue: foundation, "Speed")
 
 Goals: a small file in <= 0.30 s wall, interpreter start included; a 100,000-data-node file in
-<= 0.60 s. Anchor: xmllint --noout on the same files, measured in the same run (the machine is
-shared and noisy, so only figures taken side by side compare). Each figure is the median of
---runs whole-process runs, with the fastest run beside it.
+<= 0.60 s, where "xmllint parses it in about 0.1 s": at most 6 times xmllint. Anchor: xmllint
+--noout on the same files, measured in the same run (the machine is shared and noisy, so only
+figures taken side by side compare; the ratio is the figure that travels). Each figure is the
+median of --runs whole-process runs, with the fastest run beside it.
 
     python bench/validate_speed.py [--runs 9]
 """
@@ -70,6 +71,7 @@ def main() -> None:
             anchor = timed([xmllint, "--noout", str(path)], args.runs) if xmllint else None
             rows.append((label, path.stat().st_size, median, best, goal, anchor))
     print(f"rcmlconf validate, median (fastest) of {args.runs} runs; anchor: xmllint --noout")
+    print("goal for 100,000 data nodes: 0.60 s, i.e. at most 6.0x xmllint (the issue's 0.1 s)")
     print(f"{'file':<20} {'bytes':>10} {'rcmlconf':>16} {'goal':>7} {'xmllint':>16} {'ratio':>6}")
     for label, size, median, best, goal, anchor in rows:
         mark = "ok" if median <= goal else "OVER"
