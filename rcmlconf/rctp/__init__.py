@@ -1,1 +1,7 @@
-"""RCTP/2.0: the control connection and data stream of RCML 2.0 (specs/rctp-2.0.md, to come)."""
+"""RCTP/2.0, the protocol of RCML 2.0 (specs/rctp-2.0.md), as a sans-IO core.
+
+The control connection: `connection.Connection` (either role; bytes and time in, events and bytes
+out), built on `reader` and `writer` (messages, `messages`), `states` (the state machines as
+tables), `fields` and `targets` (header values, request-targets). The data stream: `datastream`
+(packets, FLOW payloads, sequence order, clocks, DATA values). `url` reads `rctp://` URLs.
+"""

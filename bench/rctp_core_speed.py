@@ -1,24 +1,34 @@
-"""How fast is the RCTP/2.0 control-message core? (issue: RCTP core, "Speed")
+"""How fast is the RCTP/2.0 protocol core? (issue: RCTP core, "Speed")
 
-One READ request and its response, each written and parsed: by the bare reader and writer, and by
-two `Connection`s (client and server, with every check of D-RCTP-25 and the transaction
-bookkeeping). Anchor: h11 doing the same with an HTTP/1.1 GET and its response, padded to the
-same sizes, measured in the same run. Goal: no slower than h11. Figures are µs per exchange, the
-median of --rounds rounds.
+1. One READ request and its response, each written and parsed: by the bare reader and writer, and
+   by two `Connection`s (client and server, with every check of D-RCTP-25 and the transaction
+   bookkeeping). Anchor: h11 doing the same with an HTTP/1.1 GET and its response, padded to the
+   same sizes, on a kept-alive pair.
+2. The four-payload data-stream packet of vectors/rctp/packets.json (two DATA payloads, a
+   heartbeat ACK, a set-interval ACK: 117 bytes), encoded and decoded. Anchor: h11 parsing an
+   HTTP/1.1 request of the same size; for context, a hand-written `struct` codec of the same
+   fixed layout (one `Struct`, no checks, no objects: the floor a Python codec could reach).
 
-    python bench/rctp_control_speed.py [--rounds 7]
+Goal: no slower than h11. Anchors are measured in the same run (the machine is shared and noisy:
+the ratios are the figures that travel). Figures are µs per operation, the median of --rounds.
+
+    python bench/rctp_core_speed.py [--rounds 7]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
+import struct
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import h11
 
 from rcmlconf.rctp.connection import Connection, RequestReceived
+from rcmlconf.rctp.datastream import pull_packet, push_packet
 from rcmlconf.rctp.messages import Headers, Request, Response
 from rcmlconf.rctp.reader import MessageReader
 from rcmlconf.rctp.states import Role
@@ -104,6 +114,33 @@ def h11_exchange() -> Callable[[], None]:
     return exchange
 
 
+PACKETS = Path(__file__).resolve().parent.parent / "vectors" / "rctp" / "packets.json"
+#: The four-payload packet as one layout: header; DATA of 32 bytes; DATA of 16; FLOW heartbeat
+#: ACK (preamble, T1, T2, T3); FLOW set-interval ACK (preamble, direction, interval).
+FLAT = struct.Struct(">BBHIQ" + "BBH32s" + "BBH16s" + "BBH" + "BBHQQQ" + "BBH" + "BBHBI")
+
+
+def four_payloads() -> bytes:
+    cases = json.loads(PACKETS.read_text(encoding="utf-8"))["valid"]
+    return bytes.fromhex(next(c["hex"] for c in cases if c["name"] == "four-payloads"))
+
+
+def h11_parse(size: int) -> Callable[[], None]:
+    """h11 parsing an HTTP/1.1 request of `size` bytes, on a kept-alive server connection."""
+    server = h11.Connection(h11.SERVER)
+    head = b"GET /stream/control/pan HTTP/1.1\r\nHost: r\r\nX-P: \r\n\r\n"
+    request = head.replace(b"X-P: ", b"X-P: " + b"p" * max(0, size - len(head)))
+    response = h11.Response(status_code=204, headers=[])
+
+    def parse() -> None:
+        server.receive_data(request)
+        server.next_event(), server.next_event()
+        server.send(response), server.send(h11.EndOfMessage())
+        server.start_next_cycle()
+
+    return parse
+
+
 def per_call(function: Callable[[], None], rounds: int, calls: int = 2000) -> float:
     times = []
     for _ in range(rounds):
@@ -123,12 +160,26 @@ def main() -> None:
     client, server = connections()
     full = per_call(rctp_connections(client, server), args.rounds)
     print(
-        f"READ request ({REQUEST_SIZE} B) and response ({RESPONSE_SIZE} B), written and parsed;"
-        f" median of {args.rounds} rounds"
+        f"1. READ request ({REQUEST_SIZE} B) and response ({RESPONSE_SIZE} B), written and"
+        f" parsed; median of {args.rounds} rounds"
     )
-    print(f"{'h11, HTTP/1.1 of the same sizes (anchor)':<46} {anchor:8.1f} µs")
-    print(f"{'rcmlconf reader + writer':<46} {bare:8.1f} µs  {bare / anchor:5.2f}x")
-    print(f"{'rcmlconf client + server Connection':<46} {full:8.1f} µs  {full / anchor:5.2f}x")
+    print(f"   {'h11, HTTP/1.1 of the same sizes (anchor)':<46} {anchor:8.1f} µs")
+    print(f"   {'rcmlconf reader + writer':<46} {bare:8.1f} µs  {bare / anchor:5.2f}x")
+    print(f"   {'rcmlconf client + server Connection':<46} {full:8.1f} µs  {full / anchor:5.2f}x")
+
+    data = four_payloads()
+    packet = pull_packet(data)
+    fields = FLAT.unpack(data)
+    assert push_packet(packet) == data
+    assert FLAT.pack(*fields) == data
+    parse = per_call(h11_parse(len(data)), args.rounds)
+    ours = per_call(lambda: pull_packet(push_packet(packet)), args.rounds)
+    floor = per_call(lambda: FLAT.unpack(FLAT.pack(*fields)), args.rounds)
+    print(f"2. the {len(data)}-byte four-payload data-stream packet, encoded and decoded")
+    print(f"   {'h11 parsing a request of the same size (anchor)':<46} {parse:8.1f} µs")
+    print(f"   {'rcmlconf push_packet + pull_packet':<46} {ours:8.1f} µs  {ours / parse:5.2f}x")
+    floor_label = "one struct.Struct, no checks (the floor)"
+    print(f"   {floor_label:<46} {floor:8.1f} µs  {floor / parse:5.2f}x")
 
 
 if __name__ == "__main__":
