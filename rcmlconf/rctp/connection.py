@@ -380,9 +380,7 @@ class Connection:
             raise LocalProtocolError("the connection is closed")
         if self.role is Role.SERVER and method not in SERVER_METHODS:
             raise LocalProtocolError(f"a server does not send {method} (D-RCTP-12)")
-        fields = [("CSeq", str(self._next_cseq)), *headers]
-        if self.session is not None and not any(n.lower() == "session" for n, _ in fields):
-            fields.append(("Session", self.session.id))
+        fields = self._with_session([("CSeq", str(self._next_cseq)), *headers])
         request = Request(method, target, Headers.of(self._body_fields(fields, body)), body)
         self._out += write_message(request)
         self._next_cseq += 1
@@ -430,15 +428,19 @@ class Connection:
         text: bool = False,
     ) -> bytes:
         fields = [("CSeq", str(cseq))] if cseq is not None else []
-        fields += headers
-        if self.session is not None and not any(n.lower() == "session" for n, _ in fields):
-            fields.append(("Session", self.session.id))
+        fields = self._with_session([*fields, *headers])
         if text and body and not any(n.lower() == "content-type" for n, _ in fields):
             fields.append(("Content-Type", "text/plain; charset=utf-8"))
         phrase = reason if reason is not None else REASONS.get(status, "Unknown")
         return write_message(
             Response(status, phrase, Headers.of(self._body_fields(fields, body)), body)
         )
+
+    def _with_session(self, fields: list[tuple[str, str]]) -> list[tuple[str, str]]:
+        """The fields, and the session's `Session` unless they name it (R-RCTP-19)."""
+        if self.session is not None and not any(n.lower() == "session" for n, _ in fields):
+            fields.append(("Session", self.session.id))
+        return fields
 
     @staticmethod
     def _body_fields(fields: list[tuple[str, str]], body: bytes) -> list[tuple[str, str]]:

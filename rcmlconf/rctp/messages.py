@@ -95,10 +95,6 @@ class Request:
     body: bytes = b""
     version: str = VERSION
 
-    @property
-    def kind(self) -> str:
-        return "request"
-
 
 @dataclass(frozen=True, slots=True)
 class Response:
@@ -107,10 +103,6 @@ class Response:
     headers: Headers = Headers()
     body: bytes = b""
     version: str = VERSION
-
-    @property
-    def kind(self) -> str:
-        return "response"
 
 
 Message = Request | Response
