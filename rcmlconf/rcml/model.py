@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 from rcmlconf.rctp.url import RctpUrl
-from rcmlconf.values import ValueType
+from rcmlconf.values import Value, ValueType
 
 
 class Permission(enum.Flag):
@@ -75,6 +75,19 @@ class DataNode(NamedTuple):
     maximum: int | float | None = None
     links: tuple[Link, ...] = ()
     meta: tuple[Meta, ...] = ()
+
+    def out_of_range(self, value: Value) -> str | None:
+        """Why a value breaks `min`/`max` (D-RCML-12, every item of an array), or None."""
+        if self.minimum is None and self.maximum is None:
+            return None
+        for item in value if isinstance(value, tuple) else (value,):
+            if not isinstance(item, int | float) or isinstance(item, bool):
+                continue
+            if (self.minimum is not None and item < self.minimum) or (
+                self.maximum is not None and item > self.maximum
+            ):
+                return f"{item!r} is outside {self.path}'s range {self.minimum} to {self.maximum}"
+        return None
 
 
 class AccessNode(NamedTuple):

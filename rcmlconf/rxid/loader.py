@@ -351,20 +351,9 @@ class _Walk:
         except ValueTextError as exc:
             self.check.error("R-RXID-17", element, f"{name}: {exc} (for {node.path})", name)
             return None
-        if (
-            isinstance(value, int | float)
-            and not isinstance(value, bool)
-            and (
-                (node.minimum is not None and value < node.minimum)
-                or (node.maximum is not None and value > node.maximum)
-            )
-        ):
-            self.check.error(
-                "R-RXID-17",
-                element,
-                f"{name} {text} is outside {node.path}'s range {node.minimum} to {node.maximum}",
-                name,
-            )
+        problem = node.out_of_range(value)
+        if problem is not None:
+            self.check.error("R-RXID-17", element, f"{name}: {problem}", name)
         return value
 
     def _range(self, element: XmlElement, attrs: Attributes, node: DataNode | None) -> None:

@@ -55,7 +55,7 @@ from rcmlconf.rctp.datastream.packets import (
     pull_packet,
     push_packet,
 )
-from rcmlconf.rctp.datastream.values import ValuesCodec
+from rcmlconf.rctp.datastream.values import stream_codec
 
 __all__ = [
     "MAX_DATAGRAM",
@@ -89,7 +89,6 @@ __all__ = [
     "TimeoutSetAck",
     "UnknownPayload",
     "UnknownRequest",
-    "ValuesCodec",
     "body_offsets",
     "decode_flow",
     "encode_flow",
@@ -99,5 +98,6 @@ __all__ = [
     "pull_packet",
     "push_flow",
     "push_packet",
+    "stream_codec",
     "unix_from_ntp",
 ]

@@ -263,7 +263,7 @@ def push_packet(packet: Packet) -> bytes:
 
 def body_offsets(packet: Packet) -> tuple[int, ...]:
     """Where each payload's body starts in the packet's datagram: to place errors in a body (a
-    DATA body's values, `values.ValuesCodec.decode`) in the datagram, for a dissector.
+    DATA body's values, `values.stream_codec(...).decode`) in the datagram, for a dissector.
     """
     offsets = []
     position = HEADER.size

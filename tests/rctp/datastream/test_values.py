@@ -17,9 +17,10 @@ from rcmlconf.markup.structure import Checker
 from rcmlconf.rcml.loader import load_rcml
 from rcmlconf.rcml.model import AccessNode, RcmlDocument
 from rcmlconf.rcml.schema import ELEMENTS
+from rcmlconf.rctp.bodies import ValuesCodec
 from rcmlconf.rctp.datastream.flow import Direction
 from rcmlconf.rctp.datastream.packets import DataPayload, body_offsets, pull_packet
-from rcmlconf.rctp.datastream.values import ValuesCodec
+from rcmlconf.rctp.datastream.values import stream_codec
 from rcmlconf.values import Kind, Value, ValueType
 
 VECTOR_DIR = Path(__file__).parents[3] / "vectors"
@@ -40,7 +41,7 @@ def robot() -> RcmlDocument:
 def codec(path: str, direction: str) -> ValuesCodec:
     access = robot().node(path)
     assert isinstance(access, AccessNode)
-    return ValuesCodec(access, Direction[direction.upper()])
+    return stream_codec(access, Direction[direction.upper()])
 
 
 def from_json(values: dict[str, Any]) -> dict[str, Value]:
@@ -123,7 +124,7 @@ def test_a_malformed_value_keeps_its_own_rule() -> None:
     bumpers = robot().node("/sensors/bumpers")
     assert isinstance(bumpers, AccessNode)
     with pytest.raises(ProtocolError) as failure:
-        ValuesCodec(bumpers, Direction.READ).decode(b"\x01\x02", 100)
+        stream_codec(bumpers, Direction.READ).decode(b"\x01\x02", 100)
     assert (failure.value.offset, failure.value.rule) == (101, "R-RCML-30")
 
 
@@ -143,12 +144,9 @@ def bodies(draw: st.DrawFn) -> tuple[ValuesCodec, dict[str, Value]]:
     )
     values = codec(path, direction)
     drawn: dict[str, Value] = {}
-    for node in values.access.data:
-        if node.name in values.names:
-            one = scalars(node.type)
-            drawn[node.name] = draw(
-                st.tuples(*[one] * node.type.count) if node.type.is_array else one
-            )
+    for node in values.nodes:
+        one = scalars(node.type)
+        drawn[node.name] = draw(st.tuples(*[one] * node.type.count) if node.type.is_array else one)
     return values, drawn
 
 
