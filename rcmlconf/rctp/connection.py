@@ -36,6 +36,7 @@ from rcmlconf.rctp.messages import (
 )
 from rcmlconf.rctp.reader import LIMITS, Limits, MessageReader
 from rcmlconf.rctp.states import (
+    PUSH_STATES,
     SESSION_TRANSITIONS,
     STREAM_METHODS,
     STREAM_TRANSITIONS,
@@ -273,15 +274,16 @@ class Connection:
         problem = self._session_problem(request)
         if problem is not None:
             return self._reject(inbound, *problem)
+        state = self._stream_state(target.path)
         if (
-            request.method in STREAM_METHODS
-            and (self._stream_state(target.path), request.method) not in STREAM_TRANSITIONS
-        ):
-            state = self._stream_state(target.path).value
+            request.method in STREAM_METHODS and (state, request.method) not in STREAM_TRANSITIONS
+        ) or (self.role is Role.CLIENT and request.method == "WRITE" and state not in PUSH_STATES):
             return self._reject(
-                inbound, 455, f"{request.method} of a stream in state {state}", "R-RCTP-20"
+                inbound, 455, f"{request.method} of a stream in state {state.value}", "R-RCTP-20"
             )
-        if request.method == "BYE":  # R-RCTP-23: a valid BYE is answered 200, by the connection
+        if request.method == "BYE" and target.is_session:
+            # R-RCTP-23: a valid BYE is answered 200, by the connection. A BYE of a node is the
+            # application's to answer (405, D-RCTP-26), as it alone knows the node's kind.
             self._session_event(SessionEvent.BYE)
             self.send_response(request, 200)
             return None

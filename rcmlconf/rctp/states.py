@@ -68,3 +68,7 @@ STREAM_TRANSITIONS: dict[tuple[StreamState, str], StreamState] = {
     (_T.PLAYING, "STOP"): _T.INIT,
 }
 STREAM_METHODS = frozenset(method for _, method in STREAM_TRANSITIONS)
+
+#: D-RCTP-26, D-RCTP-27: the server's WRITE is a data-change event of an access playing on the
+#: client's side; in any other state the client answers 455.
+PUSH_STATES = frozenset({_T.PLAYING})
