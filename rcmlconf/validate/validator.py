@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 from urllib.parse import unquote, urlsplit
 
 from rcmlconf.diagnostics import Diagnostic, Severity
+from rcmlconf.errors import RcmlconfError
 from rcmlconf.markup.document import (
     MAX_DOCUMENT_BYTES,
     NAMESPACE_SEPARATOR,
@@ -80,14 +81,16 @@ class Validator:
 
     def validate_file(self, path: Path, display: str | None = None) -> FileReport:
         """Raises OSError when the file cannot be read."""
-        return self._file(path, display or str(path))[0]
+        return self.load_file(path, display)[0]
 
     def validate_bytes(
         self, data: bytes, display: str, base_dir: Path | None = None, suffix: str | None = None
     ) -> FileReport:
         return self._check(data, display, base_dir, suffix)[0]
 
-    def _file(self, path: Path, display: str) -> tuple[FileReport, Model | None]:
+    def load_file(self, path: Path, display: str | None = None) -> tuple[FileReport, Model | None]:
+        """The file's report, and its model when it is valid. Raises OSError when unreadable."""
+        display = display or str(path)
         key = path.resolve()
         done = self._done.get(key)
         if done is None:
@@ -170,7 +173,7 @@ class Validator:
         if path.resolve() in self._checking:
             return Broken(f"{path} leads back to a document being checked (a loop of sessions)")
         try:
-            report, model = self._file(path, str(path))
+            report, model = self.load_file(path)
         except FileNotFoundError:
             return Broken(f"{path} does not exist")
         except OSError as exc:
@@ -190,3 +193,23 @@ class Validator:
             if prefix.endswith("/") and href.startswith(prefix):
                 return target / unquote(href[len(prefix) :])
         return None
+
+
+class InvalidRobot(RcmlconfError):
+    """An RCML file that cannot be used: unreadable, not RCML, or invalid (`report` says why)."""
+
+    def __init__(self, message: str, report: FileReport | None = None) -> None:
+        super().__init__(message)
+        self.report = report
+
+
+def load_robot(path: Path) -> RcmlDocument:
+    """The model of a valid RCML file, for what serves or drives a robot."""
+    try:
+        report, model = Validator().load_file(path)
+    except OSError as exc:
+        raise InvalidRobot(f"{path}: cannot be read: {exc.strerror}") from None
+    if not isinstance(model, RcmlDocument):
+        what = "not an RCML document" if report.kind != "rcml" else "not valid RCML"
+        raise InvalidRobot(f"{path}: {what}; `rcmlconf validate {path}` says why", report)
+    return model

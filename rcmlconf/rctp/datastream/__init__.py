@@ -5,6 +5,8 @@
 - `values`: DATA payload bodies (D-RCTP-20): the values of a stream access for one direction.
 - `order`: the receiver's sequence rules (D-RCTP-21): newer, duplicate or late; what was lost.
 - `clock`: NTP timestamps and the heartbeat clock estimator (D-RCTP-24).
+- `endpoint`: one session's data stream at one end, either role: sends on the beat, answers and
+  retries FLOW, watches the receive timeout, keeps a client's clock estimate; `events` what it says.
 
 Parsers let only `ProtocolError` escape, with the offset from the start of the datagram; encoding
 something that cannot be sent raises `EncodeError`. Nothing here opens a socket or reads a clock.
