@@ -83,8 +83,9 @@ class DataNode(NamedTuple):
         for item in value if isinstance(value, tuple) else (value,):
             if not isinstance(item, int | float) or isinstance(item, bool):
                 continue
-            if (self.minimum is not None and item < self.minimum) or (
-                self.maximum is not None and item > self.maximum
+            # Written as "not within" so that NaN, which compares false, is outside too.
+            if (self.minimum is not None and not item >= self.minimum) or (
+                self.maximum is not None and not item <= self.maximum
             ):
                 return f"{item!r} is outside {self.path}'s range {self.minimum} to {self.maximum}"
         return None

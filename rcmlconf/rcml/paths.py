@@ -25,3 +25,8 @@ def parse_tree_path(text: str) -> str:
         if not is_name(segment):
             raise ValueTextError(f"segment {segment!r} of {text!r} is not an XML Name")
     return text
+
+
+def is_within(path: str, top: str) -> bool:
+    """Whether `path` is `top` or a node below it (`/` holds everything)."""
+    return top == "/" or path == top or path.startswith(top + "/")

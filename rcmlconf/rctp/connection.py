@@ -216,6 +216,11 @@ class Connection:
         """Received requests whose answers are not yet written."""
         return sum(1 for inbound in self._inbound if inbound.answer is None)
 
+    @property
+    def requests_unanswered(self) -> tuple[Request, ...]:
+        """This side's requests still waiting for their answers, oldest first."""
+        return tuple(self._sent)
+
     def next_event(self) -> Event | None:
         return self._events.popleft() if self._events else None
 

@@ -8,6 +8,9 @@ from dataclasses import dataclass
 
 from rcmlconf.errors import ValueTextError
 
+#: D-RCTP-2: where a server listens unless its URL says otherwise (TCP, and UDP for the data).
+DEFAULT_PORT = 7330
+
 # An IPv6 literal may carry a zone as RFC 6874 writes it in URIs: "%25" and unreserved characters.
 _URL = re.compile(
     r"(?i:rctp)://(?P<host>\[[0-9A-Fa-f:.]+(?:%25[A-Za-z0-9._~-]+)?\]|[A-Za-z0-9._~%-]+)"
@@ -21,6 +24,10 @@ class RctpUrl:
     #: None: the default port of RCTP.
     port: int | None
     path: str
+
+    @property
+    def port_or_default(self) -> int:
+        return DEFAULT_PORT if self.port is None else self.port
 
     def __str__(self) -> str:
         host = f"[{self.host.replace('%', '%25')}]" if ":" in self.host else self.host

@@ -272,3 +272,11 @@ def body_offsets(packet: Packet) -> tuple[int, ...]:
         offsets.append(position)
         position += len(_body(payload)[1])
     return tuple(offsets)
+
+
+def peek_tag(data: bytes) -> int | None:
+    """A datagram's session tag, read before anything else, so that a server with one port for
+    every session knows whose it is (D-RCTP-28); None when it cannot be a packet at all."""
+    if len(data) < HEADER.size or data[0] != VERSION:
+        return None
+    return int.from_bytes(data[4:8], "big")

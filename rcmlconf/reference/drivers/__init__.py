@@ -3,7 +3,8 @@
 A driver owns the values of a robot's data nodes. The server asks it for values, hands it the
 values clients write (already checked for type, range, permission and privilege), and lets it move
 to the present so that streams and events carry real changes. Simulated robots ship as examples;
-a real robot is one more class with these four methods.
+a real robot is one more class with these four methods, registered in `DRIVERS` with the
+classmethods `fits` and `mismatch` that `DriverClass` asks for.
 
 Drivers are pure: time comes in as `now` (seconds, any epoch), randomness from the seed given to
 `start`, so a run is repeatable and a test can step a driver by hand.

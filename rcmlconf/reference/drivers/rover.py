@@ -34,7 +34,7 @@ _RW = Permission.READ | Permission.WRITE
 #: Settings when the robot starts: mode 1 drives at the speeds written.
 DEFAULT_MAX_SPEED = 0.5
 DEFAULT_MODE = 1
-#: Mode -> factor on the wheel speeds written.
+#: Mode -> factor on the wheel speeds written (a mode the model allows beyond 2 drives as 1).
 MODE_FACTORS = {0: 0.0, 1: 1.0, 2: 0.5}
 SERIAL_NUMBER = 20260001
 
@@ -132,7 +132,7 @@ class RoverDriver(SimulatedRobot):
         self._speeds = (number(self._values[LEFT]), number(self._values[RIGHT]))
 
     def _step(self, left: float, right: float, elapsed: float) -> bool:
-        """Drive for `elapsed` seconds, or until a corner touches a wall; whether it did not."""
+        """Drive for `elapsed` seconds; False when a corner met a wall and the robot stopped."""
         start = self._pose
         before = [clearance(*start.point(BODY_RADIUS, corner)) for corner in CORNERS]
 

@@ -4,9 +4,11 @@ Every node starts at a value valid for its type and range (`nodes.first_value`).
 can write hold what was last written; nodes it can only read wander (`wander`); a subclass
 computes the nodes it `needs` itself, from what is written and the time that passes.
 
-A call reports each change once: `command` first moves the robot to its `now` (so a wheel turns
-at its old speed until the moment the new one is written) and then writes, and returns the paths
-either changed; `advance` returns what changed since the previous call.
+Each change is reported once, by the call it belongs to. `command` returns the changes its values
+made, no more: the server tells every session but the writer of them (R-RCTP-54), so the writer
+must still hear of everything else. It first moves the robot to its `now` (so a wheel turns at its
+old speed until the moment the new one is written), and what that move changed is reported by the
+next `advance`, with what moves after.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from types import MappingProxyType
 from typing import ClassVar
 
 from rcmlconf.rcml.model import DataNode, RcmlDocument
-from rcmlconf.reference.drivers.nodes import Need, first_value, fit, fit_text, unmet
+from rcmlconf.reference.drivers.nodes import Need, first_values, fit, fit_text, unmet
 from rcmlconf.reference.drivers.wander import Wander
 from rcmlconf.values import Value
 
@@ -39,17 +41,18 @@ class SimulatedRobot:
         return cls.mismatch(model) is None
 
     def start(self, model: RcmlDocument, now: float, seed: int) -> None:
+        """Take the robot: first values, and the wandering nodes' motions drawn from `seed`."""
         self._model = model
         self._now = now
         nodes = list(model.data_nodes())
-        self._values: dict[str, Value] = {node.path: first_value(node) for node in nodes}
+        self._values = first_values(nodes)
         self._view = MappingProxyType(self._values)
-        #: Paths changed since the last call returned, in the order they changed (a dict is an
-        #: ordered set).
-        self._changed: dict[str, None] = {}
+        #: Paths set since their last report, with their values then: a path is reported when
+        #: its value differs (a bool that flipped and flipped back did not change).
+        self._changed: dict[str, Value] = {}
         owned = {need.path for need in self.needs}
         self._wander = Wander(
-            [(node, self._values[node.path]) for node in nodes if node.path not in owned],
+            ((node, self._values[node.path]) for node in nodes if node.path not in owned),
             seed,
             now,
         )
@@ -57,6 +60,7 @@ class SimulatedRobot:
         self._changed.clear()  # first values are not changes
 
     def values(self) -> Mapping[str, Value]:
+        """A live, read-only view: it shows each change as it is made."""
         return self._view
 
     def advance(self, now: float) -> list[str]:
@@ -65,8 +69,16 @@ class SimulatedRobot:
 
     def command(self, values: Mapping[str, Value], now: float) -> list[str]:
         self._move(now)
+        moved, self._changed = self._changed, {}
         self._write(values)
-        return self._flush()
+        written, self._changed = self._changed, moved
+        # Measured against what was last reported: a value the move changed and the write changed
+        # back did not change at all, and the write's report covers the move's.
+        return [
+            path
+            for path, old in written.items()
+            if not _same(moved.pop(path, old), self._values[path])
+        ]
 
     # -- what a specialised robot overrides ----------------------------------------------------
 
@@ -89,9 +101,10 @@ class SimulatedRobot:
         return node
 
     def _set(self, path: str, value: Value) -> None:
-        if self._values[path] != value:
+        old = self._values[path]
+        if not _same(old, value):
+            self._changed.setdefault(path, old)
             self._values[path] = value
-            self._changed[path] = None
 
     def _set_numbers(self, path: str, *numbers: float) -> None:
         """Set a number (or, given several, an array) each fitted to the node (`nodes.fit`)."""
@@ -106,8 +119,7 @@ class SimulatedRobot:
     # -- the common part -----------------------------------------------------------------------
 
     def _move(self, now: float) -> None:
-        """Move to `now`; nothing moves when no time passed, so a command at the time of the
-        last call changes only what it writes."""
+        """Move to `now` (nothing moves when no time passed)."""
         if now <= self._now:
             return
         elapsed, self._now = now - self._now, now
@@ -115,6 +127,13 @@ class SimulatedRobot:
         self._simulate(elapsed)
 
     def _flush(self) -> list[str]:
-        changed = list(self._changed)
+        values = self._values
+        changed = [path for path, old in self._changed.items() if not _same(old, values[path])]
         self._changed.clear()
         return changed
+
+
+def _same(old: Value, new: Value) -> bool:
+    """Python's own test for a value in a container: the same object, or equal. A NaN a client
+    writes again is a change, unless it is the very same object."""
+    return old is new or old == new

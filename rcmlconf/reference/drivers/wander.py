@@ -2,21 +2,21 @@
 
 Each motion is a closed form of the time since the start: a number bounces between the ends of
 its band at a steady speed, a bool flips at a steady period. A jump of hours costs what a jump of
-milliseconds does, and a value depends only on the seed and the time, never on how often the
-robot was advanced.
+milliseconds does, and the value a node is refreshed to depends only on the seed and the time,
+not on the times of earlier calls.
 
 A robot may have 100,000 wandering nodes, and arrays of 65,535 items: refreshing everything on
 each advance would cost seconds. `Wander.refresh` instead computes at most `ITEMS_PER_ADVANCE`
 items per call, going round the nodes (and through a long array a window at a time) from where
 the last call stopped. A small robot refreshes every node on every advance; a robot of 100,000
-scalars refreshes each every 400 advances (8 s at 50 advances a second).
+scalars refreshes each about every 400 advances (8 s at 50 advances a second).
 """
 
 from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Mapping
 from random import Random
 
 from rcmlconf.rcml.model import DataNode, Permission
@@ -31,6 +31,7 @@ REACH = 1000.0
 CROSSING = (10.0, 60.0)
 FLIP = (2.0, 8.0)
 
+_MOVING = (Kind.BOOL, Kind.INTEGER, Kind.FLOAT)
 #: Sets a node's value (the driver's own bookkeeping of what changed).
 Setter = Callable[[str, Value], None]
 
@@ -61,7 +62,8 @@ class _Drift(_Motion):
         self.low = low
         self.width = high - low
         self.offset = first - low
-        self.speed = self.width / rng.uniform(*CROSSING) * rng.choice((-1, 1))
+        direction = 1 if rng.random() < 0.5 else -1
+        self.speed = direction * self.width / rng.uniform(*CROSSING)
 
     def item(self, index: int, elapsed: float) -> Scalar:
         travel = self.speed * (1 + index / self.count) * elapsed
@@ -86,16 +88,10 @@ class _Blink(_Motion):
 
 
 def _motion(node: DataNode, first: Value, rng: Random) -> _Motion | None:
-    """How `node` wanders, or None if it keeps its first value: a client can write it (it holds
-    what was written), cannot read it (nobody would see), or it is text or has nowhere to go."""
-    if Permission.WRITE in node.permission or Permission.READ not in node.permission:
-        return None
+    """How a read-only number or bool wanders, or None when its band leaves it nowhere to go."""
     start = first[0] if isinstance(first, tuple) else first
-    kind = node.type.base.kind
-    if kind is Kind.BOOL:
+    if node.type.base.kind is Kind.BOOL:
         return _Blink(node, bool(start), rng)
-    if kind not in (Kind.INTEGER, Kind.FLOAT):
-        return None
     assert isinstance(start, int | float)
     low, high = bounds(node)
     low, high = max(low, start - REACH), min(high, start + REACH)
@@ -103,36 +99,53 @@ def _motion(node: DataNode, first: Value, rng: Random) -> _Motion | None:
 
 
 class Wander:
-    """The wandering nodes of a robot and where the round of refreshes has got to."""
+    """The wandering nodes of a robot and where the round of refreshes has got to.
 
-    def __init__(self, nodes: list[tuple[DataNode, Value]], seed: int, start: float) -> None:
-        """`nodes`: the nodes that may wander with their first values, in a fixed order (the
-        random draws follow it)."""
-        rng = Random(seed)
-        self._motions = [m for node, first in nodes if (m := _motion(node, first, rng))]
+    A node wanders when a client can read it but not write it (a written node holds what was
+    written; nobody would see an unreadable one) and it is a number or a bool: text stays put.
+    """
+
+    def __init__(self, nodes: Iterable[tuple[DataNode, Value]], seed: int, start: float) -> None:
+        """`nodes`: data nodes with their first values, in a fixed order."""
+        self._rng = Random(seed)
         self._start = start
+        self._nodes = [
+            (node, first)
+            for node, first in nodes
+            if node.permission is Permission.READ and node.type.base.kind in _MOVING
+        ]
+        #: Their motions (None: it stays put), each made when the round first reaches it: the
+        #: random draws follow the nodes' order whatever the times of the calls, and starting a
+        #: robot of 100,000 nodes costs no 100,000 draws.
+        self._motions: list[_Motion | None] = []
         #: The next node to refresh, and the first of its items.
         self._next = 0
         self._item = 0
 
-    def refresh(self, values: dict[str, Value], now: float, set_value: Setter) -> None:
-        """Compute the next `ITEMS_PER_ADVANCE` items at `now` and set their nodes' values."""
+    def refresh(self, values: Mapping[str, Value], now: float, set_value: Setter) -> None:
+        """Compute the next `ITEMS_PER_ADVANCE` items at `now` and set their nodes' values; a
+        node that stays put counts as one item."""
         elapsed = now - self._start
         budget = ITEMS_PER_ADVANCE
-        for _ in range(len(self._motions)):  # each node at most once a call
+        for _ in range(len(self._nodes)):  # each node at most once a call
+            if self._next == len(self._motions):
+                self._motions.append(_motion(*self._nodes[self._next], self._rng))
             motion = self._motions[self._next]
-            first, stop = self._item, min(motion.count, self._item + budget)
-            items = tuple(motion.item(index, elapsed) for index in range(first, stop))
-            if motion.count == 1:
-                set_value(motion.node.path, items[0])
-            else:
-                old = values[motion.node.path]
-                assert isinstance(old, tuple)
-                set_value(motion.node.path, old[:first] + items + old[stop:])
+            count = 1 if motion is None else motion.count
+            first, stop = self._item, min(count, self._item + budget)
+            if motion is not None:
+                items = tuple(motion.item(index, elapsed) for index in range(first, stop))
+                path = motion.node.path
+                if count == 1:
+                    set_value(path, items[0])
+                else:
+                    old = values[path]
+                    assert isinstance(old, tuple)
+                    set_value(path, old[:first] + items + old[stop:])
             budget -= stop - first
-            if stop < motion.count:
+            if stop < count:
                 self._item = stop
             else:
-                self._next, self._item = (self._next + 1) % len(self._motions), 0
+                self._next, self._item = (self._next + 1) % len(self._nodes), 0
             if budget == 0:
                 break

@@ -1,0 +1,260 @@
+"""The reference server on asyncio: sockets and a clock around the sans-IO robot and sessions.
+
+Nothing here decides anything about RCTP. A TCP connection becomes a `ServerSession`; the one UDP
+socket hands each datagram to the session whose tag it carries (D-RCTP-28); the HTTP port serves
+the robot's files (`files`). Each session and the robot have one timer handle on the loop, moved
+only when their `get_timer()` changes. After anything reaches a session, `_flush` sends what it
+has and closes the connection once it is finished.
+
+A peer that does not read what it is sent cannot make the server buffer without bound: when a
+connection's write buffer is full, the server stops reading from it until the buffer drains.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from rcmlconf.rcml.model import RcmlDocument
+from rcmlconf.rctp.datastream.endpoint import Address
+from rcmlconf.rctp.datastream.packets import peek_tag
+from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
+from rcmlconf.rctp.url import DEFAULT_PORT
+from rcmlconf.reference.drivers import Driver
+from rcmlconf.reference.server.files import FileServer, robot_files
+from rcmlconf.reference.server.robot import Robot
+from rcmlconf.reference.server.session import ServerSession
+from rcmlconf.reference.timers import LoopTimer
+
+log = logging.getLogger("rcmlconf.server")
+
+#: R-RCTP-23: how long a shutdown waits for the answers to its BYEs.
+SHUTDOWN_WAIT = 5.0
+
+
+@dataclass(frozen=True, slots=True)
+class ServerSettings:
+    host: str = "127.0.0.1"
+    #: RCTP's TCP port, and the data stream's UDP port; 0 picks free ones.
+    port: int = DEFAULT_PORT
+    #: The files' HTTP port; 0 picks a free one, None serves no files.
+    http_port: int | None = 7331
+    seed: int = 0
+    session_timeout: int = DEFAULT_SESSION_TIMEOUT
+
+
+class _Control(asyncio.Protocol):
+    """One RCTP control connection."""
+
+    def __init__(self, server: ReferenceServer) -> None:
+        self.server = server
+        self.session: ServerSession | None = None
+        self.transport: asyncio.Transport | None = None
+        self.timer: LoopTimer | None = None
+        self.closing = False
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        assert isinstance(transport, asyncio.Transport)
+        self.transport = transport
+        peer = transport.get_extra_info("peername") or ("?", 0)
+        loop = self.server.loop
+        self.session = ServerSession(self.server.robot, (peer[0], peer[1]), loop.time())
+        self.timer = LoopTimer(loop, self._timer_fired)
+        self.server.controls[self.session] = self
+
+    def data_received(self, data: bytes) -> None:
+        if self.session is not None:
+            self.session.receive_data(data, self.server.loop.time())
+            self.server.flush(self)
+
+    def eof_received(self) -> bool:
+        self.connection_lost(None)
+        return False
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        if self.session is not None and not self.session.finished:
+            self.session.receive_data(b"", self.server.loop.time())
+            self.server.flush(self)
+        if self.timer is not None:
+            self.timer.set(None)
+        if self.session is not None:
+            self.server.controls.pop(self.session, None)
+
+    def pause_writing(self) -> None:
+        if self.transport is not None:
+            self.transport.pause_reading()
+
+    def resume_writing(self) -> None:
+        if self.transport is not None and not self.closing:
+            self.transport.resume_reading()
+
+    def _timer_fired(self) -> None:
+        if self.session is not None:
+            self.session.handle_timer(self.server.loop.time())
+            self.server.flush(self)
+
+
+class _Data(asyncio.DatagramProtocol):
+    """The data stream's one UDP socket, shared by every session (D-RCTP-28)."""
+
+    def __init__(self, server: ReferenceServer) -> None:
+        self.server = server
+        self.unclaimed = 0
+
+    def datagram_received(self, data: bytes, addr: Address) -> None:
+        tag = peek_tag(data)
+        session = self.server.robot.by_tag.get(tag) if tag is not None else None
+        control = self.server.controls.get(session) if session is not None else None
+        if session is None or control is None:
+            self.unclaimed += 1  # R-RCTP-42: no session's tag, dropped unanswered
+            return
+        session.receive_datagram(data, addr, self.server.loop.time())
+        self.server.flush(control)
+
+    def error_received(self, exc: Exception) -> None:
+        log.debug("data stream: %s", exc)
+
+
+class ReferenceServer:
+    """One robot on RCTP/2.0, its data stream, and its files over HTTP."""
+
+    def __init__(
+        self, rcml: Path, model: RcmlDocument, driver: Driver, settings: ServerSettings
+    ) -> None:
+        self.rcml = rcml
+        self.model = model
+        self.driver = driver
+        self.settings = settings
+        #: Every open control connection, by its session.
+        self.controls: dict[ServerSession, _Control] = {}
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._robot: Robot | None = None
+        self._tcp: asyncio.Server | None = None
+        self._http: asyncio.Server | None = None
+        self._udp: asyncio.DatagramTransport | None = None
+        self._robot_timer: LoopTimer | None = None
+        self.files: FileServer | None = None
+
+    @property
+    def loop(self) -> asyncio.AbstractEventLoop:
+        assert self._loop is not None, "start() first"
+        return self._loop
+
+    @property
+    def robot(self) -> Robot:
+        assert self._robot is not None, "start() first"
+        return self._robot
+
+    # -- life --------------------------------------------------------------------------------
+
+    async def start(self) -> None:
+        loop = self._loop = asyncio.get_running_loop()
+        settings = self.settings
+        self._tcp = await loop.create_server(
+            lambda: _Control(self), settings.host, settings.port, reuse_address=True
+        )
+        port = self.port
+        udp, _ = await loop.create_datagram_endpoint(
+            lambda: _Data(self), local_addr=(settings.host, port if settings.port else 0)
+        )
+        self._udp = udp
+        self._robot = Robot(
+            self.model,
+            self.driver,
+            loop.time(),
+            seed=settings.seed,
+            data_port=udp.get_extra_info("sockname")[1],
+            session_timeout=settings.session_timeout,
+            unix_offset=time.time() - loop.time(),
+        )
+        self._robot_timer = LoopTimer(loop, self._tick)
+        self._robot_timer.set(self._robot.get_timer())
+        if settings.http_port is not None:
+            self.files = FileServer(
+                self.model.title or self.rcml.name, robot_files(self.rcml, self.model)
+            )
+            self._http = await asyncio.start_server(
+                self.files.handle, settings.host, settings.http_port, reuse_address=True
+            )
+
+    @property
+    def port(self) -> int:
+        assert self._tcp is not None, "start() first"
+        return int(self._tcp.sockets[0].getsockname()[1])
+
+    @property
+    def data_port(self) -> int:
+        return self.robot.data_port
+
+    @property
+    def http_port(self) -> int | None:
+        return int(self._http.sockets[0].getsockname()[1]) if self._http is not None else None
+
+    @property
+    def url(self) -> str:
+        """The robot's RCTP URL as served (D-RCML-17's `site`, with the port in use)."""
+        return f"rctp://{self.settings.host}:{self.port}{self.robot.site_path}"
+
+    async def stop(self) -> None:
+        """Graceful shutdown: BYE to every session (`Reason: shutdown`), then close."""
+        if self._tcp is not None:
+            self._tcp.close()
+        if self._http is not None:
+            self._http.close()
+        now = self.loop.time()
+        for session, control in tuple(self.controls.items()):
+            session.shut_down(now)
+            self.flush(control)
+        deadline = now + SHUTDOWN_WAIT + 0.5
+        while self.controls and self.loop.time() < deadline:
+            await asyncio.sleep(0.01)
+        for control in tuple(self.controls.values()):
+            if control.transport is not None:
+                control.transport.abort()
+        if self._robot_timer is not None:
+            self._robot_timer.set(None)
+        if self._udp is not None:
+            self._udp.close()
+        for server in (self._tcp, self._http):
+            if server is not None:
+                await server.wait_closed()
+
+    # -- moving bytes ------------------------------------------------------------------------
+
+    def flush(self, control: _Control) -> None:
+        """Send what the session has, and what other sessions were given by its doing."""
+        self._flush_one(control)
+        for session in self.robot.touched():
+            other = self.controls.get(session)
+            if other is not None:
+                self._flush_one(other)
+
+    def _flush_one(self, control: _Control) -> None:
+        session, transport = control.session, control.transport
+        if session is None or transport is None:
+            return
+        data = session.data_to_send()
+        if data and not transport.is_closing():
+            transport.write(data)
+        datagrams, peer = session.datagrams_to_send(self.loop.time())
+        if datagrams and peer is not None and self._udp is not None:
+            for datagram in datagrams:
+                self._udp.sendto(datagram, peer)
+        if control.timer is not None:
+            control.timer.set(session.get_timer())
+        if session.finished and not control.closing:
+            control.closing = True
+            transport.close()  # after what is written has left
+
+    def _tick(self) -> None:
+        robot = self.robot
+        robot.handle_timer(self.loop.time())
+        for session in robot.touched():
+            control = self.controls.get(session)
+            if control is not None:
+                self._flush_one(control)
+        assert self._robot_timer is not None
+        self._robot_timer.set(robot.get_timer())

@@ -1,0 +1,145 @@
+"""The robot's files over HTTP/1.1 (paper Fig. 5: the browser downloads the RCML and RXID files
+"with a standard protocol" before it speaks RCTP).
+
+Only the RCML file and the RXID files its `UserInterface` links name are served, read once at
+start: a request can name nothing else, whatever its path says (no directory walking, no file read
+because a request or a document asks). h11 does the HTTP, asyncio the sockets; each connection
+answers its requests in turn and closes after 30 s of silence.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import html
+from dataclasses import dataclass
+from pathlib import Path
+from urllib.parse import quote, unquote, urlsplit
+
+import h11
+
+from rcmlconf import __version__
+from rcmlconf.markup.document import MAX_DOCUMENT_BYTES
+from rcmlconf.rcml.model import RcmlDocument
+
+IDLE_TIMEOUT = 30.0
+#: An RCML or RXID document is XML; the suffix tells which (R-XML-10).
+XML_TYPE = "application/xml"
+_SERVER = f"rcmlconf/{__version__}"
+_READ_SIZE = 65536
+#: h11 buffers at most this much of a request's head.
+_MAX_HEAD = 16384
+
+
+@dataclass(frozen=True, slots=True)
+class Document:
+    name: str
+    data: bytes
+
+
+def robot_files(rcml: Path, model: RcmlDocument) -> dict[str, Document]:
+    """URL path -> document: the RCML file and the local RXID files it links to, by name.
+
+    A link that leaves the RCML file's directory, or is a URL, is not served: the browser fetches
+    those itself.
+    """
+    base = rcml.parent.resolve()
+    files = {"/" + quote(rcml.name): Document(rcml.name, rcml.read_bytes())}
+    for link in model.links:
+        parts = urlsplit(link.href)
+        if link.kind != "UserInterface" or parts.scheme or parts.netloc or not parts.path:
+            continue
+        path = (base / unquote(parts.path)).resolve()
+        if not path.is_relative_to(base) or not path.is_file():
+            continue
+        if path.stat().st_size > MAX_DOCUMENT_BYTES:
+            continue
+        relative = path.relative_to(base).as_posix()
+        files["/" + quote(relative)] = Document(relative, path.read_bytes())
+    return files
+
+
+def _index(title: str, files: dict[str, Document]) -> bytes:
+    items = "".join(
+        f'<li><a href="{html.escape(url)}">{html.escape(doc.name)}</a></li>'
+        for url, doc in files.items()
+    )
+    page = f"<!DOCTYPE html><title>{html.escape(title)}</title><ul>{items}</ul>\n"
+    return page.encode("utf-8")
+
+
+class FileServer:
+    """Serves `files` (from `robot_files`); `/` lists them."""
+
+    def __init__(self, title: str, files: dict[str, Document]) -> None:
+        self.files = files
+        self._index = _index(title, files)
+        self.served = 0
+
+    async def handle(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        conn = h11.Connection(h11.SERVER, max_incomplete_event_size=_MAX_HEAD)
+        try:
+            while True:
+                event = await self._next_event(conn, reader)
+                if isinstance(event, h11.Request):
+                    await self._answer(conn, writer, event)
+                elif isinstance(event, h11.ConnectionClosed) or event is None:
+                    break
+                if conn.our_state is h11.MUST_CLOSE or conn.their_state is h11.MUST_CLOSE:
+                    break
+                if conn.our_state is h11.DONE and conn.their_state is h11.DONE:
+                    conn.start_next_cycle()
+        except h11.RemoteProtocolError as error:
+            if conn.our_state in (h11.IDLE, h11.SEND_RESPONSE):
+                await self._send(
+                    conn, writer, error.error_status_hint, b"bad request\n", "text/plain"
+                )
+        except (TimeoutError, ConnectionError):
+            pass
+        finally:
+            writer.close()
+
+    async def _next_event(self, conn: h11.Connection, reader: asyncio.StreamReader) -> object:
+        while True:
+            event = conn.next_event()
+            if event is not h11.NEED_DATA:
+                return event
+            data = await asyncio.wait_for(reader.read(_READ_SIZE), IDLE_TIMEOUT)
+            conn.receive_data(data)
+
+    async def _answer(
+        self, conn: h11.Connection, writer: asyncio.StreamWriter, request: h11.Request
+    ) -> None:
+        method = request.method.decode("ascii", "replace")
+        path = urlsplit(request.target.decode("ascii", "replace")).path
+        if method not in ("GET", "HEAD"):
+            status, body, kind = 405, b"GET or HEAD\n", "text/plain"
+        elif path == "/":
+            status, body, kind = 200, self._index, "text/html; charset=utf-8"
+        elif path in self.files:
+            status, body, kind = 200, self.files[path].data, XML_TYPE
+            self.served += 1
+        else:
+            status, body, kind = 404, b"not one of this robot's files\n", "text/plain"
+        await self._send(conn, writer, status, b"" if method == "HEAD" else body, kind, len(body))
+
+    async def _send(
+        self,
+        conn: h11.Connection,
+        writer: asyncio.StreamWriter,
+        status: int,
+        body: bytes,
+        kind: str,
+        length: int | None = None,
+    ) -> None:
+        headers = [
+            ("Content-Type", kind),
+            ("Content-Length", str(len(body) if length is None else length)),
+            ("Server", _SERVER),
+        ]
+        if status == 405:
+            headers.append(("Allow", "GET, HEAD"))
+        writer.write(conn.send(h11.Response(status_code=status, headers=headers)) or b"")
+        if body:
+            writer.write(conn.send(h11.Data(data=body)) or b"")
+        writer.write(conn.send(h11.EndOfMessage()) or b"")
+        await writer.drain()

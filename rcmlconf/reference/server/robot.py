@@ -1,0 +1,158 @@
+"""One robot served by the reference server, without I/O: what all its sessions share.
+
+The model, the driver that owns the values, the privilege table (D-RCTP-16), the sessions and
+their data-stream tags, and who watches which event access (D-RCTP-27). Time is a value: the
+adapter calls `handle_timer(now)` at `get_timer()`, when the driver moves on and changes are
+handed to the sessions that watch them.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterable, Mapping
+from typing import TYPE_CHECKING
+
+from rcmlconf.rcml.model import AccessNode, DataNode, RcmlDocument
+from rcmlconf.rctp.bodies import ValuesCodec
+from rcmlconf.rctp.datastream.flow import Direction
+from rcmlconf.rctp.datastream.values import stream_codec
+from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
+from rcmlconf.reference.drivers import Driver
+from rcmlconf.reference.server.privileges import Privileges
+from rcmlconf.values import Value
+
+if TYPE_CHECKING:
+    from rcmlconf.reference.server.session import ServerSession
+
+#: D-RCTP-27: how often the reference server moves the driver on and looks for changes.
+TICK = 0.01
+#: 16 random bytes make a session ID of 22 characters (D-RCTP-11: unguessable, 8 to 64).
+_ID_BYTES = 16
+
+
+class Robot:
+    def __init__(
+        self,
+        model: RcmlDocument,
+        driver: Driver,
+        now: float,
+        *,
+        seed: int = 0,
+        data_port: int = 0,
+        session_timeout: int = DEFAULT_SESSION_TIMEOUT,
+        unix_offset: float = 0.0,
+        random_bytes: Callable[[int], bytes] = os.urandom,
+    ) -> None:
+        """`data_port` is the UDP port every session's data stream uses (D-RCTP-28);
+        `unix_offset` turns `now` into Unix time, for data-stream timestamps."""
+        self.model = model
+        self.site_path = model.site.path or "/"
+        self.driver = driver
+        self.data_port = data_port
+        self.session_timeout = session_timeout
+        self.unix_offset = unix_offset
+        self.random_bytes = random_bytes
+        self.privileges = Privileges()
+        #: Open sessions by ID, and by their data-stream tag (the adapter's demultiplexer).
+        self.sessions: dict[str, ServerSession] = {}
+        self.by_tag: dict[int, ServerSession] = {}
+        #: Event access path -> the sessions where it plays.
+        self._watchers: dict[str, set[ServerSession]] = {}
+        #: Encoded DATA bodies of this tick, shared by every session that streams the access.
+        self._bodies: dict[tuple[str, Direction], bytes] = {}
+        self._stream_codecs: dict[tuple[str, Direction], ValuesCodec] = {}
+        #: Sessions given something to send by another's doing: the adapter flushes them.
+        self._touched: set[ServerSession] = set()
+        self._next_tick = now
+        driver.start(model, now, seed)
+
+    # -- values ------------------------------------------------------------------------------
+
+    def values(self, nodes: Iterable[DataNode]) -> dict[str, Value]:
+        """The current values of some data nodes, by name."""
+        current = self.driver.values()
+        return {node.name: current[node.path] for node in nodes}
+
+    def body(self, access: AccessNode, direction: Direction) -> bytes:
+        """A stream's DATA body now (D-RCTP-20), encoded once per tick for all sessions."""
+        key = (access.path, direction)
+        body = self._bodies.get(key)
+        if body is None:
+            codec = self._stream_codecs.get(key)
+            if codec is None:
+                codec = self._stream_codecs[key] = stream_codec(access, direction)
+            body = self._bodies[key] = codec.encode(self.values(codec.nodes))
+        return body
+
+    def command(self, by: ServerSession, values: Mapping[str, Value], now: float) -> None:
+        """Values a session wrote, checked already, applied together (R-RCTP-29)."""
+        self._changed(self.driver.command(values, now), by, now)
+
+    # -- sessions ----------------------------------------------------------------------------
+
+    def open_session(self, session: ServerSession) -> str:
+        while True:
+            session_id = self.random_bytes(_ID_BYTES).hex()
+            if session_id not in self.sessions:
+                self.sessions[session_id] = session
+                return session_id
+
+    def new_tag(self, session: ServerSession) -> int:
+        """An unguessable data-stream tag no other session has (D-RCTP-18)."""
+        while True:
+            tag = int.from_bytes(self.random_bytes(4), "big")
+            if tag and tag not in self.by_tag:
+                self.by_tag[tag] = session
+                return tag
+
+    def close_session(
+        self, session: ServerSession, session_id: str | None, tag: int | None
+    ) -> None:
+        """The session is over: its privileges go (R-RCTP-36), its watches and tag too."""
+        if session_id is not None:
+            self.sessions.pop(session_id, None)
+            self.privileges.release_all(session_id)
+        if tag is not None:
+            self.by_tag.pop(tag, None)
+        for watchers in self._watchers.values():
+            watchers.discard(session)
+
+    def watch(self, session: ServerSession, access: str) -> None:
+        self._watchers.setdefault(access, set()).add(session)
+
+    def unwatch(self, session: ServerSession, access: str) -> None:
+        self._watchers.get(access, set()).discard(session)
+
+    # -- time --------------------------------------------------------------------------------
+
+    def get_timer(self) -> float:
+        return self._next_tick
+
+    def handle_timer(self, now: float) -> None:
+        if now < self._next_tick:
+            return
+        # Keep the beat; after a stall, start again from now rather than run to catch up.
+        self._next_tick += TICK
+        if self._next_tick <= now:
+            self._next_tick = now + TICK
+        self._changed(self.driver.advance(now), None, now)
+
+    def _changed(self, paths: Iterable[str], by: ServerSession | None, now: float) -> None:
+        """Hand changes to the sessions watching them, except the one that made them (R-RCTP-54)."""
+        by_access: dict[str, list[str]] = {}
+        for path in paths:
+            access, _, name = path.rpartition("/")
+            by_access.setdefault(access, []).append(name)
+        if not by_access:
+            return
+        self._bodies.clear()
+        for access, names in by_access.items():
+            for session in tuple(self._watchers.get(access, ())):
+                if session is not by:
+                    session.note_changes(access, names, now)
+                    self._touched.add(session)
+
+    def touched(self) -> set[ServerSession]:
+        """The sessions that may have something to send since the last call."""
+        touched, self._touched = self._touched, set()
+        return touched

@@ -1,0 +1,490 @@
+"""One client of the reference server, without I/O: its control connection and its data stream.
+
+The protocol core (`rctp.connection`) makes the first checks of D-RCTP-25 and answers them; what
+reaches `_answer` is a request the robot must judge. Each method has a handler that makes the
+remaining checks in D-RCTP-25's order — the node (404, 405), the permission (403), the privilege
+(470, 471), the transport (461), the body (411, 415, 422) — raising `Refused` at the first that
+fails, then does what the request asks. The server's own requests — data-change WRITEs
+(D-RCTP-27), STOP of a stream whose receive timeout passed (R-RCTP-45), BYE — leave from here too.
+
+The adapter feeds bytes, datagrams and timers in and sends what `data_to_send` and
+`datagrams_to_send` give; `finished` tells it to close the connection once everything is sent.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import deque
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+
+from rcmlconf import __version__
+from rcmlconf.errors import ProtocolError, ValueTextError
+from rcmlconf.rcml.model import AccessNode, DataNode, Permission
+from rcmlconf.rcml.paths import is_within
+from rcmlconf.rctp.allowed import ALLOWED, TargetKind, target_kind
+from rcmlconf.rctp.bodies import ValuesCodec
+from rcmlconf.rctp.connection import (
+    ConnectionClosed,
+    ProtocolFailure,
+    RequestReceived,
+    RequestRejected,
+    ResponseReceived,
+    SessionEnded,
+    SessionOpened,
+    SessionTimedOut,
+)
+from rcmlconf.rctp.datastream.endpoint import MODE_DIRECTIONS, Address, Endpoint
+from rcmlconf.rctp.datastream.events import StreamTimedOut, ValuesReceived
+from rcmlconf.rctp.datastream.flow import Direction
+from rcmlconf.rctp.fields import Transport, format_nodes, parse_nodes, parse_transport
+from rcmlconf.rctp.messages import TEXT_TYPE, VALUES_TYPE, Request
+from rcmlconf.rctp.states import Role, SessionState, StreamState
+from rcmlconf.rctp.targets import STAR, Target, format_target
+from rcmlconf.reference.ends import SessionEnd
+from rcmlconf.reference.server.robot import Robot
+from rcmlconf.wording import shorten
+
+log = logging.getLogger("rcmlconf.server")
+
+PRODUCT = f"rcmlconf/{__version__}"
+#: R-RCTP-55: the server's WRITE and STOP requests unanswered at once, at most.
+MAX_UNANSWERED = 4
+#: D-RCTP-18: stream ids are one byte, 0 being the session's.
+MAX_STREAMS = 255
+
+Answer = tuple[int, list[tuple[str, str]], bytes]
+
+
+class Refused(Exception):
+    """A check of D-RCTP-25 failed: the request is answered with this status."""
+
+    def __init__(self, status: int, reason: str, rule: str, allow: Sequence[str] = ()) -> None:
+        super().__init__(reason)
+        self.status = status
+        self.reason = reason
+        self.rule = rule
+        self.allow = tuple(allow)
+
+
+@dataclass(slots=True)
+class _StreamSetUp:
+    access: AccessNode
+    stream: int
+    mode: str
+
+
+class ServerSession(SessionEnd):
+    def __init__(self, robot: Robot, peer: Address, now: float) -> None:
+        super().__init__(Role.SERVER, now)
+        self.robot = robot
+        self.peer = peer
+        self.id: str | None = None
+        #: Stream accesses set up, by path; a stream keeps its id after STOP (D-RCTP-28).
+        self._streams: dict[str, _StreamSetUp] = {}
+        self._stream_ids: dict[str, int] = {}
+        #: Event access path -> names of nodes changed since this session's last WRITE of it.
+        self._changes: dict[str, set[str]] = {}
+        #: Server STOPs waiting for room (R-RCTP-55).
+        self._stops: deque[tuple[str, str]] = deque()
+        #: The connection is over: close it once everything is sent.
+        self.finished = False
+
+    def _bodies(self, due: tuple[int, ...]) -> dict[int, bytes]:
+        """The robot's values, encoded once per tick for every session (`Robot.body`)."""
+        assert self.endpoint is not None
+        streams = self.endpoint.streams
+        return {s: self.robot.body(streams[s].access, Direction.READ) for s in due}
+
+    def shut_down(self, now: float) -> None:
+        """Graceful shutdown: BYE with `Reason: shutdown`; the session ends when it is answered
+        or after 5 s (R-RCTP-23)."""
+        if self.conn.session_state is SessionState.OPEN:
+            self.conn.send_request("BYE", STAR, [("Reason", "shutdown")], now=now)
+        else:
+            self._end()
+
+    # -- events ------------------------------------------------------------------------------
+
+    def _process(self, now: float) -> None:
+        while (event := self.conn.next_event()) is not None:
+            if isinstance(event, RequestReceived):
+                self._answer(event, now)
+            elif isinstance(event, RequestRejected):
+                self._log(event.request, event.status, event.reason)
+            elif isinstance(event, ResponseReceived):
+                self._answered(event, now)
+            elif isinstance(event, SessionOpened):
+                log.info("%s session opened", self._who())
+            elif isinstance(event, SessionTimedOut):
+                log.info("%s session timed out: BYE", self._who())
+            elif isinstance(event, ProtocolFailure):
+                log.info("%s %s [%s]", self._who(), event.error.reason, event.error.rule)
+                self._end()
+            elif isinstance(event, SessionEnded | ConnectionClosed):
+                self._end()
+        endpoint = self.endpoint
+        while endpoint is not None and (stream_event := endpoint.next_event()) is not None:
+            if isinstance(stream_event, ValuesReceived):
+                setup = self._stream_by_id(stream_event.stream)
+                if setup is not None:
+                    base = setup.access.path
+                    values = {f"{base}/{name}": v for name, v in stream_event.values.items()}
+                    self.robot.command(self, values, now)
+            elif isinstance(stream_event, StreamTimedOut):
+                self._stream_lost(stream_event.stream, now)
+            else:
+                log.debug("%s data stream: %s", self._who(), stream_event)
+        self._pump(now)
+
+    def _end(self) -> None:
+        if not self.finished:
+            self.finished = True
+            tag = self.endpoint.tag if self.endpoint is not None else None
+            self.robot.close_session(self, self.id, tag)
+            log.info("%s session ended", self._who())
+
+    def _who(self) -> str:
+        return f"{self.peer[0]}:{self.peer[1]}"
+
+    def _log(self, request: Request, status: int, reason: str = "") -> None:
+        if log.isEnabledFor(logging.INFO):
+            detail = f" ({shorten(reason, 80)})" if reason and status != 200 else ""
+            log.info(
+                "%s %s %s -> %d%s", self._who(), request.method, request.target, status, detail
+            )
+
+    # -- requests the robot judges -----------------------------------------------------------
+
+    def _answer(self, event: RequestReceived, now: float) -> None:
+        request = event.request
+        try:
+            status, headers, body = _HANDLERS[request.method](self, request, event.target, now)
+        except Refused as refusal:
+            status, body = refusal.status, refusal.reason.encode("utf-8")
+            headers = [("Content-Type", TEXT_TYPE)]
+            if refusal.allow:
+                headers.insert(0, ("Allow", ", ".join(refusal.allow)))
+            self._log(request, status, f"{refusal.reason} [{refusal.rule}]")
+        else:
+            self._log(request, status)
+        self.conn.send_response(request, status, headers, body)
+
+    def _node_kind(self, request: Request, target: Target) -> TargetKind:
+        """D-RCTP-26: 404 for no node, 405 (with `Allow`) for a method its kind does not take."""
+        kind = target_kind(self.robot.model, target.path)
+        if kind is None:
+            raise Refused(404, f"no node {shorten(target.path, 80)}", "R-RCTP-26")
+        if request.method not in ALLOWED[kind]:
+            raise Refused(
+                405, f"{request.method} does not apply to {kind.value}", "R-RCTP-26", ALLOWED[kind]
+            )
+        return kind
+
+    def _access(self, target: Target) -> AccessNode:
+        node = self.robot.model.node(target.path)
+        assert isinstance(node, AccessNode)  # the node check said so
+        return node
+
+    def _session_id(self) -> str:
+        assert self.id is not None  # the core passes nothing but CONNECT before the session
+        return self.id
+
+    def _connect(self, request: Request, target: Target, now: float) -> Answer:
+        if target.path != self.robot.site_path:
+            raise Refused(
+                404,
+                f"no robot at {shorten(target.path, 80)}; try {self.robot.site_path}",
+                "R-RCTP-26",
+            )
+        if self.id is None:
+            self.id = self.robot.open_session(self)
+        session = f"{self.id};timeout={self.robot.session_timeout}"
+        return 200, [("Session", session), ("Server", PRODUCT)], b""
+
+    def _acquire(self, request: Request, target: Target, now: float) -> Answer:
+        self._node_kind(request, target)
+        if not self.robot.privileges.acquire(self._session_id(), target.path):
+            held = f"another session holds {target.path}, a path above it or one below"
+            raise Refused(471, held, "R-RCTP-33")
+        return 200, [], b""
+
+    def _release(self, request: Request, target: Target, now: float) -> Answer:
+        writing = [
+            path
+            for path, setup in self._streams.items()
+            if Direction.WRITE in MODE_DIRECTIONS[setup.mode]
+            and (target.is_session or is_within(path, target.path))
+        ]
+        if writing:  # R-RCTP-35: the stream would write without the privilege
+            raise Refused(455, f"{writing[0]} is set up for writing: STOP it first", "R-RCTP-35")
+        if target.is_session:
+            self.robot.privileges.release_all(self._session_id())
+            return 200, [], b""
+        self._node_kind(request, target)
+        if not self.robot.privileges.release(self._session_id(), target.path):
+            raise Refused(470, f"this session did not acquire {target.path}", "R-RCTP-35")
+        return 200, [], b""
+
+    def _read(self, request: Request, target: Target, now: float) -> Answer:
+        kind = self._node_kind(request, target)
+        nodes = self._nodes(request, target, kind, Permission.READ)
+        body = _codec(nodes, target).encode(self.robot.values(nodes))
+        headers = (
+            [("Nodes", format_nodes([n.name for n in nodes]))]
+            if kind is TargetKind.EVENT_ACCESS
+            else []
+        )
+        return 200, headers, body
+
+    def _write(self, request: Request, target: Target, now: float) -> Answer:
+        kind = self._node_kind(request, target)
+        nodes = self._nodes(request, target, kind, Permission.WRITE)
+        for node in nodes:
+            self._privileged(node.path)
+        if "Content-Length" not in request.headers:
+            raise Refused(411, "a WRITE carries its values, with Content-Length", "R-RCTP-6")
+        if request.headers.get("Content-Type") != VALUES_TYPE:
+            raise Refused(415, f"a WRITE's body is {VALUES_TYPE}", "R-RCTP-6")
+        try:
+            values = _codec(nodes, target).decode(request.body)
+        except ProtocolError as error:
+            raise Refused(422, f"{error.reason} (body byte {error.offset})", "R-RCTP-28") from None
+        for node in nodes:
+            problem = node.out_of_range(values[node.name])
+            if problem is not None:
+                raise Refused(422, problem, "R-RCTP-28")
+        self.robot.command(self, {node.path: values[node.name] for node in nodes}, now)
+        return 200, [], b""
+
+    def _nodes(
+        self, request: Request, target: Target, kind: TargetKind, needed: Permission
+    ) -> tuple[DataNode, ...]:
+        """The data nodes a READ or WRITE concerns (D-RCTP-17), each allowed `needed` (403)."""
+        if kind is TargetKind.NORMAL_DATA:
+            node = self.robot.model.node(target.path)
+            assert isinstance(node, DataNode)
+            nodes: tuple[DataNode, ...] = (node,)
+        else:
+            nodes = self._listed(request, self._access(target), needed)
+        verb = "read" if needed is Permission.READ else "written"
+        for node in nodes:
+            if needed not in node.permission:  # R-RCTP-27
+                raise Refused(
+                    403, f"{node.path} may not be {verb} ({node.permission.to_text()})", "R-RCTP-27"
+                )
+        return nodes
+
+    def _listed(
+        self, request: Request, access: AccessNode, needed: Permission
+    ) -> tuple[DataNode, ...]:
+        """`Nodes` of an event access (R-RCTP-30): required in a WRITE; all readable in a READ."""
+        text = request.headers.get("Nodes")
+        if text is None:
+            if needed is Permission.WRITE:
+                raise Refused(
+                    400, "a WRITE of an event access lists its nodes in Nodes", "R-RCTP-30"
+                )
+            return access.readable()
+        try:
+            names = parse_nodes(text)
+        except ValueTextError as exc:
+            raise Refused(400, str(exc), "R-RCTP-30") from None
+        by_name = {node.name: node for node in access.data}
+        unknown = [name for name in names if name not in by_name]
+        if unknown:
+            raise Refused(
+                400, f"{access.path} has no data node {shorten(unknown[0], 40)}", "R-RCTP-30"
+            )
+        return tuple(by_name[name] for name in names)
+
+    def _privileged(self, path: str) -> None:
+        """R-RCTP-34: writing needs the privilege of the path."""
+        holder = self.robot.privileges.holder(path)
+        if holder is None:
+            raise Refused(470, f"ACQUIRE {path} (or a path above it) first", "R-RCTP-34")
+        if holder != self.id:
+            raise Refused(471, f"another session holds {path}", "R-RCTP-34")
+
+    def _setup(self, request: Request, target: Target, now: float) -> Answer:
+        kind = self._node_kind(request, target)
+        access = self._access(target)
+        if kind is TargetKind.EVENT_ACCESS:
+            return 200, [], b""
+        transport = self._transport(request, access)
+        stream = self._stream_ids.get(access.path)
+        if stream is None:
+            if len(self._stream_ids) >= MAX_STREAMS:
+                raise Refused(461, f"a session has at most {MAX_STREAMS} streams", "R-RCTP-38")
+            stream = self._stream_ids[access.path] = len(self._stream_ids) + 1
+        assert transport.client_port is not None
+        endpoint = self._endpoint(now)
+        endpoint.peer = (self.peer[0], transport.client_port)  # R-RCTP-56
+        endpoint.add_stream(stream, access, transport.mode)
+        self._streams[access.path] = _StreamSetUp(access, stream, transport.mode)
+        answer = Transport(
+            client_port=transport.client_port,
+            mode=transport.mode,
+            server_port=self.robot.data_port,
+            tag=endpoint.tag,
+            stream=stream,
+        )
+        return 200, [("Transport", str(answer))], b""
+
+    def _transport(self, request: Request, access: AccessNode) -> Transport:
+        """D-RCTP-28: the permission and the privilege of the mode, then the transport itself."""
+        text = request.headers.get("Transport")
+        if text is None:
+            raise Refused(461, "SETUP of a stream access names its Transport", "R-RCTP-57")
+        try:
+            transport = parse_transport(text)
+        except ValueTextError as exc:
+            raise Refused(400, str(exc), "R-RCTP-38") from None
+        directions = MODE_DIRECTIONS[transport.mode]
+        for direction in sorted(directions):
+            nodes = access.readable() if direction is Direction.READ else access.writable()
+            if not nodes:
+                which = direction.name.lower()
+                raise Refused(403, f"{access.path} has no node to {which}", "R-RCTP-57")
+        if Direction.WRITE in directions:
+            for node in access.writable():
+                self._privileged(node.path)
+        if transport.client_port is None:
+            raise Refused(461, "the Transport names no client_port", "R-RCTP-57")
+        if (transport.server_port, transport.tag, transport.stream) != (None, None, None):
+            raise Refused(461, "the server chooses server_port, tag and stream", "R-RCTP-38")
+        return transport
+
+    def _endpoint(self, now: float) -> Endpoint:
+        if self.endpoint is None:
+            robot = self.robot
+            self.endpoint = Endpoint(
+                Role.SERVER,
+                robot.new_tag(self),
+                first_sequence=int.from_bytes(robot.random_bytes(2), "big"),  # R-RCTP-41
+                unix_offset=robot.unix_offset,
+            )
+        return self.endpoint
+
+    def _go(self, request: Request, target: Target, now: float) -> Answer:
+        kind = self._node_kind(request, target)
+        if kind is TargetKind.EVENT_ACCESS:
+            self.robot.watch(self, target.path)
+            return 200, [], b""
+        setup = self._streams[target.path]
+        if Direction.WRITE in MODE_DIRECTIONS[setup.mode]:
+            for node in setup.access.writable():
+                self._privileged(node.path)
+        assert self.endpoint is not None
+        self.endpoint.play(setup.stream, now)
+        return 200, [], b""
+
+    def _pause(self, request: Request, target: Target, now: float) -> Answer:
+        kind = self._node_kind(request, target)
+        if kind is TargetKind.EVENT_ACCESS:
+            self.robot.unwatch(self, target.path)
+        else:
+            assert self.endpoint is not None
+            self.endpoint.pause(self._streams[target.path].stream)
+        return 200, [], b""
+
+    def _stop(self, request: Request, target: Target, now: float) -> Answer:
+        kind = self._node_kind(request, target)
+        if kind is TargetKind.EVENT_ACCESS:
+            self.robot.unwatch(self, target.path)
+            self._changes.pop(target.path, None)
+        else:
+            self._forget_stream(target.path)
+        return 200, [], b""
+
+    def _bye(self, request: Request, target: Target, now: float) -> Answer:
+        self._node_kind(request, target)  # BYE of `*` is the core's; of a node, 404 or 405
+        raise AssertionError("D-RCTP-26 allows BYE of * alone")
+
+    def _forget_stream(self, path: str) -> None:
+        setup = self._streams.pop(path, None)
+        if setup is not None and self.endpoint is not None:
+            self.endpoint.remove_stream(setup.stream)
+
+    def _stream_by_id(self, stream: int) -> _StreamSetUp | None:
+        return next((s for s in self._streams.values() if s.stream == stream), None)
+
+    # -- the server's own requests -----------------------------------------------------------
+
+    def note_changes(self, access: str, names: Iterable[str], now: float) -> None:
+        """The robot: these nodes of a watched event access changed (D-RCTP-27)."""
+        node = self.robot.model.node(access)
+        assert isinstance(node, AccessNode)
+        readable = {n.name for n in node.readable()}
+        changed = readable.intersection(names)
+        if changed:
+            self._changes.setdefault(access, set()).update(changed)
+            self._pump(now)
+
+    def _stream_lost(self, stream: int, now: float) -> None:
+        """R-RCTP-45: the client's writes stopped for the stream's timeout: STOP it."""
+        setup = self._stream_by_id(stream)
+        if setup is None or self.endpoint is None:
+            return
+        self.endpoint.pause(stream)
+        self._stops.append((format_target(setup.access.path), "timeout"))
+        log.info("%s %s: no DATA for its timeout: STOP", self._who(), setup.access.path)
+
+    def _answered(self, event: ResponseReceived, now: float) -> None:
+        request = event.request
+        self._log(request, event.response.status)
+        if request.method == "STOP":
+            target = request.target
+            path = next((p for p in self._streams if format_target(p) == target), None)
+            if path is not None and event.response.status == 200:
+                self._forget_stream(path)
+
+    def _pump(self, now: float) -> None:
+        """Send what waits while fewer than four WRITE and STOP requests are unanswered."""
+        conn = self.conn
+        if conn.session_state is not SessionState.OPEN:
+            return
+        room = MAX_UNANSWERED - sum(
+            1 for r in conn.requests_unanswered if r.method in ("WRITE", "STOP")
+        )
+        while room > 0 and (self._stops or self._changes):
+            if self._stops:
+                target, reason = self._stops.popleft()
+                conn.send_request("STOP", target, [("Reason", reason)], now=now)
+            else:
+                access_path, names = next(iter(self._changes.items()))
+                del self._changes[access_path]
+                self._push(access_path, names, now)
+            room -= 1
+
+    def _push(self, access_path: str, names: set[str], now: float) -> None:
+        """A data-change event: WRITE of the access with the changed nodes' newest values."""
+        if self.conn.streams.get(access_path) is not StreamState.PLAYING:
+            return
+        access = self.robot.model.node(access_path)
+        assert isinstance(access, AccessNode)
+        nodes = tuple(n for n in access.data if n.name in names)
+        target = Target(access_path)
+        body = _codec(nodes, target).encode(self.robot.values(nodes))
+        headers = [("Nodes", format_nodes(sorted(names)))]
+        self.conn.send_request("WRITE", format_target(access_path), headers, body, now=now)
+
+
+def _codec(nodes: Sequence[DataNode], target: Target) -> ValuesCodec:
+    return ValuesCodec(nodes, target.path, "R-RCTP-28")
+
+
+_Handler = Callable[[ServerSession, Request, Target, float], Answer]
+#: D-RCTP-12: what the server does with each method a client may send.
+_HANDLERS: dict[str, _Handler] = {
+    "CONNECT": ServerSession._connect,
+    "ACQUIRE": ServerSession._acquire,
+    "RELEASE": ServerSession._release,
+    "READ": ServerSession._read,
+    "WRITE": ServerSession._write,
+    "SETUP": ServerSession._setup,
+    "GO": ServerSession._go,
+    "PAUSE": ServerSession._pause,
+    "STOP": ServerSession._stop,
+    "BYE": ServerSession._bye,
+}
