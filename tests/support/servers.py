@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import asyncio
 import functools
-from collections.abc import AsyncIterator, Callable, Coroutine
+from collections.abc import AsyncIterator, Callable, Coroutine, Sequence
 from contextlib import asynccontextmanager
 from pathlib import Path
 from typing import Any
 
-from rcmlconf.rctp.messages import Response
+from rcmlconf.rctp.messages import Request, Response
 from rcmlconf.rctp.reader import MessageReader
 from rcmlconf.reference.drivers import choose_driver
 from rcmlconf.reference.server.adapter import ReferenceServer, ServerSettings
@@ -82,3 +82,53 @@ class Raw:
 
     def close(self) -> None:
         self.writer.close()
+
+
+class RawSession:
+    """A raw connection with a session open, numbering its requests."""
+
+    def __init__(self, raw: Raw, session: str) -> None:
+        self.raw, self.session, self.cseq = raw, session, 1
+
+    @classmethod
+    async def open(cls, server: ReferenceServer) -> RawSession:
+        raw = await Raw.open(server)
+        await raw.send(b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\n\r\n")
+        answer = await raw.response()
+        assert answer.status == 200, answer
+        return cls(raw, (answer.headers.get("Session") or "").split(";")[0])
+
+    async def send(
+        self, method: str, target: str, headers: Sequence[tuple[str, str]] = (), body: bytes = b""
+    ) -> None:
+        """A request with the next CSeq and the session, as written; no waiting."""
+        self.cseq += 1
+        fields = [("CSeq", str(self.cseq)), ("Session", self.session), *headers]
+        if body:
+            fields.append(("Content-Length", str(len(body))))
+        head = f"{method} {target} RCTP/2.0\r\n"
+        head += "".join(f"{name}: {value}\r\n" for name, value in fields)
+        await self.raw.send(head.encode() + b"\r\n" + body)
+
+    async def ask(
+        self, method: str, target: str, headers: Sequence[tuple[str, str]] = (), body: bytes = b""
+    ) -> Response:
+        await self.send(method, target, headers, body)
+        return await self.raw.response()
+
+    async def answer(self, request: Request, status: int = 200, reason: str = "OK") -> None:
+        """Answer one of the server's requests."""
+        fields = f"CSeq: {request.headers.get('CSeq')}\r\nSession: {self.session}\r\n"
+        await self.raw.send(f"RCTP/2.0 {status} {reason}\r\n{fields}\r\n".encode())
+
+    async def request(self, timeout: float = 5.0) -> Request | None:
+        """The server's next request; None when none comes within `timeout`."""
+        try:
+            message = await self.raw.message(timeout)
+        except TimeoutError:
+            return None
+        assert isinstance(message, Request), message
+        return message
+
+    def close(self) -> None:
+        self.raw.close()

@@ -7,12 +7,11 @@ from dataclasses import dataclass, field
 
 import pytest
 from support.robots import TESTBOT, robot
-from support.servers import Raw, run, serving
+from support.servers import Raw, RawSession, run, serving
 
 from rcmlconf.rctp.bodies import ValuesCodec
-from rcmlconf.rctp.messages import VALUES_TYPE, Response
+from rcmlconf.rctp.messages import VALUES_TYPE
 from rcmlconf.reference.client.adapter import Client, RctpError
-from rcmlconf.reference.server.adapter import ReferenceServer
 
 
 def body_of(path: str, value: object) -> bytes:
@@ -26,32 +25,6 @@ class Step:
     target: str
     headers: list[tuple[str, str]] = field(default_factory=list)
     body: bytes = b""
-
-
-class RawSession:
-    """A raw connection with a session open, numbering its requests."""
-
-    def __init__(self, raw: Raw, session: str) -> None:
-        self.raw, self.session, self.cseq = raw, session, 1
-
-    @classmethod
-    async def open(cls, server: ReferenceServer) -> RawSession:
-        raw = await Raw.open(server)
-        await raw.send(b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\n\r\n")
-        answer = await raw.response()
-        assert answer.status == 200
-        session = (answer.headers.get("Session") or "").split(";")[0]
-        return cls(raw, session)
-
-    async def ask(self, step: Step) -> Response:
-        self.cseq += 1
-        fields = [("CSeq", str(self.cseq)), ("Session", self.session), *step.headers]
-        if step.body:
-            fields.append(("Content-Length", str(len(step.body))))
-        head = f"{step.method} {step.target} RCTP/2.0\r\n"
-        head += "".join(f"{name}: {value}\r\n" for name, value in fields)
-        await self.raw.send(head.encode() + b"\r\n" + step.body)
-        return await self.raw.response()
 
 
 VALUES = [("Content-Type", VALUES_TYPE)]
@@ -210,15 +183,15 @@ async def test_a_wrong_request_gets_its_status_and_the_session_goes_on(
     async with serving() as server:
         session = await RawSession.open(server)
         for earlier in before:
-            assert (await session.ask(earlier)).status == 200, earlier
-        answer = await session.ask(step)
+            assert (await session.ask(**vars(earlier))).status == 200, earlier
+        answer = await session.ask(**vars(step))
         assert answer.status == status, answer.body
         assert answer.headers.get("Allow") == allow
         if status != 200:
             assert answer.headers.get("Content-Type") == "text/plain; charset=utf-8"
         # The session goes on (D-RCTP-10).
-        assert (await session.ask(Step("READ", "/head/control/led"))).status == 200
-        session.raw.close()
+        assert (await session.ask("READ", "/head/control/led")).status == 200
+        session.close()
 
 
 @run
@@ -312,7 +285,7 @@ async def test_release_star_gives_everything_back() -> None:
 async def test_bye_ends_the_session_and_closes_the_connection() -> None:
     async with serving() as server:
         session = await RawSession.open(server)
-        answer = await session.ask(Step("BYE", "*"))
+        answer = await session.ask("BYE", "*")
         assert answer.status == 200
         await session.raw.send(b"READ /head/control/led RCTP/2.0\r\nCSeq: 3\r\n\r\n")
         assert await session.raw.closed()
