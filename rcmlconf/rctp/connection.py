@@ -8,7 +8,9 @@ the first checks of D-RCTP-25 itself — framing, method, version, CSeq, directi
 session and states — and answers a request that fails one with its status, in order, without
 troubling the application; the application sees only requests that pass, and answers them with
 `send_response`. Responses leave in the order their requests arrived (R-RCTP-5), whoever wrote
-them, so a received request waits in a queue until its answer is ready.
+them. As an HTTP/1.1 server takes pipelined requests (and h11 hands them over), the application
+has one received request at a time: the next is checked, and handed over, once the one before it
+is answered, so that its checks see the states the earlier answers left.
 """
 
 from __future__ import annotations
@@ -142,6 +144,8 @@ class _Inbound:
     request: Request | None
     cseq: int | None
     answer: bytes | None = None
+    #: Handed to the application as `RequestReceived`, which owes its answer.
+    handed: bool = False
 
 
 class Connection:
@@ -164,6 +168,11 @@ class Connection:
         self._expected_cseq = 1
         self._sent: deque[Request] = deque()
         self._inbound: deque[_Inbound] = deque()
+        #: Received requests not yet checked: they wait for the application's answers before
+        #: them. `_with_application` counts requests it has and has not answered.
+        self._deferred: deque[_Inbound] = deque()
+        self._with_application = 0
+        self._checking = False
         self._failed = False
         self._eof = False
         self._last_activity = now
@@ -232,7 +241,28 @@ class Connection:
     # -- requests received -------------------------------------------------------------------
 
     def _receive_request(self, request: Request, offset: int) -> None:
+        """A request takes its place in the answering order at once, and is checked once every
+        request before it is answered: a pipelined GO is judged in the state its SETUP's answer
+        left (R-RCTP-13), as an HTTP server takes pipelined requests one after the other."""
+        inbound = _Inbound(request, None)
+        self._inbound.append(inbound)
+        self._deferred.append(inbound)
+        self._check_deferred()
+
+    def _check_deferred(self) -> None:
+        if self._checking:
+            return  # a check that answers on its own comes back here: the loop below goes on
+        self._checking = True
+        try:
+            while self._deferred and not self._with_application:
+                self._check_request(self._deferred.popleft())
+        finally:
+            self._checking = False
+
+    def _check_request(self, inbound: _Inbound) -> None:
         """D-RCTP-25: the protocol's own checks, in order; the first that fails answers."""
+        request = inbound.request
+        assert request is not None  # a slot for a broken message is never deferred
         # The CSeq is read first, so that every answer that can echo it does (R-RCTP-3).
         cseq_texts = request.headers.get_all("CSeq")
         cseq_problem = None
@@ -241,8 +271,7 @@ class Connection:
             cseq = parse_cseq(cseq_texts[0]) if len(cseq_texts) == 1 else None
         except ValueTextError as exc:
             cseq_problem = str(exc)
-        inbound = _Inbound(request, cseq)
-        self._inbound.append(inbound)
+        inbound.cseq = cseq
         # Numbering follows every readable CSeq, whatever else is wrong with the request, so
         # that one bad request does not put every later one out of sequence.
         expected = self._expected_cseq
@@ -292,6 +321,8 @@ class Connection:
             self._session_event(SessionEvent.BYE)
             self.send_response(request, 200)
             return None
+        inbound.handed = True
+        self._with_application += 1
         self._events.append(RequestReceived(request, cseq, target))
         return None
 
@@ -422,8 +453,11 @@ class Connection:
             if session.timeout is None:
                 raise LocalProtocolError("the answer to CONNECT gives the timeout (R-RCTP-18)")
         inbound.answer = self._answer_bytes(inbound.cseq, status, fields, body, reason=reason)
+        if inbound.handed:
+            self._with_application -= 1
         self._exchange_done(request, status, Headers.of(fields), ours=False)
         self._flush_answers()
+        self._check_deferred()
 
     def _answer_bytes(
         self,
@@ -541,14 +575,13 @@ class Connection:
 
     def get_timer(self) -> float | None:
         """When handle_timer should next be called, or None."""
-        deadlines = []
         if self._bye_deadline is not None:
-            deadlines.append(self._bye_deadline)
+            return self._bye_deadline  # the session is closing: nothing else is due
         timeout = self.timeout
         if self.session_state is SessionState.OPEN and timeout is not None:
             share = 1.0 if self.role is Role.SERVER else 0.5
-            deadlines.append(self._last_activity + timeout * share)
-        return min(deadlines) if deadlines else None
+            return self._last_activity + timeout * share
+        return None
 
     def handle_timer(self, now: float) -> None:
         if self._bye_deadline is not None and now >= self._bye_deadline:

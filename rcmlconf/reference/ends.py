@@ -43,8 +43,13 @@ class SessionEnd(ABC):
         self._process(now)
 
     def get_timer(self) -> float | None:
-        timers = [self.conn.get_timer(), self.endpoint.get_timer() if self.endpoint else None]
-        return min((t for t in timers if t is not None), default=None)
+        # Asked after every packet of every session: no lists, no generators.
+        timer = self.conn.get_timer()
+        if self.endpoint is not None:
+            stream_timer = self.endpoint.get_timer()
+            if stream_timer is not None and (timer is None or stream_timer < timer):
+                timer = stream_timer
+        return timer
 
     def handle_timer(self, now: float) -> None:
         self.conn.handle_timer(now)

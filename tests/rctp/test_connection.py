@@ -52,22 +52,46 @@ def received(server: Connection, client: Connection, now: float = 1.0) -> list[E
     return drain(server)
 
 
-def test_answers_leave_in_the_order_the_requests_came() -> None:
+def test_pipelined_requests_are_handed_over_one_answer_at_a_time() -> None:
     client, server = pair()
     for path in ("/a", "/b", "/c"):
         client.send_request("READ", path, now=1.0)
-    first, second, third = received(server, client)
-    assert isinstance(first, RequestReceived)
-    assert isinstance(third, RequestReceived)
-    server.send_response(third.request, 200, body=b"\x03")
-    server.send_response(first.request, 200, body=b"\x01")
-    so_far = server.data_to_send()
-    assert so_far.endswith(b"\x01")  # the first, alone: the second is not answered yet
-    assert b"\x03" not in so_far
-    server.send_response(second.request, 200, body=b"\x02")
-    client.receive_data(so_far + server.data_to_send(), 1.0)
+    handed = received(server, client)
+    assert server.answers_due == 3
+    answers = b""
+    while handed:
+        (event,) = handed  # one at a time: the next waits for this one's answer
+        assert isinstance(event, RequestReceived)
+        server.send_response(event.request, 200, body=event.request.target.encode())
+        answers += server.data_to_send()
+        handed = drain(server)
+    assert server.answers_due == 0
+    client.receive_data(answers, 1.0)
     bodies = [e.response.body for e in drain(client) if isinstance(e, ResponseReceived)]
-    assert bodies == [b"\x01", b"\x02", b"\x03"]
+    assert bodies == [b"/a", b"/b", b"/c"]
+
+
+def test_a_pipelined_go_is_judged_after_its_setup_is_answered() -> None:
+    """R-RCTP-13: SETUP and GO in one segment; GO is valid in the state SETUP's 200 leaves."""
+    client, server = pair()
+    client.send_request("SETUP", "/a", now=1.0)
+    client.send_request("GO", "/a", now=1.0)
+    (setup,) = received(server, client)
+    assert isinstance(setup, RequestReceived)
+    server.send_response(setup.request, 200)
+    (go,) = drain(server)
+    assert isinstance(go, RequestReceived)
+    assert go.request.method == "GO"
+
+
+def test_a_request_rejected_by_the_core_does_not_hold_up_the_next() -> None:
+    client, server = pair()
+    client.send_request("GO", "/never-set-up", now=1.0)
+    client.send_request("READ", "/a", now=1.0)
+    rejected, read = received(server, client)
+    assert isinstance(rejected, RequestRejected)
+    assert rejected.status == 455
+    assert isinstance(read, RequestReceived)
 
 
 def test_a_fatal_error_is_answered_after_the_requests_before_it() -> None:

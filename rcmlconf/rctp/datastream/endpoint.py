@@ -52,6 +52,7 @@ from rcmlconf.rctp.datastream.flow import (
     TimeoutSet,
     TimeoutSetAck,
     UnknownRequest,
+    encode_flow,
 )
 from rcmlconf.rctp.datastream.order import Arrival, SequenceTracker
 from rcmlconf.rctp.datastream.packets import (
@@ -60,14 +61,16 @@ from rcmlconf.rctp.datastream.packets import (
     MAX_PAYLOADS,
     PAYLOAD_HEADER,
     DataPayload,
+    EncodedPayload,
     FlowPayload,
     MalformedFlowPayload,
     Packet,
     Payload,
+    PayloadType,
     UnknownPayload,
     body_offsets,
     pull_packet,
-    push_packet,
+    push_datagram,
 )
 from rcmlconf.rctp.datastream.values import stream_codec
 from rcmlconf.rctp.errors import LocalProtocolError
@@ -89,8 +92,6 @@ SEND_SLACK = 0.001
 #: D-RCTP-22: a timeout beyond 32 bits is sent as the largest, meaning "at least that".
 _MAX_MICROS = (1 << 32) - 1
 _RULE_SOURCE = "R-RCTP-42"
-#: The longest FLOW body, a heartbeat ACK's (D-RCTP-22).
-_FLOW_BODY_MAX = 28
 
 Address = tuple[str, int]
 
@@ -173,7 +174,7 @@ class Endpoint:
         self._sequence = first_sequence & 0xFFFF
         self._events: deque[StreamEvent] = deque()
         #: DATA and FLOW payloads waiting to leave, in the order they were queued.
-        self._pending: list[Payload] = []
+        self._pending: list[EncodedPayload] = []
         self._datagrams: list[bytes] = []
         self._next_request = 0
         self._outstanding: dict[int, _Outstanding] = {}
@@ -317,7 +318,7 @@ class Endpoint:
         self._ignore(payload.stream, payload.reason, payload.rule, payload.offset)
         reason, request_id, operation = payload.answer, payload.request_id, payload.operation
         if reason is not None and request_id is not None and operation is not None:
-            self._queue(FlowPayload(payload.stream, Nack(request_id, operation, reason)))
+            self._queue(payload.stream, Nack(request_id, operation, reason))
 
     def _receive_unknown(self, packet: Packet, index: int, arrival: Arrival, now: float) -> None:
         payload = packet.payloads[index]
@@ -335,7 +336,7 @@ class Endpoint:
             if len(self._answers) > ANSWERS_KEPT:
                 self._answers.popitem(last=False)
             self._events.append(FlowRequested(stream_id, request, answer))
-        self._queue(FlowPayload(stream_id, answer))
+        self._queue(stream_id, answer)
 
     def _answer_heartbeat(self, stream_id: int, request: FlowMessage, now: float) -> FlowMessage:
         assert isinstance(request, HeartbeatRequest)
@@ -436,7 +437,7 @@ class Endpoint:
         if request.message is not Message.REQUEST or request.request_id != request_id:
             raise LocalProtocolError(f"{request!r} is not a request with id {request_id}")
         self._outstanding[request_id] = _Outstanding(stream, request, 1, now + RETRY_EVERY)
-        self._queue(FlowPayload(stream, request))
+        self._queue(stream, request)
         return request
 
     def heartbeat(self, now: float) -> FlowMessage:
@@ -466,7 +467,7 @@ class Endpoint:
             # beat is not made up (the newest values are the state, D-RCTP-20).
             after = (stream.next_send if stream.next_send is not None else now) + interval
             stream.next_send = after if after > now else now + interval
-            self._pending.append(DataPayload(stream_id, body))
+            self._pending.append((PayloadType.DATA, body, stream_id))
         self._flush(now)
 
     def datagrams_to_send(self, now: float) -> list[bytes]:
@@ -475,8 +476,8 @@ class Endpoint:
         datagrams, self._datagrams = self._datagrams, []
         return datagrams
 
-    def _queue(self, payload: Payload) -> None:
-        self._pending.append(payload)
+    def _queue(self, stream: int, flow: FlowMessage) -> None:
+        self._pending.append((PayloadType.FLOW, encode_flow(flow), stream))
 
     def _flush(self, now: float) -> None:
         """Pack what waits into as few packets as D-RCTP-19's limits allow."""
@@ -485,10 +486,10 @@ class Endpoint:
             return
         self._pending = []
         stamp = self.ntp(now)
-        batch: list[Payload] = []
+        batch: list[EncodedPayload] = []
         size = HEADER.size
         for payload in payloads:
-            length = PAYLOAD_HEADER.size + _body_size(payload)
+            length = PAYLOAD_HEADER.size + len(payload[1])
             if batch and (len(batch) == MAX_PAYLOADS or size + length > MAX_DATAGRAM):
                 self._packet(batch, stamp)
                 batch, size = [], HEADER.size
@@ -496,24 +497,28 @@ class Endpoint:
             size += length
         self._packet(batch, stamp)
 
-    def _packet(self, payloads: list[Payload], stamp: int) -> None:
-        self._datagrams.append(
-            push_packet(Packet(self._sequence, self.tag, stamp, tuple(payloads)))
-        )
+    def _packet(self, payloads: list[EncodedPayload], stamp: int) -> None:
+        self._datagrams.append(push_datagram(self._sequence, self.tag, stamp, payloads))
         self._sequence = (self._sequence + 1) & 0xFFFF  # R-RCTP-41
 
     # -- timers ------------------------------------------------------------------------------
 
     def get_timer(self) -> float | None:
-        deadlines = [waiting.next_retry for waiting in self._outstanding.values()]
+        # Asked after every packet: a plain loop, no lists.
+        timer = self._next_heartbeat
+        for waiting in self._outstanding.values():
+            if timer is None or waiting.next_retry < timer:
+                timer = waiting.next_retry
+        receives = self.receives
         for stream in self.streams.values():
-            if stream.next_send is not None:
-                deadlines.append(stream.next_send)
-            if stream.last_data is not None and self.receives in stream.codecs:
-                deadlines.append(stream.last_data + stream.timeouts[self.receives] * 1e-6)
-        if self._next_heartbeat is not None:
-            deadlines.append(self._next_heartbeat)
-        return min(deadlines) if deadlines else None
+            at = stream.next_send
+            if at is not None and (timer is None or at < timer):
+                timer = at
+            if stream.last_data is not None and receives in stream.codecs:
+                at = stream.last_data + stream.timeouts[receives] * 1e-6
+                if timer is None or at < timer:
+                    timer = at
+        return timer
 
     def handle_timer(self, now: float) -> None:
         """Retries, receive timeouts and heartbeats; the data sends are the caller's (`due`)."""
@@ -526,7 +531,7 @@ class Endpoint:
                 continue
             waiting.sends += 1
             waiting.next_retry += RETRY_EVERY
-            self._queue(FlowPayload(waiting.stream, waiting.request))
+            self._queue(waiting.stream, waiting.request)
         for stream in self.streams.values():
             if stream.last_data is None or self.receives not in stream.codecs:
                 continue
@@ -539,12 +544,6 @@ class Endpoint:
 
     def next_event(self) -> StreamEvent | None:
         return self._events.popleft() if self._events else None
-
-
-def _body_size(payload: Payload) -> int:
-    if isinstance(payload, DataPayload | MalformedFlowPayload | UnknownPayload):
-        return len(payload.body)
-    return _FLOW_BODY_MAX
 
 
 def _record_nothing(

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import enum
 import struct
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -243,19 +243,30 @@ def _body(payload: Payload) -> tuple[int, bytes]:
 
 
 def push_packet(packet: Packet) -> bytes:
-    count = len(packet.payloads)
+    encoded = [(*_body(payload), payload.stream) for payload in packet.payloads]
+    return push_datagram(packet.sequence, packet.tag, packet.timestamp, encoded)
+
+
+#: A payload already encoded: (payload type, body, stream id).
+EncodedPayload = tuple[int, bytes, int]
+
+
+def push_datagram(
+    sequence: int, tag: int, timestamp: int, payloads: Sequence[EncodedPayload]
+) -> bytes:
+    """A packet's bytes from its header fields and its payloads already encoded: what a sender
+    on the beat uses, without making a `Packet` of every datagram (`push_packet` makes one)."""
+    count = len(payloads)
     if not 1 <= count <= MAX_PAYLOADS:
         raise EncodeError(f"{count} payloads: a packet holds 1 to {MAX_PAYLOADS}")
-    buf = Buffer()
     try:
-        buf.push_struct(HEADER, VERSION, count, packet.sequence, packet.tag, packet.timestamp)
-        for payload in packet.payloads:
-            kind, body = _body(payload)
-            buf.push_struct(PAYLOAD_HEADER, kind, payload.stream, len(body))
-            buf.push_bytes(body)
+        parts = [HEADER.pack(VERSION, count, sequence, tag, timestamp)]
+        for kind, body, stream in payloads:
+            parts.append(PAYLOAD_HEADER.pack(kind, stream, len(body)))
+            parts.append(body)
     except struct.error as exc:
         raise EncodeError(f"a header field does not fit: {exc}") from None
-    data = buf.data()
+    data = b"".join(parts)
     if len(data) > MAX_DATAGRAM:
         raise EncodeError(f"datagram of {len(data)} bytes, more than {MAX_DATAGRAM}")
     return data

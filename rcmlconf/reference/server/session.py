@@ -442,7 +442,7 @@ class ServerSession(SessionEnd):
     def _pump(self, now: float) -> None:
         """Send what waits while fewer than four WRITE and STOP requests are unanswered."""
         conn = self.conn
-        if conn.session_state is not SessionState.OPEN:
+        if not (self._stops or self._changes) or conn.session_state is not SessionState.OPEN:
             return
         room = MAX_UNANSWERED - sum(
             1 for r in conn.requests_unanswered if r.method in ("WRITE", "STOP")
