@@ -16,6 +16,16 @@ from rcmlconf import __version__
 
 #: name -> (module, function, one-line help)
 COMMANDS = {
+    "client": (
+        "rcmlconf.cli.client.commands",
+        "client",
+        "Read, write, stream and watch a robot over RCTP/2.0 (the reference client).",
+    ),
+    "serve": (
+        "rcmlconf.cli.serve",
+        "serve",
+        "Serve a robot over RCTP/2.0 and its files over HTTP (the reference server).",
+    ),
     "validate": (
         "rcmlconf.cli.validate",
         "validate",

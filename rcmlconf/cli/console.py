@@ -66,8 +66,27 @@ class Output:
     def json(self, document: object) -> None:
         self.out.file.write(json.dumps(document, indent=2, ensure_ascii=False) + "\n")
 
+    def live(self, segments: Segments) -> None:
+        """A line of a command that runs on (a request log, a stream's values), flushed at once:
+        a pipe (`| grep`) sees it now, not when a buffer fills."""
+        self.out.line(segments)
+        self.out.file.flush()
+
+    def json_line(self, document: object) -> None:
+        """One compact JSON document a line (JSON Lines), flushed like `live`."""
+        self.out.file.write(json.dumps(document, ensure_ascii=False) + "\n")
+        self.out.file.flush()
+
+    def notice(self, text: str) -> None:
+        """What a running command tells the person watching it, beside its results."""
+        self.err.line([(text, "yellow")])
+
     def summary(self, text: str, ok: bool) -> None:
         self.err.line([(text, "green" if ok else "bold red")])
 
     def failure(self, text: str) -> None:
         self.err.line([(f"error: {text}", "bold red")])
+
+    def problem(self, command: str, text: str) -> None:
+        """The one line that says why a command ends: `rcmlconf client: READ /x: 404 ...`."""
+        self.err.line([(f"rcmlconf {command}: ", "bold"), (text, "bold red")])

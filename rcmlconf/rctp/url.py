@@ -10,6 +10,8 @@ from rcmlconf.errors import ValueTextError
 
 #: D-RCTP-2: where a server listens unless its URL says otherwise (TCP, and UDP for the data).
 DEFAULT_PORT = 7330
+#: D-RCTP-29: a server's files are on HTTP at the port after its RCTP port.
+FILES_PORT_OFFSET = 1
 
 # An IPv6 literal may carry a zone as RFC 6874 writes it in URIs: "%25" and unreserved characters.
 _URL = re.compile(
@@ -28,6 +30,11 @@ class RctpUrl:
     @property
     def port_or_default(self) -> int:
         return DEFAULT_PORT if self.port is None else self.port
+
+    @property
+    def files_url(self) -> str:
+        """Where the robot's files are listed over HTTP (D-RCTP-29)."""
+        return http_base(self.host, self.port_or_default + FILES_PORT_OFFSET) + "/"
 
     def __str__(self) -> str:
         host = f"[{self.host.replace('%', '%25')}]" if ":" in self.host else self.host
@@ -56,3 +63,8 @@ def parse_rctp_url(text: str) -> RctpUrl:
             raise ValueTextError(f"port {port_text!r} is not between 1 and 65535")
         port = int(port_text)
     return RctpUrl(host, port, match.group("path") or "/")
+
+
+def http_base(host: str, port: int) -> str:
+    """`http://host:port`, an IPv6 host in brackets."""
+    return f"http://{f'[{host}]' if ':' in host else host}:{port}"

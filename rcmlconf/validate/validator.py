@@ -86,7 +86,13 @@ class Validator:
     def validate_bytes(
         self, data: bytes, display: str, base_dir: Path | None = None, suffix: str | None = None
     ) -> FileReport:
-        return self._check(data, display, base_dir, suffix)[0]
+        return self.load_bytes(data, display, base_dir, suffix)[0]
+
+    def load_bytes(
+        self, data: bytes, display: str, base_dir: Path | None = None, suffix: str | None = None
+    ) -> tuple[FileReport, Model | None]:
+        """A document's report, and its model when it is valid (`display` names it in both)."""
+        return self._check(data, display, base_dir, suffix)
 
     def load_file(self, path: Path, display: str | None = None) -> tuple[FileReport, Model | None]:
         """The file's report, and its model when it is valid. Raises OSError when unreadable."""
@@ -203,8 +209,9 @@ class InvalidRobot(RcmlconfError):
         self.report = report
 
 
-def load_robot(path: Path) -> RcmlDocument:
-    """The model of a valid RCML file, for what serves or drives a robot."""
+def load_robot(path: Path, warnings: list[Diagnostic] | None = None) -> RcmlDocument:
+    """The model of a valid RCML file, for what serves or drives a robot; its warnings are
+    added to `warnings` when given."""
     try:
         report, model = Validator().load_file(path)
     except OSError as exc:
@@ -212,4 +219,6 @@ def load_robot(path: Path) -> RcmlDocument:
     if not isinstance(model, RcmlDocument):
         what = "not an RCML document" if report.kind != "rcml" else "not valid RCML"
         raise InvalidRobot(f"{path}: {what}; `rcmlconf validate {path}` says why", report)
+    if warnings is not None:
+        warnings.extend(report.diagnostics)
     return model

@@ -4,7 +4,7 @@ The binary codec lives in `rcmlconf.values.binary`; it is not imported here, bec
 document never needs it.
 """
 
-from rcmlconf.values.text import parse_positive, parse_value_text
+from rcmlconf.values.text import format_value_text, parse_positive, parse_value_text
 from rcmlconf.values.types import (
     ALIASES,
     DATA_TYPES,
@@ -24,6 +24,7 @@ __all__ = [
     "Scalar",
     "Value",
     "ValueType",
+    "format_value_text",
     "lookup_type",
     "parse_positive",
     "parse_value_text",

@@ -1,4 +1,4 @@
-"""Values and numbers of seconds written as text (D-RCML-7, D-RCML-14).
+"""Values and numbers of seconds written as text (D-RCML-7, D-RCML-14), read and written.
 
 Python's own `int()` and `float()` accept underscores, surrounding whitespace, non-ASCII digits,
 `inf` and `nan` in any case; none of that is RCML, so every form is matched by a regular
@@ -96,3 +96,29 @@ _PARSERS = {
 def parse_value_text(base: DataType, text: str, size: int = 0) -> Scalar:
     """One value of `base` from its text form; `size` bounds string and bytes values."""
     return _PARSERS[base.kind](base, text, size)
+
+
+def format_value_text(base: DataType, value: Scalar) -> str:
+    """The text form of one value (D-RCML-14), which `parse_value_text` reads back: a float
+    with the fewest digits that give it back in its type, so that 0.3 written as float32 is 0.3
+    read, not 0.30000001192092896."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, bytes):
+        return value.hex()
+    if isinstance(value, float):
+        return _float_text(base, value)
+    return str(value)
+
+
+def _float_text(base: DataType, value: float) -> str:
+    if math.isnan(value):
+        return "NaN"
+    if math.isinf(value):
+        return "INF" if value > 0 else "-INF"
+    if base.name == "float32":
+        for digits in range(1, 10):  # 9 significant digits always give a binary32 back
+            shortest = float(f"{value:.{digits}g}")
+            if _FLOAT32.unpack(_FLOAT32.pack(shortest))[0] == value:
+                return repr(shortest)  # Python's spelling, an XML Schema double: 2000.0
+    return repr(value)

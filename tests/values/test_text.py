@@ -10,7 +10,15 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from rcmlconf.errors import ValueTextError
-from rcmlconf.values import DATA_TYPES, parse_positive, parse_value_text
+from rcmlconf.values import (
+    DATA_TYPES,
+    DataType,
+    Kind,
+    Scalar,
+    format_value_text,
+    parse_positive,
+    parse_value_text,
+)
 
 
 @pytest.mark.parametrize(
@@ -112,3 +120,43 @@ def test_integers_in_range_round_trip_through_text(number: int) -> None:
     else:
         with pytest.raises(ValueTextError):
             parse_value_text(base, str(number))
+
+
+def scalars(base: DataType) -> st.SearchStrategy[Scalar]:
+    if base.kind is Kind.BOOL:
+        return st.booleans()
+    if base.kind is Kind.INTEGER:
+        return st.integers(base.low, base.high)
+    if base.kind is Kind.FLOAT:
+        return st.floats(width=32 if base.name == "float32" else 64)
+    if base.kind is Kind.STRING:
+        return st.text(max_size=20)
+    return st.binary(max_size=20)
+
+
+@given(st.data(), st.sampled_from(list(DATA_TYPES.values())))
+def test_every_value_round_trips_through_its_text(data: st.DataObject, base: DataType) -> None:
+    value = data.draw(scalars(base))
+    text = format_value_text(base, value)
+    back = parse_value_text(base, text, 1000)
+    if isinstance(value, float) and math.isnan(value):
+        assert isinstance(back, float)
+        assert math.isnan(back)
+    else:
+        assert back == value
+        assert type(back) is type(value)
+
+
+@pytest.mark.parametrize(
+    ("name", "value", "text"),
+    [
+        ("float32", 0.30000001192092896, "0.3"),
+        ("float64", 0.1, "0.1"),
+        ("float32", 2000.0, "2000.0"),
+        ("bool", True, "true"),
+        ("bytes", b"\x00\xff", "00ff"),
+        ("float64", -math.inf, "-INF"),
+    ],
+)
+def test_floats_are_written_with_the_fewest_digits(name: str, value: Scalar, text: str) -> None:
+    assert format_value_text(DATA_TYPES[name], value) == text

@@ -205,10 +205,21 @@ class Client:
             raise RctpError(f"{path} is not a data or access node of the robot's RCML")
         return node
 
+    def _event_access_of(self, node: DataNode) -> AccessNode | None:
+        """The event access a data node belongs to, which READ and WRITE target instead
+        (D-RCTP-17, D-RCTP-26); None for a node of a normal access."""
+        access = self._node(node.path.rsplit("/", 1)[0])
+        assert isinstance(access, AccessNode)  # data lives in access nodes (D-RCML-2)
+        return access if access.type is AccessType.EVENT else None
+
     async def read(self, path: str, nodes: Iterable[str] | None = None) -> dict[str, Value]:
-        """The values of a data node of a normal access, or of an event access's nodes
-        (`nodes`, or every readable one), by name (D-RCTP-17)."""
+        """The values of a data node, or of an event access's nodes (`nodes`, or every readable
+        one), by name (D-RCTP-17). A data node of an event access is read through its access."""
         node = self._node(path)
+        if isinstance(node, DataNode):
+            access = self._event_access_of(node)
+            if access is not None:
+                return await self.read(access.path, [node.name])
         headers = [("Nodes", format_nodes(list(nodes)))] if nodes is not None else []
         response = await self.request("READ", path, headers)
         if isinstance(node, DataNode):
@@ -226,10 +237,13 @@ class Client:
             raise RctpError(f"READ {path}: the answer's body: {exc}", response) from None
 
     async def write(self, path: str, values: Mapping[str, Value]) -> None:
-        """WRITE a data node of a normal access ({name: value}) or several nodes of an event
-        access at once (D-RCTP-17)."""
+        """WRITE a data node ({name: value}), or several nodes of an event access at once
+        (D-RCTP-17). A data node of an event access is written through its access."""
         node = self._node(path)
         if isinstance(node, DataNode):
+            access = self._event_access_of(node)
+            if access is not None:
+                return await self.write(access.path, values)
             nodes: list[DataNode] = [node]
             headers = []
         else:
@@ -241,6 +255,7 @@ class Client:
             headers = [("Nodes", format_nodes(list(values)))]
         body = ValuesCodec(nodes, path, "R-RCTP-28").encode(values)
         await self.request("WRITE", path, headers, body)
+        return None
 
     async def acquire(self, path: str) -> None:
         await self.request("ACQUIRE", path)

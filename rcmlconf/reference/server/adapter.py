@@ -22,7 +22,7 @@ from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rctp.datastream.endpoint import Address
 from rcmlconf.rctp.datastream.packets import peek_tag
 from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
-from rcmlconf.rctp.url import DEFAULT_PORT
+from rcmlconf.rctp.url import DEFAULT_PORT, FILES_PORT_OFFSET, RctpUrl
 from rcmlconf.reference.drivers import Driver
 from rcmlconf.reference.server.files import FileServer, robot_files
 from rcmlconf.reference.server.robot import Robot
@@ -40,8 +40,8 @@ class ServerSettings:
     host: str = "127.0.0.1"
     #: RCTP's TCP port, and the data stream's UDP port; 0 picks free ones.
     port: int = DEFAULT_PORT
-    #: The files' HTTP port; 0 picks a free one, None serves no files.
-    http_port: int | None = 7331
+    #: The files' HTTP port (D-RCTP-29); 0 picks a free one, None serves no files.
+    http_port: int | None = DEFAULT_PORT + FILES_PORT_OFFSET
     seed: int = 0
     session_timeout: int = DEFAULT_SESSION_TIMEOUT
 
@@ -151,6 +151,15 @@ class ReferenceServer:
     # -- life --------------------------------------------------------------------------------
 
     async def start(self) -> None:
+        """Listen: RCTP on TCP, the data stream on UDP, the files on HTTP. If one cannot be had
+        (a port in use), what was opened before it is closed again and the OSError raised."""
+        try:
+            await self._listen()
+        except BaseException:
+            await self._close_listeners()
+            raise
+
+    async def _listen(self) -> None:
         loop = self._loop = asyncio.get_running_loop()
         settings = self.settings
         self._tcp = await loop.create_server(
@@ -196,7 +205,7 @@ class ReferenceServer:
     @property
     def url(self) -> str:
         """The robot's RCTP URL as served (D-RCML-17's `site`, with the port in use)."""
-        return f"rctp://{self.settings.host}:{self.port}{self.robot.site_path}"
+        return str(RctpUrl(self.settings.host, self.port, self.robot.site_path))
 
     async def stop(self) -> None:
         """Graceful shutdown: BYE to every session (`Reason: shutdown`), then close."""
@@ -214,12 +223,16 @@ class ReferenceServer:
         for control in tuple(self.controls.values()):
             if control.transport is not None:
                 control.transport.abort()
+        await self._close_listeners()
+
+    async def _close_listeners(self) -> None:
         if self._robot_timer is not None:
             self._robot_timer.set(None)
         if self._udp is not None:
             self._udp.close()
         for server in (self._tcp, self._http):
             if server is not None:
+                server.close()
                 await server.wait_closed()
 
     # -- moving bytes ------------------------------------------------------------------------

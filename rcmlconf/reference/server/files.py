@@ -1,5 +1,5 @@
-"""The robot's files over HTTP/1.1 (paper Fig. 5: the browser downloads the RCML and RXID files
-"with a standard protocol" before it speaks RCTP).
+"""The robot's files over HTTP/1.1 (D-RCTP-29; paper Fig. 5: the browser downloads the RCML and
+RXID files "with a standard protocol" before it speaks RCTP).
 
 Only the RCML file and the RXID files its `UserInterface` links name are served, read once at
 start: a request can name nothing else, whatever its path says (no directory walking, no file read

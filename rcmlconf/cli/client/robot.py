@@ -1,0 +1,94 @@
+"""The robot's RCML, which the client needs to encode and decode values (bodies carry no types).
+
+From `--rcml` (a file, or an http(s) URL), or else the way a browser finds it (paper Fig. 5):
+a server lists the robot's files on HTTP at the port after RCTP's (D-RCTP-29), so the client
+reads that index and takes its one `.rcml` link. Nothing fetched may exceed a document's limit
+(16 MiB, D-XML-5), and every fetched document is validated like a local one.
+"""
+
+from __future__ import annotations
+
+import http.client
+import urllib.error
+import urllib.request
+from html.parser import HTMLParser
+from pathlib import Path
+from urllib.parse import urljoin, urlsplit
+
+from rcmlconf.errors import RcmlconfError
+from rcmlconf.markup.document import MAX_DOCUMENT_BYTES
+from rcmlconf.rcml.model import RcmlDocument
+from rcmlconf.rctp.url import RctpUrl
+from rcmlconf.validate.validator import InvalidRobot, Validator, load_robot
+from rcmlconf.wording import plural
+
+_HINT = "pass the robot's RCML with --rcml PATH_OR_URL"
+
+
+class NoModel(RcmlconfError):
+    """The RCML could not be had or is not valid; the message says which and why."""
+
+
+def load_model(url: RctpUrl, rcml: str | None, timeout: float) -> RcmlDocument:
+    """The model `--rcml` names, or the one the robot's files index links to."""
+    if rcml is None:
+        return _from_index(url, timeout)
+    if urlsplit(rcml).scheme.lower() in ("http", "https"):
+        return _from_url(rcml, timeout)
+    try:
+        return load_robot(Path(rcml))
+    except InvalidRobot as exc:
+        raise NoModel(str(exc)) from None
+
+
+def _from_index(url: RctpUrl, timeout: float) -> RcmlDocument:
+    index = url.files_url  # D-RCTP-29
+    try:
+        page = _fetch(index, timeout)
+    except NoModel as exc:
+        raise NoModel(f"{exc}; {_HINT}") from None
+    links = _Links()
+    links.feed(page.decode("utf-8", "replace"))
+    found = sorted({urljoin(index, h) for h in links.hrefs if urlsplit(h).path.endswith(".rcml")})
+    if len(found) != 1:
+        raise NoModel(f"{index} links to {plural(len(found), 'RCML file')}, not one; {_HINT}")
+    return _from_url(found[0], timeout)
+
+
+def _from_url(url: str, timeout: float) -> RcmlDocument:
+    # No directory: the document's relative links are not followed (D-RXID-3's rule for URLs).
+    report, model = Validator().load_bytes(_fetch(url, timeout), url, suffix=".rcml")
+    if isinstance(model, RcmlDocument):
+        return model
+    if report.kind != "rcml":
+        raise NoModel(f"{url} is not an RCML document; {_HINT}")
+    first = report.diagnostics[0].to_text() if report.diagnostics else "checking was cut short"
+    raise NoModel(f"{url} is not valid RCML ({plural(report.errors, 'error')}): {first}")
+
+
+def _fetch(url: str, timeout: float) -> bytes:
+    """The body of a GET, at most MAX_DOCUMENT_BYTES; `timeout` bounds each wait for the peer."""
+    try:
+        with urllib.request.urlopen(url, timeout=timeout) as response:
+            data: bytes = response.read(MAX_DOCUMENT_BYTES + 1)
+    except urllib.error.HTTPError as exc:
+        raise NoModel(f"cannot fetch {url}: {exc.code} {exc.reason}") from None
+    except urllib.error.URLError as exc:
+        raise NoModel(f"cannot fetch {url}: {exc.reason}") from None
+    except (OSError, ValueError, http.client.HTTPException) as exc:
+        raise NoModel(f"cannot fetch {url}: {exc or type(exc).__name__}") from None
+    if len(data) > MAX_DOCUMENT_BYTES:
+        raise NoModel(f"{url} is larger than a document may be ({MAX_DOCUMENT_BYTES} bytes)")
+    return data
+
+
+class _Links(HTMLParser):
+    """The `href` of every `<a>` of a page."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.hrefs: list[str] = []
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        if tag == "a":
+            self.hrefs.extend(value for name, value in attrs if name == "href" and value)

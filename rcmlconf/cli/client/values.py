@@ -1,0 +1,98 @@
+"""Values as a person types and reads them on the command line (D-RCML-14), and as JSON.
+
+A value's text is `rcmlconf.values`' (`parse_value_text`, `format_value_text`); a string is
+shown with its control characters escaped, for the terminal's sake. An array is its items joined
+by commas, so an array of strings holding a comma cannot be typed; JSON output
+shows every value exactly.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from collections.abc import Iterable, Mapping, Sequence
+
+from rcmlconf.errors import ValueTextError
+from rcmlconf.rcml.model import AccessNode, DataNode
+from rcmlconf.values import DataType, Kind, Scalar, Value, format_value_text, parse_value_text
+
+_FLOAT32 = struct.Struct(">f")
+#: C0 and C1 controls and DEL: a robot's string must not move the terminal's cursor or change
+#: its colours, so these are shown escaped (`\x1b`).
+_CONTROLS = {c: f"\\x{c:02x}" for c in (*range(0x20), *range(0x7F, 0xA0))}
+
+
+def parse_node_value(node: DataNode, text: str) -> Value:
+    """The value of `node` typed as `text`: its text form, an array's items comma-separated."""
+    vtype = node.type
+    try:
+        if not vtype.is_array:
+            return parse_value_text(vtype.base, text, vtype.size)
+        items = text.split(",")
+        if len(items) != vtype.count:
+            raise ValueTextError(f"{vtype.count} comma-separated items needed, not {len(items)}")
+        # Spaces after commas are read as part of a string, and skipped in any other type.
+        if vtype.base.kind is not Kind.STRING:
+            items = [item.strip(" ") for item in items]
+        return tuple(parse_value_text(vtype.base, item, vtype.size) for item in items)
+    except ValueTextError as exc:
+        raise ValueTextError(f"{node.path} ({vtype}): {exc}") from None
+
+
+def parse_assignments(access: AccessNode, texts: Sequence[str]) -> dict[str, Value]:
+    """`name=value ...` for data nodes of `access`, each named once."""
+    by_name = {node.name: node for node in access.data}
+    values: dict[str, Value] = {}
+    for text in texts:
+        name, equals, value = text.partition("=")
+        if not equals:
+            raise ValueTextError(f"{text!r} is not name=value")
+        node = by_name.get(name)
+        if node is None:
+            raise ValueTextError(
+                f"{access.path} has no data node {name!r} (it has {', '.join(by_name)})"
+            )
+        if name in values:
+            raise ValueTextError(f"{name} is given twice")
+        values[name] = parse_node_value(node, value)
+    return values
+
+
+def value_text(node: DataNode, value: Value) -> str:
+    """The text form of a value of `node` (D-RCML-14), readable back by `parse_node_value`."""
+    return ",".join(_scalar_text(node.type.base, item) for item in _items(value))
+
+
+def values_text(nodes: Iterable[DataNode], values: Mapping[str, Value]) -> list[str]:
+    """`name=value` for each of `nodes` that `values` holds, in canonical order."""
+    return [f"{n.name}={value_text(n, values[n.name])}" for n in nodes if n.name in values]
+
+
+def value_json(node: DataNode, value: Value) -> object:
+    """A JSON value: numbers as numbers (a float32 with its shortest digits), bytes as hex,
+    and INF, -INF and NaN as those strings, since JSON has no such numbers."""
+    items = [_scalar_json(node.type.base, item) for item in _items(value)]
+    return items if node.type.is_array else items[0]
+
+
+def values_json(nodes: Iterable[DataNode], values: Mapping[str, Value]) -> dict[str, object]:
+    return {n.name: value_json(n, values[n.name]) for n in nodes if n.name in values}
+
+
+def _items(value: Value) -> tuple[Scalar, ...]:
+    return value if isinstance(value, tuple) else (value,)
+
+
+def _scalar_text(base: DataType, item: Scalar) -> str:
+    if isinstance(item, str):
+        return item.translate(_CONTROLS)
+    return format_value_text(base, item)
+
+
+def _scalar_json(base: DataType, item: Scalar) -> object:
+    if isinstance(item, float):
+        text = format_value_text(base, item)
+        return float(text) if math.isfinite(item) else text
+    if isinstance(item, bytes):
+        return item.hex()
+    return item

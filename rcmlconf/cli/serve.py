@@ -1,0 +1,262 @@
+"""`rcmlconf serve ROBOT.rcml`: the reference server, until Ctrl-C."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+import os
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import click
+
+from rcmlconf.cli.console import Output
+from rcmlconf.cli.interrupts import Interrupts
+from rcmlconf.diagnostics import Diagnostic
+from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
+from rcmlconf.rctp.url import DEFAULT_PORT, FILES_PORT_OFFSET, http_base
+from rcmlconf.reference.drivers import AUTO, DRIVERS, DriverError, choose_driver
+from rcmlconf.reference.server.adapter import ReferenceServer, ServerSettings
+from rcmlconf.validate.report import summary_line
+from rcmlconf.validate.validator import InvalidRobot, load_robot
+from rcmlconf.wording import plural
+
+_PORT = click.IntRange(0, 65535)
+_LOGGER = "rcmlconf.server"
+
+
+class _LogLines(logging.Handler):
+    """The server's log (one line per request, session and stream event), through `Output`."""
+
+    def __init__(self, output: Output) -> None:
+        super().__init__()
+        self.output = output
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            stamp = time.strftime("%H:%M:%S", time.localtime(record.created))
+            style = "bold red" if record.levelno >= logging.WARNING else ""
+            self.output.live(
+                [(f"{stamp}.{int(record.msecs):03d} ", "dim"), (record.getMessage(), style)]
+            )
+        except OSError:  # the reader went away (`| head`): the server goes on, unlogged
+            logging.getLogger(_LOGGER).removeHandler(self)
+        except Exception:  # logging's contract: a handler never raises into the code that logs
+            self.handleError(record)
+
+
+@contextmanager
+def _server_log(output: Output, verbose: int) -> Iterator[None]:
+    """-v: the server's INFO lines on stdout, -vv its DEBUG lines too; none otherwise."""
+    if not verbose:
+        yield
+        return
+    logger = logging.getLogger(_LOGGER)
+    handler = _LogLines(output)
+    level, propagate = logger.level, logger.propagate
+    logger.setLevel(logging.DEBUG if verbose > 1 else logging.INFO)
+    logger.addHandler(handler)
+    logger.propagate = False  # printed once, here, not again by a handler of the root logger
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
+        logger.propagate = propagate
+
+
+@click.command()
+@click.argument("rcml", metavar="ROBOT.rcml", type=click.Path(path_type=Path))
+@click.option("--host", default="127.0.0.1", show_default=True, help="The address to listen on.")
+@click.option(
+    "--port",
+    type=_PORT,
+    metavar="N",
+    help=f"RCTP's TCP port and the data stream's UDP port. Default: the port of the RCML's "
+    f"site URL, else {DEFAULT_PORT}. 0 picks free ones.",
+)
+@click.option(
+    "--http-port",
+    type=_PORT,
+    metavar="N",
+    help="The HTTP port of the robot's files. Default: --port + 1. 0 picks a free one.",
+)
+@click.option("--no-http", is_flag=True, help="Serve no files over HTTP.")
+@click.option(
+    "--driver",
+    type=click.Choice([AUTO, *DRIVERS]),
+    default=AUTO,
+    show_default=True,
+    help="What moves the robot: auto picks the simulation made for the RCML, else sim.",
+)
+@click.option("--seed", type=int, default=0, show_default=True, help="The simulation's seed.")
+@click.option(
+    "--session-timeout",
+    type=click.IntRange(1, 99999),
+    default=DEFAULT_SESSION_TIMEOUT,
+    show_default=True,
+    metavar="S",
+    help="Seconds of silence after which a session is ended (D-RCTP-11).",
+)
+@click.option(
+    "--ready-file",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help='Once listening, write {"rctp": URL, "data_port": N, "http": URL or null} there '
+    "(removed at exit): for scripts that start the server with --port 0.",
+)
+@click.option(
+    "-v",
+    "--verbose",
+    count=True,
+    help="Print a line per request on stdout (-vv: the data stream's events too).",
+)
+def serve(
+    rcml: Path,
+    host: str,
+    port: int | None,
+    http_port: int | None,
+    no_http: bool,
+    driver: str,
+    seed: int,
+    session_timeout: int,
+    ready_file: Path | None,
+    verbose: int,
+) -> None:
+    """Serve the robot ROBOT.rcml describes: RCTP/2.0 on TCP, its data stream on UDP, and its
+    RCML and RXID files on HTTP (paper Fig. 5), until Ctrl-C or SIGTERM.
+
+    The RCML is validated first; an invalid one is reported as `validate` reports it. A driver
+    simulates the robot (camera and rover for the bundled robots, sim for any other). At the
+    end every session gets BYE with `Reason: shutdown`.
+
+    \b
+    Exit status: 0 stopped by Ctrl-C or SIGTERM; 1 invalid RCML;
+      2 usage error, unreadable RCML, or a port in use.
+
+    \b
+    Examples:
+      rcmlconf serve rcmlconf/reference/robots/camera/camera.rcml
+      rcmlconf serve -v --port 7400 robot.rcml
+      rcmlconf serve --port 0 --http-port 0 --ready-file ready.json robot.rcml
+    """
+    output = Output()
+    if no_http and http_port is not None:
+        raise click.UsageError("--http-port and --no-http exclude each other")
+    warnings: list[Diagnostic] = []
+    try:
+        model = load_robot(rcml, warnings)
+        chosen = choose_driver(driver, model)
+    except InvalidRobot as exc:
+        if exc.report is None:  # unreadable
+            output.problem("serve", str(exc))
+            sys.exit(2)
+        for diagnostic in exc.report.diagnostics:
+            output.diagnostic(diagnostic)
+        output.summary(summary_line([exc.report]), ok=False)
+        sys.exit(1)
+    except DriverError as exc:
+        raise click.UsageError(str(exc)) from None
+    for warning in warnings:  # a valid robot may still have something to say (R-RCML-27)
+        output.diagnostic(warning)
+    tcp = model.site.port_or_default if port is None else port
+    settings = ServerSettings(
+        host=host,
+        port=tcp,
+        http_port=None if no_http else _http_port(tcp, http_port),
+        seed=seed,
+        session_timeout=session_timeout,
+    )
+    server = ReferenceServer(rcml, model, chosen, settings)
+    with _server_log(output, verbose):
+        status = asyncio.run(_serve(server, output, ready_file))
+    sys.exit(status)
+
+
+def _http_port(tcp: int, http_port: int | None) -> int:
+    """--http-port, else the port after RCTP's (where `rcmlconf client` looks), else any."""
+    if http_port is not None:
+        return http_port
+    return tcp + FILES_PORT_OFFSET if 0 < tcp + FILES_PORT_OFFSET <= 65535 else 0
+
+
+async def _serve(server: ReferenceServer, output: Output, ready_file: Path | None) -> int:
+    try:
+        await server.start()
+    except OSError as exc:
+        output.problem("serve", _cannot_listen(server.settings, exc))
+        return 2
+    url = server.url
+    _banner(server, output, url)
+    # Signals are caught before the ready file says so: a script may send one at once.
+    with Interrupts() as interrupts:
+        if ready_file is not None and not _ready(ready_file, server, url, output):
+            await server.stop()
+            return 2
+        try:
+            await interrupts.wait()
+            sessions = len(server.controls)
+            output.notice(f"stopping: BYE to {plural(sessions, 'session')}")
+            # A second Ctrl-C does not wait for the answers to BYE (up to 5 s, R-RCTP-23).
+            stopped = await interrupts.race(_stop(server), count=2)
+        finally:
+            if ready_file is not None:
+                ready_file.unlink(missing_ok=True)
+    if not stopped:
+        output.problem("serve", "stopped without waiting for the answers to BYE")
+        return 1
+    return 0
+
+
+def _cannot_listen(settings: ServerSettings, exc: OSError) -> str:
+    """One line naming every port tried: the error of a UDP bind does not say which it was."""
+    # asyncio words a bind's error with the address; a host that does not resolve has a
+    # negative errno (getaddrinfo's) and its own text.
+    errno = exc.errno or 0
+    reason = os.strerror(errno).lower() if errno > 0 else exc.strerror or str(exc)
+    http = f" and {settings.http_port} (HTTP)" if settings.http_port is not None else ""
+    return (
+        f"cannot listen on {settings.host} port {settings.port} (RCTP, TCP and UDP){http}:"
+        f" {reason}; choose other ports with --port and --http-port (0 picks free ones)"
+    )
+
+
+async def _stop(server: ReferenceServer) -> bool:
+    await server.stop()
+    return True
+
+
+def _http_base(server: ReferenceServer) -> str | None:
+    port = server.http_port
+    return None if port is None else http_base(server.settings.host, port)
+
+
+def _banner(server: ReferenceServer, output: Output, url: str) -> None:
+    title = server.model.title or server.rcml.name
+    rows = [("RCTP", url), ("data", f"UDP port {server.data_port}")]
+    base = _http_base(server)
+    if base is not None and server.files is not None:
+        rows += [("files" if i == 0 else "", base + p) for i, p in enumerate(server.files.files)]
+    output.err.line(
+        [("serving ", ""), (title, "bold"), (f" with the {server.driver.name} driver", "")]
+    )
+    for label, text in rows:
+        output.err.line([(f"  {label:<6}", "dim"), (text, "cyan")])
+    output.err.line([("Ctrl-C to stop", "dim")])
+
+
+def _ready(path: Path, server: ReferenceServer, url: str, output: Output) -> bool:
+    """Written whole, then renamed into place: a script polling for it never reads half."""
+    base = _http_base(server)
+    document = {"rctp": url, "data_port": server.data_port, "http": base and base + "/"}
+    partial = path.with_name(path.name + ".tmp")
+    try:
+        partial.write_text(json.dumps(document) + "\n", encoding="utf-8")
+        os.replace(partial, path)
+    except OSError as exc:
+        output.problem("serve", f"cannot write {path}: {exc.strerror or exc}")
+        return False
+    return True
