@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from functools import lru_cache
 from urllib.parse import quote, unquote_to_bytes
 
 from rcmlconf.errors import ValueTextError
@@ -31,6 +32,7 @@ class Target:
         return self.path not in (STAR, ROOT)
 
 
+@lru_cache(maxsize=1024)  # a robot's clients name the same few targets again and again
 def parse_target(text: str) -> Target:
     if text in (STAR, ROOT):
         return Target(text)

@@ -43,23 +43,42 @@ class SessionEnd(ABC):
         self._process(now)
 
     def get_timer(self) -> float | None:
+        """When `handle_timer` should next be called (the earlier of the two below)."""
+        beat, other = self.beat_timer(), self.maintenance_timer()
+        if beat is None or (other is not None and other < beat):
+            return other
+        return beat
+
+    def beat_timer(self) -> float | None:
+        """When a stream is next due to send: `beat` does it."""
+        return self.endpoint.send_timer() if self.endpoint is not None else None
+
+    def maintenance_timer(self) -> float | None:
+        """When anything else is due: the session's and the data stream's timers."""
         # Asked after every packet of every session: no lists, no generators.
         timer = self.conn.get_timer()
         if self.endpoint is not None:
-            stream_timer = self.endpoint.get_timer()
+            stream_timer = self.endpoint.maintenance_timer()
             if stream_timer is not None and (timer is None or stream_timer < timer):
                 timer = stream_timer
         return timer
 
-    def handle_timer(self, now: float) -> None:
-        self.conn.handle_timer(now)
+    def beat(self, now: float) -> None:
+        """Send the DATA of the streams due, and nothing else: what most timers are for, kept
+        short for a server with hundreds of sessions. Raises no events."""
         endpoint = self.endpoint
         if endpoint is not None:
-            endpoint.handle_timer(now)
             due = endpoint.due(now)
             bodies = self._bodies(due) if due else None
             if bodies:
                 endpoint.send_data(bodies, now)
+
+    def handle_timer(self, now: float) -> None:
+        """Everything due: the connection's timers, the data stream's, and the beat."""
+        self.conn.handle_timer(now)
+        if self.endpoint is not None:
+            self.endpoint.handle_timer(now)
+        self.beat(now)
         self._process(now)
 
     # -- output ------------------------------------------------------------------------------

@@ -504,16 +504,32 @@ class Endpoint:
     # -- timers ------------------------------------------------------------------------------
 
     def get_timer(self) -> float | None:
+        """The earlier of `send_timer` and `maintenance_timer`."""
+        send, other = self.send_timer(), self.maintenance_timer()
+        if send is None or (other is not None and other < send):
+            return other
+        return send
+
+    def send_timer(self) -> float | None:
+        """When a stream is next due to send (`due`, `send_data`): a server with many sessions
+        keeps their beats on one clock, apart from everything else (`maintenance_timer`)."""
         # Asked after every packet: a plain loop, no lists.
+        timer = None
+        for stream in self.streams.values():
+            at = stream.next_send
+            if at is not None and (timer is None or at < timer):
+                timer = at
+        return timer
+
+    def maintenance_timer(self) -> float | None:
+        """When `handle_timer` has work: a request to send again, a receive timeout, a
+        heartbeat."""
         timer = self._next_heartbeat
         for waiting in self._outstanding.values():
             if timer is None or waiting.next_retry < timer:
                 timer = waiting.next_retry
         receives = self.receives
         for stream in self.streams.values():
-            at = stream.next_send
-            if at is not None and (timer is None or at < timer):
-                timer = at
             if stream.last_data is not None and receives in stream.codecs:
                 at = stream.last_data + stream.timeouts[receives] * 1e-6
                 if timer is None or at < timer:

@@ -27,7 +27,7 @@ from rcmlconf.reference.drivers import Driver
 from rcmlconf.reference.server.files import FileServer, robot_files
 from rcmlconf.reference.server.robot import Robot
 from rcmlconf.reference.server.session import ServerSession
-from rcmlconf.reference.timers import LoopTimer
+from rcmlconf.reference.timers import BeatClock, LoopTimer
 
 log = logging.getLogger("rcmlconf.server")
 
@@ -80,6 +80,7 @@ class _Control(asyncio.Protocol):
             self.server.flush(self)
         if self.timer is not None:
             self.timer.set(None)
+        self.server.beats.set(self, None)
         if self.session is not None:
             self.server.controls.pop(self.session, None)
 
@@ -136,12 +137,19 @@ class ReferenceServer:
         self._http: asyncio.Server | None = None
         self._udp: asyncio.DatagramTransport | None = None
         self._robot_timer: LoopTimer | None = None
+        self._beats: BeatClock[_Control] | None = None
         self.files: FileServer | None = None
 
     @property
     def loop(self) -> asyncio.AbstractEventLoop:
         assert self._loop is not None, "start() first"
         return self._loop
+
+    @property
+    def beats(self) -> BeatClock[_Control]:
+        """Every session's stream beats, on one clock (`BeatClock`)."""
+        assert self._beats is not None, "start() first"
+        return self._beats
 
     @property
     def robot(self) -> Robot:
@@ -179,6 +187,7 @@ class ReferenceServer:
             session_timeout=settings.session_timeout,
             unix_offset=time.time() - loop.time(),
         )
+        self._beats = BeatClock(loop, self._beat)
         self._robot_timer = LoopTimer(loop, self._tick)
         self._robot_timer.set(self._robot.get_timer())
         if settings.http_port is not None:
@@ -257,10 +266,26 @@ class ReferenceServer:
             for datagram in datagrams:
                 self._udp.sendto(datagram, peer)
         if control.timer is not None:
-            control.timer.set(session.get_timer())
+            control.timer.set(session.maintenance_timer())
+        self.beats.set(control, None if control.closing else session.beat_timer())
         if session.finished and not control.closing:
             control.closing = True
             transport.close()  # after what is written has left
+
+    def _beat(self, controls: list[_Control]) -> None:
+        """The sessions whose streams are due now: their DATA, and nothing else."""
+        now = self.loop.time()
+        udp = self._udp
+        for control in controls:
+            session = control.session
+            if session is None or control.closing or udp is None:
+                continue
+            session.beat(now)
+            datagrams, peer = session.datagrams_to_send(now)
+            if peer is not None:
+                for datagram in datagrams:
+                    udp.sendto(datagram, peer)
+            self.beats.set(control, session.beat_timer())
 
     def _tick(self) -> None:
         robot = self.robot

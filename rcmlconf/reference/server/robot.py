@@ -9,7 +9,7 @@ handed to the sessions that watch them.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 from rcmlconf.rcml.model import AccessNode, DataNode, RcmlDocument
@@ -26,6 +26,8 @@ if TYPE_CHECKING:
 
 #: D-RCTP-27: how often the reference server moves the driver on and looks for changes.
 TICK = 0.01
+#: READ and WRITE codecs kept at most (`Robot.codec`).
+_CODECS_KEPT = 4096
 #: 16 random bytes make a session ID of 22 characters (D-RCTP-11: unguessable, 8 to 64).
 _ID_BYTES = 16
 
@@ -61,6 +63,7 @@ class Robot:
         #: Encoded DATA bodies of this tick, shared by every session that streams the access.
         self._bodies: dict[tuple[str, Direction], bytes] = {}
         self._stream_codecs: dict[tuple[str, Direction], ValuesCodec] = {}
+        self._codecs: dict[tuple[str, tuple[str, ...]], ValuesCodec] = {}
         #: Sessions given something to send by another's doing: the adapter flushes them.
         self._touched: set[ServerSession] = set()
         self._next_tick = now
@@ -83,6 +86,18 @@ class Robot:
                 codec = self._stream_codecs[key] = stream_codec(access, direction)
             body = self._bodies[key] = codec.encode(self.values(codec.nodes))
         return body
+
+    def codec(self, where: str, nodes: Sequence[DataNode]) -> ValuesCodec:
+        """The codec of READ and WRITE bodies of `nodes` of the access or node `where`, made
+        once: clients ask for the same few again and again. The memory is bounded, since a
+        client may name any subset of an event access's nodes."""
+        key = (where, tuple(node.name for node in nodes))
+        codec = self._codecs.get(key)
+        if codec is None:
+            if len(self._codecs) >= _CODECS_KEPT:
+                self._codecs.clear()
+            codec = self._codecs[key] = ValuesCodec(nodes, where, "R-RCTP-28")
+        return codec
 
     def command(self, by: ServerSession, values: Mapping[str, Value], now: float) -> None:
         """Values a session wrote, checked already, applied together (R-RCTP-29)."""

@@ -23,7 +23,6 @@ from rcmlconf.errors import ProtocolError, ValueTextError
 from rcmlconf.rcml.model import AccessNode, DataNode, Permission
 from rcmlconf.rcml.paths import is_within
 from rcmlconf.rctp.allowed import ALLOWED, TargetKind, target_kind
-from rcmlconf.rctp.bodies import ValuesCodec
 from rcmlconf.rctp.connection import (
     ConnectionClosed,
     ProtocolFailure,
@@ -229,7 +228,7 @@ class ServerSession(SessionEnd):
     def _read(self, request: Request, target: Target, now: float) -> Answer:
         kind = self._node_kind(request, target)
         nodes = self._nodes(request, target, kind, Permission.READ)
-        body = _codec(nodes, target).encode(self.robot.values(nodes))
+        body = self.robot.codec(target.path, nodes).encode(self.robot.values(nodes))
         headers = (
             [("Nodes", format_nodes([n.name for n in nodes]))]
             if kind is TargetKind.EVENT_ACCESS
@@ -247,7 +246,7 @@ class ServerSession(SessionEnd):
         if request.headers.get("Content-Type") != VALUES_TYPE:
             raise Refused(415, f"a WRITE's body is {VALUES_TYPE}", "R-RCTP-6")
         try:
-            values = _codec(nodes, target).decode(request.body)
+            values = self.robot.codec(target.path, nodes).decode(request.body)
         except ProtocolError as error:
             raise Refused(422, f"{error.reason} (body byte {error.offset})", "R-RCTP-28") from None
         for node in nodes:
@@ -465,13 +464,9 @@ class ServerSession(SessionEnd):
         assert isinstance(access, AccessNode)
         nodes = tuple(n for n in access.data if n.name in names)
         target = Target(access_path)
-        body = _codec(nodes, target).encode(self.robot.values(nodes))
+        body = self.robot.codec(target.path, nodes).encode(self.robot.values(nodes))
         headers = [("Nodes", format_nodes(sorted(names)))]
         self.conn.send_request("WRITE", format_target(access_path), headers, body, now=now)
-
-
-def _codec(nodes: Sequence[DataNode], target: Target) -> ValuesCodec:
-    return ValuesCodec(nodes, target.path, "R-RCTP-28")
 
 
 _Handler = Callable[[ServerSession, Request, Target, float], Answer]
