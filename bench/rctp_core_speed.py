@@ -141,7 +141,7 @@ def h11_parse(size: int) -> Callable[[], None]:
     return parse
 
 
-def per_call(function: Callable[[], None], rounds: int, calls: int = 2000) -> float:
+def per_call(function: Callable[[], object], rounds: int, calls: int = 2000) -> float:
     times = []
     for _ in range(rounds):
         start = time.perf_counter()

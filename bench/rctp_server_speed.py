@@ -26,13 +26,9 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import contextlib
 import cProfile
 import functools
-import io
-import multiprocessing
 import os
-import pstats
 import re
 import signal
 import statistics
@@ -41,16 +37,12 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
-from multiprocessing.process import BaseProcess
 from pathlib import Path
 
 import h11
+from children import Child, cpu_seconds, serve_camera, start_child, until_stopped
 
-ROOT = Path(__file__).resolve().parent.parent
-CAMERA = ROOT / "rcmlconf" / "reference" / "robots" / "camera" / "camera.rcml"
 TARGET = "/status/lens"
-#: A server process ends by itself after this long, whatever happens to this one.
-SERVER_LIFETIME = 1800.0
 CONNECTIONS = (1, 16)
 WARM_UP = 0.3
 
@@ -97,112 +89,17 @@ class _HttpAnchor(asyncio.Protocol):
         return False
 
 
-async def _serve(
-    kind: str, body_size: int, pipe: Connection, profiler: cProfile.Profile | None
-) -> None:
+async def _http_anchor(body_size: int, pipe: Connection, profiler: cProfile.Profile | None) -> None:
+    """The anchor: h11 answering every request with a body of `body_size` bytes; tells
+    (port, None, path) as `children.serve_camera` does."""
     loop = asyncio.get_running_loop()
-    stop: asyncio.Future[None] = loop.create_future()
-
-    def readable() -> None:
-        if not stop.done():
-            stop.set_result(None)
-
-    if kind == "rctp":
-        from rcmlconf.reference.drivers import choose_driver
-        from rcmlconf.reference.server.adapter import ReferenceServer, ServerSettings
-        from rcmlconf.validate.validator import load_robot
-
-        model = load_robot(CAMERA)
-        server = ReferenceServer(
-            CAMERA, model, choose_driver("auto", model), ServerSettings(port=0, http_port=None)
-        )
-        await server.start()
-        pipe.send((server.port, server.robot.site_path))
-    else:
-        body = bytes(body_size)
-        http = await loop.create_server(lambda: _HttpAnchor(body), "127.0.0.1", 0)
-        pipe.send((http.sockets[0].getsockname()[1], "/"))
-    loop.add_reader(pipe.fileno(), readable)  # "stop", or end of file if the parent died
-    if profiler is not None:
-        profiler.enable()
+    body = bytes(body_size)
+    http = await loop.create_server(lambda: _HttpAnchor(body), "127.0.0.1", 0)
+    pipe.send((http.sockets[0].getsockname()[1], None, "/"))
     try:
-        await asyncio.wait_for(stop, SERVER_LIFETIME)
-    except TimeoutError:
-        pass
+        await until_stopped(pipe, profiler)
     finally:
-        if profiler is not None:
-            profiler.disable()
-        loop.remove_reader(pipe.fileno())
-        if kind == "rctp":
-            await server.stop()
-        else:
-            http.close()
-
-
-def server_main(
-    kind: str, cpu: int | None, body_size: int, pipe: Connection, profile: bool
-) -> None:
-    """A server process: `kind` is "rctp" or "http"; sends (port, path), serves until told."""
-    if cpu is not None:
-        os.sched_setaffinity(0, {cpu})
-    profiler = cProfile.Profile() if profile else None
-    with contextlib.suppress(KeyboardInterrupt):
-        asyncio.run(_serve(kind, body_size, pipe, profiler))
-    if profiler is not None:
-        text = io.StringIO()
-        stats = pstats.Stats(profiler, stream=text)
-        stats.sort_stats("tottime").print_stats(20)
-        stats.sort_stats("cumulative").print_stats("rcmlconf", 25)
-        with contextlib.suppress(OSError):
-            pipe.send(text.getvalue())
-
-
-@dataclass
-class Server:
-    kind: str
-    process: BaseProcess
-    pipe: Connection
-    port: int
-    path: str
-
-    def stop(self) -> str | None:
-        """Stop the process; its profile, if it made one."""
-        report = None
-        with contextlib.suppress(OSError):
-            self.pipe.send("stop")
-            if self.pipe.poll(30):
-                report = self.pipe.recv()
-        self.process.join(10)
-        if self.process.is_alive():
-            self.process.terminate()
-            self.process.join(5)
-        if self.process.is_alive():
-            self.process.kill()
-        return report if isinstance(report, str) else None
-
-
-def start_server(kind: str, cpu: int | None, body_size: int, profile: bool) -> Server:
-    context = multiprocessing.get_context("spawn")
-    ours, theirs = context.Pipe()
-    process = context.Process(
-        target=server_main, args=(kind, cpu, body_size, theirs, profile), daemon=True
-    )
-    process.start()
-    theirs.close()
-    if not ours.poll(60):
-        process.kill()
-        sys.exit(f"the {kind} server did not start")
-    port, path = ours.recv()
-    return Server(kind, process, ours, port, path)
-
-
-def cpu_seconds(pid: int) -> float:
-    """User + system CPU time of a process, from /proc (0.0 where there is no /proc)."""
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()
-    except OSError:
-        return 0.0
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+        http.close()
 
 
 # -- the load generator -----------------------------------------------------------------------
@@ -282,14 +179,14 @@ def _get(number: int) -> bytes:
     return f"GET {TARGET} HTTP/1.1\r\nHost: 127.0.0.1\r\nX-CSeq: {number}\r\n\r\n".encode()
 
 
-async def open_connections(server: Server, count: int) -> list[RoundTrips]:
+async def open_connections(server: Child, count: int) -> list[RoundTrips]:
     """RCTP connections with their session open (CONNECT), or HTTP connections."""
     loop = asyncio.get_running_loop()
     connections = []
     for _ in range(count):
         rctp = server.kind == "rctp"
-        protocol = RoundTrips(functools.partial(_connect, server.path) if rctp else _get)
-        await loop.create_connection(lambda p=protocol: p, "127.0.0.1", server.port)  # type: ignore[misc]
+        protocol = RoundTrips(functools.partial(_connect, server.ready[2]) if rctp else _get)
+        await loop.create_connection(lambda p=protocol: p, "127.0.0.1", server.ready[0])  # type: ignore[misc]
         if rctp:
             answer = await asyncio.wait_for(protocol.run(0.0), 10)
             found = re.search(rb"\r\nSession: ([^;\r]+)", answer)
@@ -311,9 +208,9 @@ class Window:
         return self.server_cpu / self.per_second if self.per_second else 0.0
 
 
-async def window(server: Server, connections: list[RoundTrips], seconds: float) -> Window:
+async def window(server: Child, connections: list[RoundTrips], seconds: float) -> Window:
     loop = asyncio.get_running_loop()
-    server_before, client_before = cpu_seconds(server.process.pid or 0), time.process_time()
+    server_before, client_before = cpu_seconds(server.pid), time.process_time()
     start = loop.time()
     await asyncio.wait_for(
         asyncio.gather(*(c.run(start + seconds) for c in connections)), seconds + 30
@@ -322,12 +219,12 @@ async def window(server: Server, connections: list[RoundTrips], seconds: float) 
     count = sum(c.count for c in connections)
     return Window(
         count / elapsed,
-        (cpu_seconds(server.process.pid or 0) - server_before) / elapsed,
+        (cpu_seconds(server.pid) - server_before) / elapsed,
         (time.process_time() - client_before) / elapsed,
     )
 
 
-async def response_sizes(servers: dict[str, Server]) -> dict[str, tuple[int, int]]:
+async def response_sizes(servers: dict[str, Child]) -> dict[str, tuple[int, int]]:
     """(whole response, body) of each server's answer."""
     sizes = {}
     for kind, server in servers.items():
@@ -340,7 +237,7 @@ async def response_sizes(servers: dict[str, Server]) -> dict[str, tuple[int, int
 
 
 async def measure(
-    servers: dict[str, Server], reps: int, seconds: float
+    servers: dict[str, Child], reps: int, seconds: float
 ) -> dict[tuple[str, int], list[Window]]:
     results: dict[tuple[str, int], list[Window]] = {}
     connections = {
@@ -383,12 +280,16 @@ def main() -> None:
     server_cpu = cpus[0] if len(cpus) > 1 else None
     if len(cpus) > 1:
         os.sched_setaffinity(0, {cpus[-1]})
-    servers: dict[str, Server] = {}
+    servers: dict[str, Child] = {}
     profile = None
     try:
-        servers["rctp"] = start_server("rctp", server_cpu, 0, args.profile)
+        servers["rctp"] = start_child(
+            "rctp", serve_camera, server_cpu, "rcmlconf" if args.profile else None
+        )
         body = asyncio.run(response_sizes(servers))["rctp"][1]
-        servers["http"] = start_server("http", server_cpu, body, False)  # the same body size
+        servers["http"] = start_child(  # the same body size
+            "http", functools.partial(_http_anchor, body), server_cpu
+        )
         sizes = asyncio.run(response_sizes(servers))
         results = asyncio.run(measure(servers, args.reps, args.seconds))
     finally:

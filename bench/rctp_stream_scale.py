@@ -44,10 +44,7 @@ import argparse
 import asyncio
 import contextlib
 import cProfile
-import io
-import multiprocessing
 import os
-import pstats
 import random
 import re
 import selectors
@@ -60,11 +57,10 @@ from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
-from multiprocessing.process import BaseProcess
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-CAMERA = ROOT / "rcmlconf" / "reference" / "robots" / "camera" / "camera.rcml"
+from children import Child, cpu_seconds, serve_camera, start_child, until_stopped
+
 STREAM = "/stream/control"
 INTERVAL = 0.016
 INTERVAL_NS = 16_000_000
@@ -85,8 +81,6 @@ POLL_EVERY = 0.002
 #: Linux's values where the socket module does not name them.
 SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)
 TIMESPEC = struct.Struct("@qq")
-#: A child process ends by itself after this long, whatever happens to this one.
-CHILD_LIFETIME = 1800.0
 #: The anchor's packet: version 2, one payload, sequence, tag, NTP time; DATA, stream 1, 16 bytes.
 HEADER = struct.Struct(">BBHIQBBH")
 NTP_EPOCH = 2_208_988_800
@@ -95,50 +89,11 @@ NTP_EPOCH = 2_208_988_800
 # -- the processes in the server's place ------------------------------------------------------
 
 
-async def _wait_for_stop(pipe: Connection) -> None:
-    """Until the parent says stop (or dies, closing the pipe), CHILD_LIFETIME at most."""
-    loop = asyncio.get_running_loop()
-    stop: asyncio.Future[None] = loop.create_future()
-
-    def readable() -> None:
-        if not stop.done():
-            stop.set_result(None)
-
-    loop.add_reader(pipe.fileno(), readable)
-    try:
-        await asyncio.wait_for(stop, CHILD_LIFETIME)
-    except TimeoutError:
-        pass
-    finally:
-        loop.remove_reader(pipe.fileno())
-
-
-async def _serve(pipe: Connection, profiler: cProfile.Profile | None) -> None:
-    from rcmlconf.reference.drivers import choose_driver
-    from rcmlconf.reference.server.adapter import ReferenceServer, ServerSettings
-    from rcmlconf.validate.validator import load_robot
-
-    model = load_robot(CAMERA)
-    server = ReferenceServer(
-        CAMERA, model, choose_driver("auto", model), ServerSettings(port=0, http_port=None)
-    )
-    await server.start()
-    pipe.send((server.port, server.data_port, server.robot.site_path))
-    if profiler is not None:
-        profiler.enable()
-    try:
-        await _wait_for_stop(pipe)
-    finally:
-        if profiler is not None:
-            profiler.disable()
-        await server.stop()
-
-
 class _Ignore(asyncio.DatagramProtocol):
     """The anchor's socket: heartbeats arrive and are dropped."""
 
 
-async def _anchor(pipe: Connection) -> None:
+async def _anchor(pipe: Connection, profiler: cProfile.Profile | None) -> None:
     """N streams of DATA packets, each sent every 16 ms on its beat with loop.call_at."""
     loop = asyncio.get_running_loop()
     transport, _ = await loop.create_datagram_endpoint(_Ignore, local_addr=("127.0.0.1", 0))
@@ -167,75 +122,10 @@ async def _anchor(pipe: Connection) -> None:
         first = start + random.uniform(0, INTERVAL)
         loop.call_at(first, send, index, first)
     try:
-        await _wait_for_stop(pipe)
+        await until_stopped(pipe)
     finally:
         sending = False
         transport.close()
-
-
-def child_main(kind: str, cpu: int | None, pipe: Connection, profile: bool) -> None:
-    """The server ("rctp") or the anchor ("anchor"): sends (tcp port, udp port, site path)."""
-    if cpu is not None:
-        os.sched_setaffinity(0, {cpu})
-    profiler = cProfile.Profile() if profile else None
-    with contextlib.suppress(KeyboardInterrupt):
-        asyncio.run(_serve(pipe, profiler) if kind == "rctp" else _anchor(pipe))
-    if profiler is not None:
-        text = io.StringIO()
-        stats = pstats.Stats(profiler, stream=text)
-        stats.sort_stats("tottime").print_stats(25)
-        stats.sort_stats("cumulative").print_stats("rcmlconf|asyncio", 30)
-        with contextlib.suppress(OSError):
-            pipe.send(text.getvalue())
-
-
-@dataclass
-class Child:
-    kind: str
-    process: BaseProcess
-    pipe: Connection
-    port: int
-    data_port: int
-    path: str
-
-    def stop(self) -> str | None:
-        """Stop the process; its profile, if it made one."""
-        report = None
-        with contextlib.suppress(OSError, EOFError):
-            self.pipe.send("stop")
-            if self.pipe.poll(60):
-                report = self.pipe.recv()
-        self.process.join(15)
-        if self.process.is_alive():
-            self.process.terminate()
-            self.process.join(5)
-        if self.process.is_alive():
-            self.process.kill()
-            self.process.join(5)
-        self.pipe.close()
-        return report if isinstance(report, str) else None
-
-
-def start_child(kind: str, cpu: int | None, profile: bool = False) -> Child:
-    context = multiprocessing.get_context("spawn")
-    ours, theirs = context.Pipe()
-    process = context.Process(target=child_main, args=(kind, cpu, theirs, profile), daemon=True)
-    process.start()
-    theirs.close()
-    if not ours.poll(60):
-        process.kill()
-        raise RuntimeError(f"the {kind} process did not start")
-    port, data_port, path = ours.recv()
-    return Child(kind, process, ours, port, data_port, path)
-
-
-def cpu_seconds(pid: int | None) -> float:
-    """User + system CPU time of a process, from /proc (0.0 where there is no /proc)."""
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()
-    except OSError:
-        return 0.0
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 # -- the load generator -----------------------------------------------------------------------
@@ -313,11 +203,13 @@ def open_sessions(
     try:
         for first in range(0, n, BATCH):
             count = min(BATCH, n - first)
-            batch = [socket.create_connection(("127.0.0.1", server.port), 30) for _ in range(count)]
+            batch = [
+                socket.create_connection(("127.0.0.1", server.ready[0]), 30) for _ in range(count)
+            ]
             controls.extend(batch)
             for sock in batch:
                 sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            connect = f"CONNECT {server.path} RCTP/2.0\r\nCSeq: 1\r\nUser-Agent: bench\r\n\r\n"
+            connect = f"CONNECT {server.ready[2]} RCTP/2.0\r\nCSeq: 1\r\nUser-Agent: bench\r\n\r\n"
             answers = exchange(batch, [connect] * count)
             batch_ids = [_field(rb"\r\nSession: ([^;\r]+)", answer) for answer in answers]
             setups = [
@@ -405,7 +297,8 @@ class UsageProbe:
                     ticks = [int(f) / os.sysconf("SC_CLK_TCK") for f in fields]
                     busy = ticks[0] + ticks[1] + ticks[2] + ticks[5] + ticks[6]
                     steal = ticks[7]
-        return time.monotonic(), cpu_seconds(self.pid), time.process_time(), busy, steal
+        sender = cpu_seconds(self.pid) if self.pid is not None else 0.0
+        return time.monotonic(), sender, time.process_time(), busy, steal
 
     def usage(self) -> Usage:
         end = self._read()
@@ -547,15 +440,16 @@ def run(
     report = None
     try:
         ports = [sock.getsockname()[1] for sock in udp]
-        child = start_child(kind, cpu, profile)
+        main = serve_camera if kind == "rctp" else _anchor
+        child = start_child(kind, main, cpu, "rcmlconf|asyncio" if profile else None)
         if kind == "rctp":
             controls, tags = open_sessions(child, ports, per_port, udp)
             tags = tags[:n]
         else:
             tags = random.sample(range(1, 1 << 32), n)
             child.pipe.send([(tag, ports[i // per_port]) for i, tag in enumerate(tags)])
-        heartbeats = Heartbeats(tags, udp, per_port, child.data_port)
-        sender = (child.process.pid, cpu)
+        heartbeats = Heartbeats(tags, udp, per_port, child.ready[1])
+        sender = (child.pid, cpu)
         row = receive(udp, tags, heartbeats, sender, args.warm_up, args.seconds)
     finally:
         for sock in controls:  # the sessions end: the server's shutdown waits for no BYE
