@@ -67,11 +67,15 @@ class SessionEnd(ABC):
         """Send the DATA of the streams due, and nothing else: what most timers are for, kept
         short for a server with hundreds of sessions. Raises no events."""
         endpoint = self.endpoint
-        if endpoint is not None:
-            due = endpoint.due(now)
-            bodies = self._bodies(due) if due else None
+        if endpoint is None:
+            return
+        due = endpoint.due(now)
+        if due:
+            bodies = self._bodies(due)
             if bodies:
                 endpoint.send_data(bodies, now)
+            if len(bodies) < len(due):
+                endpoint.skip([stream for stream in due if stream not in bodies], now)
 
     def handle_timer(self, now: float) -> None:
         """Everything due: the connection's timers, the data stream's, and the beat."""

@@ -17,7 +17,7 @@ server and client, and the conformance harness, get them from one place.
 from __future__ import annotations
 
 from collections import OrderedDict, deque
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
 from rcmlconf.errors import ProtocolError
@@ -458,17 +458,26 @@ class Endpoint:
         """DATA bodies of playing streams (`Stream.codecs[...].encode`), in one packet as far
         as one holds them; each stream's next send is one interval on (R-RCTP-44)."""
         for stream_id, body in bodies.items():
-            stream = self._stream(stream_id)
-            if not stream.playing or self.sends not in stream.codecs:
-                raise LocalProtocolError(f"stream {stream_id} does not play this end's direction")
-            interval = stream.intervals[self.sends] * 1e-6
-            # Keep the beat (the next is one interval after this one was due), unless the
-            # application fell a whole interval behind: then start again from now, as a lost
-            # beat is not made up (the newest values are the state, D-RCTP-20).
-            after = (stream.next_send if stream.next_send is not None else now) + interval
-            stream.next_send = after if after > now else now + interval
+            self._next_beat(stream_id, now)
             self._pending.append((PayloadType.DATA, body, stream_id))
         self._flush(now)
+
+    def skip(self, stream_ids: Iterable[int], now: float) -> None:
+        """Due streams with nothing to send (a client that has written no values yet): they
+        wait for their next beat, sending nothing."""
+        for stream_id in stream_ids:
+            self._next_beat(stream_id, now)
+
+    def _next_beat(self, stream_id: int, now: float) -> None:
+        stream = self._stream(stream_id)
+        if not stream.playing or self.sends not in stream.codecs:
+            raise LocalProtocolError(f"stream {stream_id} does not play this end's direction")
+        interval = stream.intervals[self.sends] * 1e-6
+        # Keep the beat (the next is one interval after this one was due), unless the
+        # application fell a whole interval behind: then start again from now, as a lost beat
+        # is not made up (the newest values are the state, D-RCTP-20).
+        after = (stream.next_send if stream.next_send is not None else now) + interval
+        stream.next_send = after if after > now else now + interval
 
     def datagrams_to_send(self, now: float) -> list[bytes]:
         """Every datagram waiting, for the peer (`peer`)."""

@@ -145,7 +145,10 @@ class ClientSession(SessionEnd):
     def write_values(self, path: str, values: Mapping[str, Value]) -> None:
         """The values to send on a stream with a write direction, from now on every interval."""
         stream = self._stream(path)
-        self._writes[stream.id] = stream.codecs[Direction.WRITE].encode(values)
+        codec = stream.codecs.get(Direction.WRITE)
+        if codec is None:
+            raise LocalProtocolError(f"{path} is set up with mode {stream.mode}: it writes nothing")
+        self._writes[stream.id] = codec.encode(values)
 
     def _stream(self, path: str) -> Stream:
         stream_id = self.streams.get(path)

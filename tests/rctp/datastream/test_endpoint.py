@@ -427,3 +427,13 @@ def test_requests_in_packets_of_any_order_are_answered_once_each(sequences: list
         seen.add(request_id)
     requested = [e for e in events(server) if isinstance(e, FlowRequested)]
     assert len(requested) == len(seen)
+
+
+def test_a_stream_with_nothing_to_send_waits_for_its_next_beat() -> None:
+    _, client = ends()
+    client.play(1, 0.0)
+    assert client.due(0.0) == (1,)
+    client.skip([1], 0.0)
+    assert client.due(0.0) == ()
+    assert client.datagrams_to_send(0.0) == []  # nothing was sent
+    assert client.due(0.02) == (1,)
