@@ -28,7 +28,8 @@ def _parse_map(
 
 
 def _expand(paths: tuple[str, ...]) -> list[str]:
-    """Files as given, directories as every *.rcml and *.rxid file below them, in name order."""
+    """Files as given, directories as every file below them with a language's extension
+    (*.rcml, *.rxid, *.rmodel), in name order."""
     files: list[str] = []
     for name in paths:
         path = Path(name)
@@ -85,11 +86,11 @@ def validate(
     max_findings: int,
     quiet: bool,
 ) -> None:
-    """Check RCML 2.0 (.rcml) and RXID 2.0 (.rxid) documents.
+    """Check RCML 2.0 (.rcml), RXID 2.0 (.rxid) and RSP robot model (.rmodel) documents.
 
-    PATH is a file, a directory (every *.rcml and *.rxid file below it) or - for standard
-    input. Every schema and semantic error of a file is reported (up to --max-findings), one a
-    line:
+    PATH is a file, a directory (every *.rcml, *.rxid and *.rmodel file below it) or - for
+    standard input. Every schema and semantic error of a file is reported (up to
+    --max-findings), one a line:
 
     \b
         path:line:col: error|warning: [RULE-ID] message (hint: ...)

@@ -13,9 +13,7 @@ element by element; the fast path reports nothing, so every diagnostic comes fro
 
 from __future__ import annotations
 
-import math
 import re
-from functools import lru_cache
 from operator import attrgetter
 from pathlib import Path
 from urllib.parse import unquote, urlsplit
@@ -39,12 +37,12 @@ from rcmlconf.rcml.model import (
 )
 from rcmlconf.rcml.schema import ELEMENTS
 from rcmlconf.rctp.url import RctpUrl
-from rcmlconf.values import ValueType, lookup_type, parse_value_text
+from rcmlconf.values import ValueType
+from rcmlconf.values.declared import Number, Problem, declared_bounds, declared_type
 
 #: D-RCML-3, D-RCML-13, D-RCML-15, D-RCML-17.
 MAX_NAME_BYTES = 255
 MAX_PATH_BYTES = 1024
-MAX_NODE_BYTES = 1024 * 1024
 MAX_STREAM_BYTES = 65000
 UNFRAGMENTED_BYTES = 1200
 TIME_SOURCES = ("GPS", "NTP", "PTP", "local")
@@ -58,9 +56,6 @@ _LINK = ELEMENTS["link"]
 _META = ELEMENTS["meta"]
 _TIMING = ("readInterval", "writeInterval", "readTimeout", "writeTimeout")
 
-#: A finding to report against each element that has the attributes it was found for.
-_Problem = tuple[str, str, str | None, str | None]  # rule, message, attribute, hint
-Number = int | float
 #: What a plain data node's attributes make: type, effective permission, min, max.
 _Kind = tuple[ValueType, Permission, Number | None, Number | None]
 
@@ -411,7 +406,7 @@ class _Walk:
 
     def _value_type(self, element: XmlElement, attrs: Attributes) -> ValueType | None:
         """R-RCML-18 and -21, which depend on `type`, `count` and `size` alone."""
-        vtype, problems = _value_type(
+        vtype, problems = declared_type(
             attrs.text("type"), attrs.integer("count"), attrs.integer("size")
         )
         self._report(element, problems)
@@ -421,11 +416,11 @@ class _Walk:
         self, element: XmlElement, attrs: Attributes, vtype: ValueType
     ) -> tuple[Number | None, Number | None]:
         """R-RCML-20, which depends on the type, `min` and `max` alone."""
-        low, high, problems = _bounds(vtype, attrs.text("min"), attrs.text("max"))
+        low, high, problems = declared_bounds(vtype, attrs.text("min"), attrs.text("max"))
         self._report(element, problems)
         return low, high
 
-    def _report(self, element: XmlElement, problems: tuple[_Problem, ...]) -> None:
+    def _report(self, element: XmlElement, problems: tuple[Problem, ...]) -> None:
         for rule, message, attribute, hint in problems:
             self.check.error(rule, element, message, attribute, hint)
 
@@ -460,80 +455,6 @@ class _Walk:
             )
 
 
-@lru_cache(maxsize=4096)
-def _value_type(
-    type_name: str | None, count: int | None, size: int | None
-) -> tuple[ValueType | None, tuple[_Problem, ...]]:
-    """The node type these attribute values make, and what is wrong with them."""
-    base = lookup_type(type_name) if type_name is not None else None
-    if base is None:  # missing or unknown: reported with the attribute
-        return None, ()
-    if base.sized and size is None:
-        return None, (
-            (
-                "R-RCML-18",
-                f"{base.name} nodes need a size (1 to 65535)",
-                "type",
-                'add size="N", the largest length in bytes',
-            ),
-        )
-    problems: list[_Problem] = []
-    if not base.sized and size is not None:
-        problems.append(
-            ("R-RCML-18", f"{base.name} nodes take no size; only string and bytes do", "size", None)
-        )
-    vtype = ValueType(base, count or 1, size if base.sized and size is not None else 0)
-    if vtype.max_encoded_size > MAX_NODE_BYTES:
-        problems.append(
-            (
-                "R-RCML-21",
-                f"{vtype} encodes in up to {vtype.max_encoded_size:,} bytes, "
-                f"more than {MAX_NODE_BYTES:,}",
-                "count",
-                None,
-            )
-        )
-    return vtype, tuple(problems)
-
-
-@lru_cache(maxsize=4096)
-def _bounds(
-    vtype: ValueType, low_text: str | None, high_text: str | None
-) -> tuple[Number | None, Number | None, tuple[_Problem, ...]]:
-    """`min` and `max` as values of the node's type, and what is wrong with them (R-RCML-20)."""
-    problems: list[_Problem] = []
-    bounds: list[Number | None] = []
-    for name, text in (("min", low_text), ("max", high_text)):
-        value: Number | None = None
-        if text is None:
-            pass
-        elif not vtype.base.numeric:
-            problems.append(
-                (
-                    "R-RCML-20",
-                    f"{name} applies to numbers only, not to {vtype.base.name}",
-                    name,
-                    None,
-                )
-            )
-        else:
-            try:
-                parsed = parse_value_text(vtype.base, text)
-            except ValueTextError as exc:
-                problems.append(("R-RCML-20", f"{name}: {exc}", name, None))
-            else:
-                assert isinstance(parsed, int | float)
-                if isinstance(parsed, float) and not math.isfinite(parsed):
-                    problems.append(("R-RCML-20", f"{name} must be finite, not {text}", name, None))
-                else:
-                    value = parsed
-        bounds.append(value)
-    low, high = bounds
-    if low is not None and high is not None and low > high:
-        problems.append(("R-RCML-20", f"min {low} is greater than max {high}", "min", None))
-    return low, high, tuple(problems)
-
-
 def _plain_kind(texts: tuple[str | None, ...], inherited: Permission) -> _Kind | None:
     """Type, effective permission and range of a plain data node, if every attribute is valid.
 
@@ -552,10 +473,10 @@ def _plain_kind(texts: tuple[str | None, ...], inherited: Permission) -> _Kind |
     assert type_name is None or isinstance(type_name, str)
     assert count is None or isinstance(count, int)
     assert size is None or isinstance(size, int)
-    vtype, problems = _value_type(type_name, count, size)
+    vtype, problems = declared_type(type_name, count, size)
     if vtype is None or problems:
         return None
-    low, high, problems = _bounds(vtype, low_text, high_text)
+    low, high, problems = declared_bounds(vtype, low_text, high_text)
     if problems:
         return None
     permission = inherited

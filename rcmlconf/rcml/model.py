@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 from rcmlconf.rctp.url import RctpUrl
-from rcmlconf.values import Value, ValueType
+from rcmlconf.values import Value, ValueType, first_outside
 
 
 class Permission(enum.Flag):
@@ -78,17 +78,11 @@ class DataNode(NamedTuple):
 
     def out_of_range(self, value: Value) -> str | None:
         """Why a value breaks `min`/`max` (D-RCML-12, every item of an array), or None."""
-        if self.minimum is None and self.maximum is None:
+        index = first_outside(value, self.minimum, self.maximum)
+        if index is None:
             return None
-        for item in value if isinstance(value, tuple) else (value,):
-            if not isinstance(item, int | float) or isinstance(item, bool):
-                continue
-            # Written as "not within" so that NaN, which compares false, is outside too.
-            if (self.minimum is not None and not item >= self.minimum) or (
-                self.maximum is not None and not item <= self.maximum
-            ):
-                return f"{item!r} is outside {self.path}'s range {self.minimum} to {self.maximum}"
-        return None
+        item = value[index] if isinstance(value, tuple) else value
+        return f"{item!r} is outside {self.path}'s range {self.minimum} to {self.maximum}"
 
 
 class AccessNode(NamedTuple):

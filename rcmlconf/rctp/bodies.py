@@ -5,27 +5,46 @@ READ and WRITE carry the values of the nodes they name (one node of a normal acc
 direction (D-RCTP-20). Both are the same thing: the binary value format (D-RCML-10) of each node
 in canonical order (D-RCML-4), nothing before, between or after. One `ValuesCodec` holds the
 nodes' codecs, so a stream's packets do not look them up again.
+
+RSP payloads are the same format in another order: a device's fields in document order (D-RSP-4),
+each payload one run of values among others in a packet (`pull`, `push`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Generic, Protocol, TypeVar
 
 from rcmlconf.buffer import Buffer
 from rcmlconf.errors import EncodeError, ProtocolError
-from rcmlconf.rcml.model import DataNode
-from rcmlconf.values import Value
+from rcmlconf.values import Value, ValueType
 from rcmlconf.values.binary import Puller, Pusher, codec_for
 
 
-class ValuesCodec:
+class Typed(Protocol):
+    """What holds a value: an RCML data node, an RSP field."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def type(self) -> ValueType: ...
+
+
+Node = TypeVar("Node", bound=Typed)
+
+
+class ValuesCodec(Generic[Node]):
     """Encode and decode the bodies that hold a value for each of some data nodes."""
 
     __slots__ = ("_codecs", "names", "nodes", "rule", "where")
 
-    def __init__(self, nodes: Sequence[DataNode], where: str, rule: str) -> None:
-        #: The nodes, in the order their values travel (canonical order).
-        self.nodes = tuple(sorted(nodes, key=lambda node: node.name))
+    def __init__(
+        self, nodes: Sequence[Node], where: str, rule: str, *, canonical: bool = True
+    ) -> None:
+        #: The nodes, in the order their values travel: canonical order (D-RCML-4), or the order
+        #: given when `canonical` is false (an RSP device's fields, D-RSP-4).
+        self.nodes = tuple(sorted(nodes, key=lambda node: node.name) if canonical else nodes)
         self.names = tuple(node.name for node in self.nodes)
         #: What the body belongs to, for messages (`/drive/wheels (read)`).
         self.where = where
@@ -37,6 +56,12 @@ class ValuesCodec:
 
     def encode(self, values: Mapping[str, Value]) -> bytes:
         """A body from a value for each node, no more and no fewer."""
+        buf = Buffer()
+        self.push(buf, values)
+        return buf.data()
+
+    def push(self, buf: Buffer, values: Mapping[str, Value]) -> None:
+        """Append the values, as `encode` does."""
         if values.keys() != set(self.names):
             missing = sorted(set(self.names) - values.keys())
             extra = sorted(values.keys() - set(self.names))
@@ -44,13 +69,11 @@ class ValuesCodec:
                 f"{self.where} needs a value for each of {list(self.names)} and no other:"
                 f" missing {missing}, unknown {extra}"
             )
-        buf = Buffer()
         for name, _, push in self._codecs:
             try:
                 push(buf, values[name])
             except EncodeError as exc:
                 raise EncodeError(f"{self.where}/{name}: {exc}") from None
-        return buf.data()
 
     def decode(self, body: bytes, base: int = 0) -> dict[str, Value]:
         """The values of a body. `base` is where the body starts in its message or datagram, so
@@ -58,11 +81,9 @@ class ValuesCodec:
         """
         buf = Buffer(body)
         try:
-            values = {name: pull(buf) for name, pull, _ in self._codecs}
+            values = self.pull(buf)
         except ProtocolError as exc:
-            # A value cut short breaks this body's rule (the body does not hold the values); a
-            # value that is itself malformed keeps the rule it breaks (R-RCML-30).
-            raise ProtocolError(exc.reason, base + exc.offset, exc.rule or self.rule) from None
+            raise ProtocolError(exc.reason, base + exc.offset, exc.rule) from None
         if not buf.eof():
             raise ProtocolError(
                 f"{buf.remaining} bytes after the values of {self.where}",
@@ -70,3 +91,14 @@ class ValuesCodec:
                 self.rule,
             )
         return values
+
+    def pull(self, buf: Buffer) -> dict[str, Value]:
+        """The values at the buffer's position; offsets in errors are the buffer's."""
+        try:
+            return {name: pull(buf) for name, pull, _ in self._codecs}
+        except ProtocolError as exc:
+            # A value cut short breaks this body's rule (the body does not hold the values); a
+            # value that is itself malformed keeps the rule it breaks (R-RCML-30).
+            if exc.rule:
+                raise
+            raise ProtocolError(exc.reason, exc.offset, self.rule) from None

@@ -1,4 +1,5 @@
-"""`rcmlconf validate` as a library: check RCML and RXID documents, collect located diagnostics."""
+"""`rcmlconf validate` as a library: check RCML, RXID and robot model documents, collect located
+diagnostics."""
 
 from rcmlconf.validate.validator import FileReport, Validator
 

@@ -17,10 +17,11 @@ from rcmlconf.markup.structure import Checker, ElementDef
 
 if TYPE_CHECKING:
     from rcmlconf.rcml.model import RcmlDocument
+    from rcmlconf.rsp.model import RobotModel
     from rcmlconf.rxid.model import RxidDocument
     from rcmlconf.rxid.sessions import Resolver
 
-    Model = RcmlDocument | RxidDocument
+    Model = RcmlDocument | RxidDocument | RobotModel
     #: Checks a document, returning its model (None when invalid).
     Loader = Callable[[Checker, Path | None, Resolver], Model | None]
 
@@ -50,6 +51,10 @@ class Language:
 LANGUAGES: dict[str, Language] = {
     "rcml": Language("rcml", ".rcml", "rcml.dtd", "rcmlconf.rcml.schema", "rcmlconf.rcml.loader"),
     "rxid": Language("rxid", ".rxid", "rxid.dtd", "rcmlconf.rxid.schema", "rcmlconf.rxid.loader"),
+    # D-RSP-1: the RSP robot model.
+    "robotModel": Language(
+        "robotModel", ".rmodel", "rmodel.dtd", "rcmlconf.rsp.schema", "rcmlconf.rsp.loader"
+    ),
 }
 
 EXTENSIONS = frozenset(language.extension for language in LANGUAGES.values())

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 from urllib.parse import unquote, urlsplit
 
 from rcmlconf.diagnostics import Diagnostic, Severity
@@ -23,6 +23,7 @@ from rcmlconf.markup.document import (
 )
 from rcmlconf.markup.structure import Checker, TooManyFindings, check_prolog
 from rcmlconf.rcml.model import RcmlDocument
+from rcmlconf.rsp.model import RobotModel
 from rcmlconf.rxid.sessions import Broken, SessionTarget, Unresolved
 from rcmlconf.validate.languages import LANGUAGES, Language
 from rcmlconf.wording import plural, shorten
@@ -30,16 +31,19 @@ from rcmlconf.wording import plural, shorten
 if TYPE_CHECKING:
     from rcmlconf.validate.languages import Model
 
+_Valid = TypeVar("_Valid", RcmlDocument, RobotModel)
 
 #: Findings after which a document's checking stops (like a compiler's error limit): a hostile
 #: document with a finding on each of 100,000 elements would otherwise take seconds.
 DEFAULT_MAX_FINDINGS = 1000
+#: The root elements the validator knows, for a message.
+_ROOTS = ", ".join(f"<{root}>" for root in LANGUAGES)
 
 
 @dataclass(frozen=True, slots=True)
 class FileReport:
     path: str
-    #: The language by root element; None when the document could not be parsed or is neither.
+    #: The language by root element; None when the document could not be parsed or is in none.
     kind: str | None
     diagnostics: tuple[Diagnostic, ...]
     #: Checking stopped at the validator's limit of findings; more may follow.
@@ -140,8 +144,8 @@ class Validator:
             checker.error(
                 "R-XML-7",
                 root,
-                f"root element <{shorten(display_name(root.tag))}> is neither <rcml> nor <rxid>",
-                hint="RCML and RXID elements are in no namespace" if in_namespace else None,
+                f"root element <{shorten(display_name(root.tag))}> is none of {_ROOTS}",
+                hint="the languages' elements are in no namespace" if in_namespace else None,
             )
             return FileReport(display, None, tuple(checker.diagnostics())), None
         try:
@@ -158,7 +162,7 @@ class Validator:
             checker.warning(
                 "R-XML-10",
                 checker.document.root,
-                f"an {language.root} document in a {suffix or 'extensionless'} file",
+                f"a <{language.root}> document in a {suffix or 'extensionless'} file",
                 hint=f"name it *{language.extension}",
             )
         return language.load(checker, base_dir, lambda href: self._session(href, base_dir))
@@ -187,7 +191,7 @@ class Validator:
         if isinstance(model, RcmlDocument):
             return model
         if report.kind not in (None, "rcml"):
-            return Broken(f"{path} is an {report.kind} document, not RCML")
+            return Broken(f"{path} is a <{report.kind}> document, not RCML")
         return Broken(
             f"{path} is not valid RCML ({plural(report.errors, 'error')}; validate it for details)"
         )
@@ -202,23 +206,34 @@ class Validator:
 
 
 class InvalidRobot(RcmlconfError):
-    """An RCML file that cannot be used: unreadable, not RCML, or invalid (`report` says why)."""
+    """A robot's file that cannot be used: unreadable, not of its language, or invalid (`report`
+    says why)."""
 
     def __init__(self, message: str, report: FileReport | None = None) -> None:
         super().__init__(message)
         self.report = report
 
 
-def load_robot(path: Path, warnings: list[Diagnostic] | None = None) -> RcmlDocument:
-    """The model of a valid RCML file, for what serves or drives a robot; its warnings are
-    added to `warnings` when given."""
+def _load_valid(
+    path: Path, cls: type[_Valid], what: str, warnings: list[Diagnostic] | None
+) -> _Valid:
     try:
         report, model = Validator().load_file(path)
     except OSError as exc:
         raise InvalidRobot(f"{path}: cannot be read: {exc.strerror}") from None
-    if not isinstance(model, RcmlDocument):
-        what = "not an RCML document" if report.kind != "rcml" else "not valid RCML"
-        raise InvalidRobot(f"{path}: {what}; `rcmlconf validate {path}` says why", report)
+    if not isinstance(model, cls):
+        raise InvalidRobot(f"{path}: not {what}; `rcmlconf validate {path}` says why", report)
     if warnings is not None:
         warnings.extend(report.diagnostics)
     return model
+
+
+def load_robot(path: Path, warnings: list[Diagnostic] | None = None) -> RcmlDocument:
+    """The model of a valid RCML file, for what serves or drives a robot; its warnings are
+    added to `warnings` when given."""
+    return _load_valid(path, RcmlDocument, "valid RCML", warnings)
+
+
+def load_robot_model(path: Path, warnings: list[Diagnostic] | None = None) -> RobotModel:
+    """The model of a valid RSP robot model file (D-RSP-1), as `load_robot`."""
+    return _load_valid(path, RobotModel, "a valid RSP robot model", warnings)

@@ -13,6 +13,7 @@ from rcmlconf.values.types import (
     Scalar,
     Value,
     ValueType,
+    first_outside,
     lookup_type,
 )
 
@@ -24,6 +25,7 @@ __all__ = [
     "Scalar",
     "Value",
     "ValueType",
+    "first_outside",
     "format_value_text",
     "lookup_type",
     "parse_positive",

@@ -104,3 +104,23 @@ class ValueType:
     def __str__(self) -> str:
         text = f"{self.base.name}({self.size})" if self.base.sized else self.base.name
         return f"{text}[{self.count}]" if self.is_array else text
+
+
+def first_outside(
+    value: Value, minimum: int | float | None, maximum: int | float | None
+) -> int | None:
+    """Index of the first item of `value` (a scalar is one item) outside `minimum`..`maximum`
+    (D-RCML-12: every item of an array), or None. NaN is outside any range; a value with no bounds
+    has none to break. Items that are not numbers are not compared.
+    """
+    if minimum is None and maximum is None:
+        return None
+    for index, item in enumerate(value if isinstance(value, tuple | list) else (value,)):
+        if not isinstance(item, int | float) or isinstance(item, bool):
+            continue
+        # Written as "not within" so that NaN, which compares false, is outside too.
+        if (minimum is not None and not item >= minimum) or (
+            maximum is not None and not item <= maximum
+        ):
+            return index
+    return None

@@ -156,7 +156,7 @@ def test_help_teaches() -> None:
 def test_the_bundled_robots_are_valid_without_a_warning() -> None:
     done = run("validate", "--strict", "rcmlconf/reference/robots", cwd=Path(__file__).parents[2])
     assert done.returncode == 0, done.stdout
-    assert "4 files checked: all valid" in done.stderr
+    assert "5 files checked: all valid" in done.stderr
 
 
 def test_a_hostile_file_is_cut_short_and_says_so(tmp_path: Path) -> None:

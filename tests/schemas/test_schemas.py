@@ -23,10 +23,16 @@ from rcmlconf.errors import ValueTextError
 from rcmlconf.markup.lexical import Enumeration, ncname
 from rcmlconf.markup.structure import Attr, TextParser
 from rcmlconf.rcml.schema import ELEMENTS as RCML_ELEMENTS
+from rcmlconf.rsp.schema import ELEMENTS as RSP_ELEMENTS
+from rcmlconf.rsp.schema import FIELD_HOLDERS
 from rcmlconf.rxid.schema import ELEMENTS as RXID_ELEMENTS
 from rcmlconf.specs import requirements
+from rcmlconf.validate.languages import LANGUAGES
 
-TABLES = {"rcml": RCML_ELEMENTS, "rxid": RXID_ELEMENTS}
+#: Each language's element table, by root element.
+TABLES = {"rcml": RCML_ELEMENTS, "rxid": RXID_ELEMENTS, "robotModel": RSP_ELEMENTS}
+#: The file names of each language's schemas, but for .dtd and .xsd: its DTD's (D-XML-3).
+SCHEMAS = {root: LANGUAGES[root].dtd.removesuffix(".dtd") for root in TABLES}
 REQUIREMENTS = requirements()
 #: Every implementation of a language's schemas; the part before "/" is the check of specs/.
 CHECKS = ("dtd", "xsd/lxml", "xsd/xmlschema")
@@ -46,7 +52,7 @@ def schema_text(name: str) -> bytes:
 
 @cache
 def xmlschema_xsd(language: str) -> xmlschema.XMLSchema10:
-    return xmlschema.XMLSchema10(schema_text(f"{language}.xsd").decode())
+    return xmlschema.XMLSchema10(schema_text(f"{SCHEMAS[language]}.xsd").decode())
 
 
 @cache
@@ -57,9 +63,10 @@ def checks(language: str) -> dict[str, Errors]:
         return lambda tree: [] if schema.validate(tree) else [str(e) for e in schema.error_log]
 
     xsd = xmlschema_xsd(language)
+    dtd, xsd_text = (schema_text(f"{SCHEMAS[language]}{suffix}") for suffix in (".dtd", ".xsd"))
     return {
-        "dtd": libxml2(etree.DTD(io.BytesIO(schema_text(f"{language}.dtd")))),
-        "xsd/lxml": libxml2(etree.XMLSchema(etree.fromstring(schema_text(f"{language}.xsd")))),
+        "dtd": libxml2(etree.DTD(io.BytesIO(dtd))),
+        "xsd/lxml": libxml2(etree.XMLSchema(etree.fromstring(xsd_text))),
         "xsd/xmlschema": lambda tree: [f"{e.path}: {e.reason}" for e in xsd.iter_errors(tree)],
     }
 
@@ -87,7 +94,7 @@ def choices(parse: TextParser | None) -> frozenset[str] | None:
 # -- the schemas load ------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("name", ["rcml.dtd", "rxid.dtd", "rcml.xsd", "rxid.xsd"])
+@pytest.mark.parametrize("name", [f"{n}{s}" for n in SCHEMAS.values() for s in (".dtd", ".xsd")])
 def test_schema_loads(name: str) -> None:
     if name.endswith(".dtd"):
         etree.DTD(io.BytesIO(schema_text(name)))
@@ -122,7 +129,7 @@ def content_names(content: etree._DTDElementContentDecl | None) -> set[str]:
 
 @pytest.mark.parametrize("language", TABLES)
 def test_dtd_declares_the_element_table(language: str) -> None:
-    dtd = etree.DTD(io.BytesIO(schema_text(f"{language}.dtd")))
+    dtd = etree.DTD(io.BytesIO(schema_text(f"{SCHEMAS[language]}.dtd")))
     found = {
         element.name: {
             a.name: (a.default == "required", frozenset(a.values()) or None)
@@ -212,7 +219,7 @@ def test_vector(vector: XmlVector, check: str) -> None:
         pytest.skip("not well-formed")
     language = tree.getroot().tag
     if language not in TABLES:
-        pytest.skip("the root element is neither rcml nor rxid")
+        pytest.skip("the root element is none of the languages'")
     if check == "dtd" and uses_namespaces(tree):
         pytest.skip("a DTD cannot allow namespaces: documents with any are DTD-invalid")
     errors = checks(language)[check](tree)
@@ -230,22 +237,27 @@ def test_vector(vector: XmlVector, check: str) -> None:
 
 # -- every attribute value: the schemas and the code's lexical forms agree -------------------------
 
-#: A value for each required attribute that every schema accepts.
+#: A value for each required attribute that every schema accepts; an enumerated one takes the
+#: least of its choices.
 REQUIRED_VALUES = {
-    "version": "2.0",
     "site": "rctp://robot",
     "name": "n",
-    "type": "int",
     "kind": "k",
     "href": "h",
     "content": "c",
     "dataPath": "/n/n",
     "caption": "c",
     "value": "1",
-    "action": "go",
+    "modelId": "1",
+    "of": "n",
 }
-#: The child an element must hold one of (R-RXID-3, R-RXID-20).
-FIRST_CHILD = {"rxid": "window", "radioGroup": "item", "popUpMenu": "item"}
+#: The child an element must hold one of (R-RXID-3, R-RXID-20, R-RSP-7).
+FIRST_CHILD = {
+    "rxid": "window",
+    "radioGroup": "item",
+    "popUpMenu": "item",
+    **dict.fromkeys(FIELD_HOLDERS, "field"),
+}
 TEXTS = (
     *("", " ", "0", "1", "+1", "-1", "007", "+0", "1.5", ".5", "5.", "+.5E+3", "16e-3", "1E-4"),
     *("1e400", "1e-400", "INF", "-INF", "NaN", "0x10", "1_0", "1 0", " 1", "1 ", "\t1", "65535"),
@@ -280,8 +292,10 @@ def skeleton(language: str, target: str) -> etree._Element:
     for name in [*reversed(path[:-1]), *([FIRST_CHILD[target]] if target in FIRST_CHILD else [])]:
         chain.append(etree.SubElement(chain[-1], name))
     for element in chain:
-        for name in table[element.tag].required:
-            element.set(name, REQUIRED_VALUES[name])
+        spec = table[element.tag]
+        for name in spec.required:
+            listed = choices(spec.attributes[name].parse)
+            element.set(name, min(listed) if listed else REQUIRED_VALUES[name])
     return chain[len(path) - 1]
 
 

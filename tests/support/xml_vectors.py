@@ -7,7 +7,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 XML_VECTORS = ROOT / "vectors" / "xml"
-DOCUMENT_SUFFIXES = (".rcml", ".rxid")
+DOCUMENT_SUFFIXES = (".rcml", ".rxid", ".rmodel")
 
 #: (line, column, severity, rule)
 Expected = tuple[int, int, str, str]

@@ -79,7 +79,7 @@ def test_a_session_naming_a_panel_is_broken(tmp_path: Path) -> None:
     report = Validator().validate_bytes(panel("panel.rcml"), "p.rxid", tmp_path)
     ((rule, message),) = rules(report)
     assert rule == "R-RXID-11"
-    assert "rxid document, not RCML" in message
+    assert "<rxid> document, not RCML" in message
 
 
 def test_sessions_that_lead_round_in_a_loop_are_broken_not_followed(tmp_path: Path) -> None:
@@ -87,7 +87,7 @@ def test_sessions_that_lead_round_in_a_loop_are_broken_not_followed(tmp_path: Pa
         (tmp_path / name).write_bytes(panel(other))
     report = Validator().validate_file(tmp_path / "a.rcml")
     assert [d.rule for d in report.diagnostics] == ["R-XML-10", "R-RXID-11"]
-    assert "b.rcml is an rxid document, not RCML" in report.diagnostics[1].message
+    assert "b.rcml is a <rxid> document, not RCML" in report.diagnostics[1].message
     # Checking b checks a on the way, while b is in progress: a's report names the loop, and
     # the same validator gives that report again when asked for a.
     validator = Validator()

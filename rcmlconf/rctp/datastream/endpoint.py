@@ -21,7 +21,7 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
 from rcmlconf.errors import ProtocolError
-from rcmlconf.rcml.model import AccessNode
+from rcmlconf.rcml.model import AccessNode, DataNode
 from rcmlconf.rctp.bodies import ValuesCodec
 from rcmlconf.rctp.datastream.clock import ClockEstimator, ClockSample, ntp_from_unix
 from rcmlconf.rctp.datastream.events import (
@@ -118,7 +118,7 @@ class Stream:
     access: AccessNode
     mode: str
     #: The codecs of the directions the mode carries (D-RCTP-18).
-    codecs: dict[Direction, ValuesCodec]
+    codecs: dict[Direction, ValuesCodec[DataNode]]
     #: Microseconds in force per direction; they start at the RCML's (D-RCTP-18).
     intervals: dict[Direction, int]
     timeouts: dict[Direction, int]

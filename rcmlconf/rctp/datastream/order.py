@@ -65,6 +65,15 @@ class SequenceTracker:
         received = self._newer + self._duplicates + self._late
         return SequenceCounts(received, self._newer, self._duplicates, self._late, self._lost)
 
+    def extended(self, sequence: int) -> int:
+        """The unbounded number a 16-bit sequence number stands for, judged from the highest seen:
+        the nearest one, as SRTP estimates its packet index (RFC 3711 §3.3.1). Before the first
+        packet, the number itself. Changes nothing: a receiver asks before it authenticates."""
+        if self._first is None:
+            return sequence
+        ahead = (sequence - self._highest) & _MASK
+        return self._highest + ahead if ahead <= _MAX_AHEAD else self._highest - (_MODULO - ahead)
+
     def see(self, sequence: int) -> Arrival:
         """Take one packet's sequence number and say what it is (D-RCTP-21)."""
         if not 0 <= sequence <= _MASK:

@@ -21,7 +21,7 @@ _NODES: dict[Direction, Callable[[AccessNode], tuple[DataNode, ...]]] = {
 }
 
 
-def stream_codec(access: AccessNode, direction: Direction) -> ValuesCodec:
+def stream_codec(access: AccessNode, direction: Direction) -> ValuesCodec[DataNode]:
     """The codec of the DATA bodies of one stream access in one direction."""
     where = f"{access.path} ({direction.name.lower()})"
     return ValuesCodec(_NODES[direction](access), where, "R-RCTP-40")

@@ -62,8 +62,8 @@ class Robot:
         self._watchers: dict[str, set[ServerSession]] = {}
         #: Encoded DATA bodies of this tick, shared by every session that streams the access.
         self._bodies: dict[tuple[str, Direction], bytes] = {}
-        self._stream_codecs: dict[tuple[str, Direction], ValuesCodec] = {}
-        self._codecs: dict[tuple[str, tuple[str, ...]], ValuesCodec] = {}
+        self._stream_codecs: dict[tuple[str, Direction], ValuesCodec[DataNode]] = {}
+        self._codecs: dict[tuple[str, tuple[str, ...]], ValuesCodec[DataNode]] = {}
         #: Sessions given something to send by another's doing: the adapter flushes them.
         self._touched: set[ServerSession] = set()
         self._next_tick = now
@@ -87,7 +87,7 @@ class Robot:
             body = self._bodies[key] = codec.encode(self.values(codec.nodes))
         return body
 
-    def codec(self, where: str, nodes: Sequence[DataNode]) -> ValuesCodec:
+    def codec(self, where: str, nodes: Sequence[DataNode]) -> ValuesCodec[DataNode]:
         """The codec of READ and WRITE bodies of `nodes` of the access or node `where`, made
         once: clients ask for the same few again and again. The memory is bounded, since a
         client may name any subset of an event access's nodes."""
