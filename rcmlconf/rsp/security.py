@@ -24,24 +24,14 @@ from cryptography.hazmat.primitives.ciphers.aead import AESGCM, ChaCha20Poly1305
 from cryptography.hazmat.primitives.kdf.hkdf import HKDF
 
 from rcmlconf.errors import EncodeError, ProtocolError
-from rcmlconf.rsp.layout import HEADER_SIZE, TAG_SIZE
+from rcmlconf.rsp.codec.header import Encryption
+from rcmlconf.rsp.layout import HEADER_SIZE, MAC_SIZE, TAG_SIZE
 
 #: The pre-shared key and every session key: 256 bits.
 KEY_SIZE = 32
-#: HELLO's and WELCOME's nonces (D-RSP-11).
-NONCE_SIZE = 16
-#: HMAC-SHA256 cut to 16 bytes (D-RSP-21).
-MAC_SIZE = 16
 #: D-RSP-21: a session ends before its index needs more than 48 bits (178 years at 50 Hz).
 MAX_INDEX = (1 << 48) - 1
 _RULE = "R-RSP-18"
-
-
-class Cipher(enum.IntEnum):
-    """The header's encryption byte (D-RSP-10); 0 is no encryption, and has no cipher."""
-
-    AES_256_GCM = 1
-    CHACHA20_POLY1305 = 2
 
 
 class Direction(enum.Enum):
@@ -51,9 +41,10 @@ class Direction(enum.Enum):
     UPLINK = b"RSP/1 uplink"
 
 
-_AEADS: dict[Cipher, type[AESGCM] | type[ChaCha20Poly1305]] = {
-    Cipher.AES_256_GCM: AESGCM,
-    Cipher.CHACHA20_POLY1305: ChaCha20Poly1305,
+#: The AEAD each encryption byte selects; 0 (`Encryption.NONE`) has none.
+AEADS: dict[Encryption, type[AESGCM] | type[ChaCha20Poly1305]] = {
+    Encryption.AES_256_GCM: AESGCM,
+    Encryption.CHACHA20_POLY1305: ChaCha20Poly1305,
 }
 
 
@@ -95,14 +86,14 @@ def nonce(index: int) -> bytes:
 class Sealer:
     """Seals and opens the packets of one direction of one session."""
 
-    cipher: Cipher
+    cipher: Encryption
     key: bytes
 
     def seal(self, header: bytes, body: bytes, index: int) -> bytes:
         """The body encrypted, with its tag: what follows the header on the wire."""
         if not 0 <= index <= MAX_INDEX:
             raise EncodeError(f"packet index {index}: end the session and open a new one")
-        return _AEADS[self.cipher](self.key).encrypt(nonce(index), body, header)
+        return AEADS[self.cipher](self.key).encrypt(nonce(index), body, header)
 
     def open(self, header: bytes, sealed: bytes, index: int) -> bytes:
         """The body of a sealed packet; a ProtocolError when it fails authentication."""
@@ -113,6 +104,6 @@ class Sealer:
                 f"{len(sealed)} bytes after the header, fewer than a tag", HEADER_SIZE, _RULE
             )
         try:
-            return _AEADS[self.cipher](self.key).decrypt(nonce(index), sealed, header)
+            return AEADS[self.cipher](self.key).decrypt(nonce(index), sealed, header)
         except InvalidTag:
             raise ProtocolError("the packet fails authentication", HEADER_SIZE, _RULE) from None

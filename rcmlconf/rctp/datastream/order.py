@@ -74,6 +74,17 @@ class SequenceTracker:
         ahead = (sequence - self._highest) & _MASK
         return self._highest + ahead if ahead <= _MAX_AHEAD else self._highest - (_MODULO - ahead)
 
+    def replayed(self, sequence: int, window: int) -> bool:
+        """Whether a packet is to be dropped unread: seen before, or more than `window` behind
+        the highest (SRTP's replay list, RFC 3711 §3.3.2; D-RSP-15). Changes nothing: a receiver
+        asks before it authenticates, and only an authentic packet may move the window."""
+        if self._first is None:
+            return False
+        ahead = (sequence - self._highest) & _MASK
+        if 1 <= ahead <= _MAX_AHEAD:
+            return False
+        return (_MODULO - ahead) % _MODULO > window or bool(self._seen[sequence])
+
     def see(self, sequence: int) -> Arrival:
         """Take one packet's sequence number and say what it is (D-RCTP-21)."""
         if not 0 <= sequence <= _MASK:

@@ -1,0 +1,109 @@
+"""Whole RSP packets of one robot model: header and body, as plaintext (D-RSP-10, D-RSP-11).
+
+`RspCodec` is derived from the model at run time: no per-robot code. An encrypted session seals
+and opens bodies around it (`rsp.security`): it reads the header with `pull_header`, opens what
+follows, and reads that with `pull_body`.
+"""
+
+from __future__ import annotations
+
+from rcmlconf.buffer import Buffer
+from rcmlconf.errors import EncodeError, ProtocolError
+from rcmlconf.rsp.codec.bodies import (
+    BODIES,
+    Body,
+    MapBody,
+    Packet,
+    map_body,
+    pull_session_body,
+    push_session_body,
+)
+from rcmlconf.rsp.codec.header import RULE, Header, HeaderRules, PacketType
+from rcmlconf.rsp.codec.maps import MapCodec
+from rcmlconf.rsp.layout import HEADER_SIZE, MapPacket
+from rcmlconf.rsp.model import RobotModel
+
+_new = tuple.__new__
+_MAP_PACKETS = {
+    PacketType.DOWNLINK: MapPacket.DOWNLINK,
+    PacketType.UPLINK: MapPacket.UPLINK,
+    PacketType.ACK: MapPacket.ACK,
+}
+
+
+class RspCodec:
+    """Read and write the packets of one model; the only exception a read lets escape is
+    `ProtocolError` (offset, reason, rule), a write's is `EncodeError`."""
+
+    __slots__ = ("_maps", "model", "rules")
+
+    def __init__(self, model: RobotModel) -> None:
+        self.model = model
+        self.rules = HeaderRules.for_model(model)
+        self._maps = {kind: MapCodec(model, packet) for kind, packet in _MAP_PACKETS.items()}
+
+    def pull_header(self, data: bytes | bytearray | memoryview) -> Header:
+        """The header of a datagram, checked against this model (R-RSP-13)."""
+        return self.rules.pull(data)
+
+    def push_header(self, header: Header) -> bytes:
+        return self.rules.push(header)
+
+    def pull_body(
+        self, header: Header, body: bytes | bytearray | memoryview, base: int = HEADER_SIZE
+    ) -> Body:
+        """The body of a packet of that header; `base` is where it starts, for offsets."""
+        if header.type not in BODIES:
+            raise ProtocolError(f"packet type {header.type} is none of 1 to {len(BODIES)}", 4, RULE)
+        data = bytes(body)
+        try:
+            return self._pull_body(header, data, 0)
+        except ProtocolError as exc:
+            raise ProtocolError(exc.reason, base + exc.offset, exc.rule) from None
+
+    def _pull_body(self, header: Header, data: bytes, start: int) -> Body:
+        """The body from `start` to the end of `data`; offsets are `data`'s."""
+        maps = self._maps.get(header.type)
+        if maps is not None:
+            return map_body(maps.pull_from(data, start))
+        cls = BODIES[header.type]
+        assert cls is not MapBody
+        try:
+            return pull_session_body(cls, header, Buffer(memoryview(data)[start:]))  # type: ignore[arg-type]
+        except ProtocolError as exc:
+            raise ProtocolError(exc.reason, start + exc.offset, exc.rule) from None
+
+    def push_body(self, header: Header, body: Body) -> bytes:
+        try:
+            cls = BODIES[header.type]
+        except (AttributeError, KeyError, TypeError):
+            raise EncodeError(f"no packet type carries a body in {header!r}") from None
+        if not isinstance(body, cls):
+            raise EncodeError(
+                f"a {PacketType(header.type).name} carries a {cls.__name__},"
+                f" not a {type(body).__name__}"
+            )
+        if isinstance(body, MapBody):
+            return self._maps[header.type].push(body.items)
+        return push_session_body(header, body)
+
+    def pull_packet(self, data: bytes | bytearray | memoryview) -> Packet:
+        """A whole plaintext datagram."""
+        if type(data) is not bytes:
+            data = bytes(data)
+        header = self.rules.pull(data)
+        maps = self._maps.get(header.type)
+        if maps is not None:
+            return _new(Packet, (header, map_body(maps.pull_from(data, HEADER_SIZE))))
+        return _new(Packet, (header, self._pull_body(header, data, HEADER_SIZE)))
+
+    def push_packet(self, packet: Packet) -> bytes:
+        try:
+            header, body = packet
+        except (TypeError, ValueError):
+            raise EncodeError(f"a packet is a header and a body, not {packet!r}") from None
+        head = self.rules.push(header)
+        maps = self._maps.get(header.type)
+        if maps is not None and type(body) is MapBody:
+            return head + maps.push(body.items)
+        return head + self.push_body(header, body)

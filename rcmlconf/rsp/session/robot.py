@@ -1,0 +1,384 @@
+"""The robot's side of RSP, without I/O: the packet handler and the processors of the paper's
+§II.B (motion, sensor, security; the audio processor is `rsp.audio`, fed by the application).
+
+    robot = RobotEndpoint(model)
+    robot.receive_datagram(data, addr, now)     # HELLO, DOWNLINK, ACK, PERIOD, BYE
+    for data, addr in robot.datagrams_to_send(now): sock.sendto(data, addr)
+    robot.get_timer(); robot.handle_timer(now)
+    robot.next_event()                          # events.SessionOpened, OccurrenceReceived ...
+
+The application (a robot driver) reads what the effectors are to do from `effectors(now)` — the
+motion filter's output (D-RSP-20) — takes memory commands one at a time (`take_memory_command`,
+D-RSP-19), and reports sensors and monitors (`set_state`), events and memory events (`occur`).
+One session at a time: it drives the robot (REFUSED 3 to a second local system).
+"""
+
+from __future__ import annotations
+
+import os
+from collections import deque
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+from rcmlconf.errors import ProtocolError
+from rcmlconf.rctp.datastream.order import Arrival
+from rcmlconf.rsp.codec import (
+    CLEAR_BUFFER,
+    Bye,
+    ByeReason,
+    Encryption,
+    Header,
+    Hello,
+    Item,
+    MapBody,
+    PacketType,
+    Period,
+    Refused,
+    RefusedReason,
+    RspCodec,
+    Welcome,
+    pull_header,
+)
+from rcmlconf.rsp.codec.bodies import Body
+from rcmlconf.rsp.layout import MAC_SIZE, NONCE_SIZE, Bit, MapPacket, bit
+from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
+from rcmlconf.rsp.motion import MotionFilter
+from rcmlconf.rsp.reliable import EventRepeater, Occurrence, ReceivedIds, ReliableSender
+from rcmlconf.rsp.security import Direction
+from rcmlconf.rsp.session import events
+from rcmlconf.rsp.session.devices import check_values, device
+from rcmlconf.rsp.session.timing import Beat, Liveness, Silence
+from rcmlconf.rsp.session.wire import SessionWire
+from rcmlconf.values import Value
+
+_K = DeviceKind
+Address = events.Address
+#: The type byte of a HELLO, which may come while a session is open (D-RSP-12).
+_HELLO = bytes([PacketType.HELLO])
+#: 48-bit session IDs (D-RSP-10).
+_SESSION_BITS = 48
+
+
+@dataclass(slots=True)
+class _Session:
+    peer: Address
+    wire: SessionWire
+    client_nonce: bytes
+    #: The WELCOME given, sent again to a repeated HELLO (D-RSP-12).
+    welcome: bytes
+    beat: Beat
+    live: Liveness
+    motion: MotionFilter
+    #: The last command and memory command ID taken per device (D-RSP-16).
+    commands: ReceivedIds
+    #: The newest DOWNLINK's request and module bits (D-RSP-14).
+    requested: frozenset[int] = frozenset()
+    active_modules: frozenset[int] = frozenset()
+
+
+class RobotEndpoint:
+    """A robot's RSP side for one model."""
+
+    def __init__(
+        self,
+        model: RobotModel,
+        *,
+        encryptions: frozenset[Encryption] = frozenset({Encryption.NONE}),
+        psk: bytes | None = None,
+        min_period: float | None = None,
+        random: Callable[[int], bytes] = os.urandom,
+    ) -> None:
+        if any(e is not Encryption.NONE for e in encryptions) and psk is None:
+            raise ValueError("encrypted sessions need the robot's pre-shared key")
+        self.model = model
+        self.codec = RspCodec(model)
+        self.encryptions = encryptions
+        self._psk = psk
+        self._min_period_ms = round((model.period if min_period is None else min_period) * 1000)
+        self._random = random
+        self._ids = 1 << (8 * model.id_length)
+        self.session: _Session | None = None
+        self._out: list[tuple[bytes, Address]] = []
+        self._events: deque[events.Event] = deque()
+        #: Sensor and monitor values, newest first set by the application.
+        self._states: dict[int, dict[str, Value]] = {}
+        self._events_out = EventRepeater(self._ids)
+        self._memory_events = ReliableSender(self._ids, model.period)
+        #: D-RSP-19: memory commands taken and not yet started.
+        self._buffer: deque[Occurrence] = deque()
+        self._reported = {
+            d.position for d in model.devices if bit(d.kind, MapPacket.UPLINK) is Bit.STATE
+        }
+
+    # -- the robot application's calls ---------------------------------------------------------
+
+    @property
+    def free_buffers(self) -> int:
+        return self.model.command_buffers - len(self._buffer)
+
+    def set_state(self, name: str, values: Mapping[str, Value]) -> None:
+        """A sensor's or monitor's newest value, for the UPLINKs that request it (D-RSP-18)."""
+        found = device(self.codec, name, (_K.SENSOR, _K.MONITOR), "report a state")
+        self._states[found.position] = check_values(
+            self.codec, PacketType.UPLINK, found, values, None
+        )
+
+    def occur(self, name: str, values: Mapping[str, Value]) -> int | None:
+        """An event or memory event; its ID, or None when the local system has not requested the
+        device (nothing of an unrequested device is reported, D-RSP-14)."""
+        found = device(self.codec, name, (_K.EVENT, _K.MEMORY_EVENT), "occur")
+        checked = check_values(self.codec, PacketType.UPLINK, found, values, 0)
+        if not self._reports(found.position):
+            return None
+        if found.kind is _K.EVENT:
+            return self._events_out.occur(found, checked)
+        return self._memory_events.issue(found, checked)
+
+    def effectors(self, now: float) -> dict[str, dict[str, Value]]:
+        """What every effector is to do now (D-RSP-20); zero values before any session."""
+        if self.session is None:
+            return MotionFilter(self.model, self.model.period).output(now)
+        return self.session.motion.output(now)
+
+    def take_memory_command(self) -> Occurrence | None:
+        """The next memory command to execute, in the order taken (D-RSP-19)."""
+        return self._buffer.popleft() if self._buffer else None
+
+    def close(self, now: float) -> None:
+        if self.session is not None:
+            self._bye(ByeReason.SHUTDOWN, now)
+
+    # -- I/O -----------------------------------------------------------------------------------
+
+    def datagrams_to_send(self, now: float) -> list[tuple[bytes, Address]]:
+        out, self._out = self._out, []
+        return out
+
+    def next_event(self) -> events.Event | None:
+        return self._events.popleft() if self._events else None
+
+    def get_timer(self) -> float | None:
+        session = self.session
+        if session is None:
+            return None
+        return min(session.beat.next, session.live.deadline())
+
+    def handle_timer(self, now: float) -> None:
+        session = self.session
+        if session is None:
+            return
+        silence = session.live.check(now)
+        if silence is Silence.TIMEOUT:
+            self._bye(ByeReason.TIMEOUT, now)
+            return
+        if silence is Silence.LOST:
+            session.motion.lose_link()  # R-RSP-36
+            self._events.append(events.LinkLost())
+        if session.beat.due(now):
+            self._uplink(session, now)
+
+    def receive_datagram(self, data: bytes, peer: Address, now: float) -> None:
+        try:
+            self._receive(data, peer, now)
+        except ProtocolError as exc:
+            self._events.append(events.PacketDropped(exc.reason, exc.rule or "", exc.offset))
+
+    # -- receiving -----------------------------------------------------------------------------
+
+    def _receive(self, data: bytes, peer: Address, now: float) -> None:
+        session = self.session
+        if session is None or peer != session.peer or data[4:5] == _HELLO:
+            header = pull_header(data)
+            if header.type is not PacketType.HELLO:
+                raise ProtocolError(f"a {header.type.name} from outside a session", 4, "R-RSP-18")
+            self._hello(header, data, peer, now)
+            return
+        packet, arrival = session.wire.read(data, self._psk)
+        header, body = packet
+        if session.live.heard(now):
+            self._events.append(events.LinkRestored())
+        if header.type is PacketType.DOWNLINK:
+            assert isinstance(body, MapBody)
+            self._downlink(session, header, body, arrival, now)
+        elif header.type is PacketType.ACK:
+            assert isinstance(body, MapBody)
+            for item in body.items:
+                assert item.id is not None
+                done = self._memory_events.acknowledged(item.device, item.id, now)
+                if done is not None and done.first_sent is not None:
+                    name = self.model.devices[item.device].name
+                    self._events.append(events.Acknowledged(name, item.id, now - done.first_sent))
+        elif header.type is PacketType.PERIOD:
+            assert isinstance(body, Period)
+            if arrival is Arrival.NEWER:
+                self._set_period(session, body.period_ms, now)
+        elif header.type is PacketType.BYE:
+            assert isinstance(body, Bye)
+            self._end(events.SessionClosed(body.reason, by_peer=True))
+        else:
+            raise ProtocolError(f"a {header.type.name} is not sent to a robot", 4, "R-RSP-18")
+
+    def _hello(self, header: Header, data: bytes, peer: Address, now: float) -> None:
+        """R-RSP-20, R-RSP-21, R-RSP-38: WELCOME, the WELCOME given again, or REFUSED."""
+        if header.model_id != self.model.model_id:
+            self._refuse(header, RefusedReason.UNKNOWN_MODEL, peer, now)
+            return
+        if header.encryption not in self.encryptions:
+            self._refuse(header, RefusedReason.ENCRYPTION_NOT_OFFERED, peer, now)
+            return
+        wire = SessionWire(self.codec, header.encryption, Direction.UPLINK)
+        try:
+            packet, _ = wire.read(data, self._psk)
+        except ProtocolError as exc:
+            if exc.rule == "R-RSP-38":
+                self._refuse(header, RefusedReason.NOT_AUTHENTICATED, peer, now)
+                return
+            raise
+        hello = packet.body
+        assert isinstance(hello, Hello)
+        session = self.session
+        if session is not None and session.peer == peer:
+            if hello.client_nonce == session.client_nonce:
+                self._out.append((session.welcome, peer))
+                return
+            # The same local system with a new nonce lost its session: the new one replaces it.
+            self._end(events.SessionClosed(ByeReason.CLOSED, by_peer=True))
+        elif session is not None:
+            self._refuse(header, RefusedReason.BUSY, peer, now)
+            return
+        self._open(wire, hello, peer, now)
+
+    def _open(self, wire: SessionWire, hello: Hello, peer: Address, now: float) -> None:
+        wire.session_id = self._new_session_id()
+        period_ms = max(hello.period_ms, self._min_period_ms)
+        robot_nonce = self._random(NONCE_SIZE)
+        signed = wire.encryption is not Encryption.NONE
+        welcome = Welcome(hello.client_nonce, robot_nonce, period_ms, bytes(MAC_SIZE) * signed)
+        data = wire.build(PacketType.WELCOME, welcome, now, self.free_buffers, self._psk)
+        wire.secure(self._psk or b"", hello.client_nonce, robot_nonce)
+        period = period_ms / 1000
+        self.session = _Session(
+            peer,
+            wire,
+            hello.client_nonce,
+            data,
+            Beat(period, now + period),
+            Liveness(period, now),
+            MotionFilter(self.model, period),
+            ReceivedIds(self._ids),
+        )
+        self._buffer.clear()
+        self._memory_events = ReliableSender(self._ids, period)
+        self._events_out = EventRepeater(self._ids)
+        self._out.append((data, peer))
+        self._events.append(events.SessionOpened(wire.session_id, period, peer))
+
+    def _new_session_id(self) -> int:
+        """R-RSP-20: random, never 0 (and only one session is open at a time)."""
+        while True:
+            session_id = int.from_bytes(self._random(_SESSION_BITS // 8))
+            if session_id:
+                return session_id
+
+    def _refuse(self, header: Header, reason: RefusedReason, peer: Address, now: float) -> None:
+        wire = SessionWire(self.codec, header.encryption, Direction.UPLINK)
+        wire.tracker.see(header.sequence)
+        self._out.append((wire.build(PacketType.REFUSED, Refused(reason), now), peer))
+
+    def _downlink(
+        self, session: _Session, header: Header, body: MapBody, arrival: Arrival, now: float
+    ) -> None:
+        devices = self.model.devices
+        if arrival is Arrival.NEWER:
+            if header.buffer & CLEAR_BUFFER:  # R-RSP-33: before the payloads
+                self._buffer.clear()
+            flags = {item.device for item in body.items if item.values is None and item.id is None}
+            session.active_modules = frozenset(p for p in flags if devices[p].kind is _K.MODULE)
+            session.requested = frozenset(flags) - session.active_modules
+        acks = []
+        for item in body.items:
+            found = devices[item.device]
+            if item.id is not None:
+                assert item.values is not None
+                if self._occurrence(session, item.device, item.id, item.values):
+                    acks.append(Item(item.device, item.id))  # R-RSP-26
+            elif item.values is not None and arrival is Arrival.NEWER and self._in_active(found):
+                session.motion.receive(found, item.values, header.timestamp, now)
+                self._events.append(events.StateReceived(found.name, item.values, header.timestamp))
+        if acks:
+            self._send(session, PacketType.ACK, MapBody(tuple(acks)), now)
+
+    def _occurrence(
+        self, session: _Session, position: int, ident: int, values: Mapping[str, Value]
+    ) -> bool:
+        """Take a command or memory command once (R-RSP-25); whether to acknowledge it."""
+        found = self.model.devices[position]
+        if not session.commands.is_new(position, ident):
+            return True  # seen before: acknowledged again, its sender still waits
+        if found.kind is _K.MEMORY_COMMAND:
+            if not self.free_buffers:  # R-RSP-31: neither taken nor acknowledged
+                return False
+            self._buffer.append(Occurrence(found, ident, dict(values)))
+        else:
+            self._events.append(events.OccurrenceReceived(found.name, ident, values))
+        session.commands.take(position, ident)
+        return True
+
+    def _in_active(self, found: Device) -> bool:
+        """Not in a module, or in one the newest DOWNLINK activated (D-RSP-14)."""
+        session = self.session
+        if found.module is None or session is None:
+            return True
+        owner = self.model.device(found.module)
+        return owner is not None and owner.position in session.active_modules
+
+    def _reports(self, position: int) -> bool:
+        """Requested by the newest DOWNLINK, and not in an inactive module (D-RSP-14)."""
+        session = self.session
+        return (
+            session is not None
+            and position in session.requested
+            and self._in_active(self.model.devices[position])
+        )
+
+    # -- sending -------------------------------------------------------------------------------
+
+    def _set_period(self, session: _Session, period_ms: int, now: float) -> None:
+        period = max(period_ms, self._min_period_ms) / 1000
+        if period != session.beat.period:
+            session.beat = Beat(period, now + period)
+            session.live.period = session.motion.period = period
+
+    def _send(self, session: _Session, kind: PacketType, body: Body, now: float) -> None:
+        data = session.wire.build(kind, body, now, self.free_buffers, self._psk)
+        self._out.append((data, session.peer))
+
+    def _uplink(self, session: _Session, now: float) -> None:
+        items: dict[int, Item] = {}
+        for position in self._reported & session.requested:
+            values = self._states.get(position)
+            if values is not None and self._reports(position):
+                items[position] = Item(position, None, values)
+        for occurrence in self._events_out.ride():
+            position = occurrence.device.position
+            items[position] = Item(position, occurrence.id, occurrence.values)
+        due = self._memory_events.due(now, lambda found: True)
+        for occurrence in due:
+            position = occurrence.device.position
+            items[position] = Item(position, occurrence.id, occurrence.values)
+        if not items and not session.beat.quiet():
+            return
+        session.beat.sent()
+        self._send(session, PacketType.UPLINK, MapBody(tuple(items[p] for p in sorted(items))), now)
+        self._memory_events.sent(due, now)
+
+    def _bye(self, reason: ByeReason, now: float) -> None:
+        session = self.session
+        assert session is not None
+        self._send(session, PacketType.BYE, Bye(reason), now)
+        self._end(events.SessionClosed(reason, by_peer=False))
+
+    def _end(self, event: events.SessionClosed) -> None:
+        self.session = None
+        self._buffer.clear()
+        self._events.append(event)
