@@ -21,6 +21,21 @@ COMMANDS = {
         "client",
         "Read, write, stream and watch a robot over RCTP/2.0 (the reference client).",
     ),
+    "local": (
+        "rcmlconf.cli.local",
+        "local",
+        "Drive an RSP robot as the simulacrum: effector values every T, sensors and events.",
+    ),
+    "robot": (
+        "rcmlconf.cli.robot",
+        "robot",
+        "Run a robot that speaks RSP on UDP (the reference robot; CUBO is simulated).",
+    ),
+    "rsp": (
+        "rcmlconf.cli.rsp",
+        "rsp",
+        "Tools over RSP robot models: generate a robot's typed Robot API (paper Fig. 4).",
+    ),
     "serve": (
         "rcmlconf.cli.serve",
         "serve",
@@ -35,19 +50,22 @@ COMMANDS = {
 
 
 class LazyGroup(click.Group):
+    #: The commands of the group, as COMMANDS; a group of subcommands (`rsp`) has its own.
+    table: dict[str, tuple[str, str, str]] = COMMANDS
+
     def list_commands(self, ctx: click.Context) -> list[str]:
-        return sorted(COMMANDS)
+        return sorted(self.table)
 
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
-        if cmd_name not in COMMANDS:
+        if cmd_name not in self.table:
             return None
-        module, name, _ = COMMANDS[cmd_name]
+        module, name, _ = self.table[cmd_name]
         command = getattr(importlib.import_module(module), name)
         assert isinstance(command, click.Command)
         return command
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
-        rows = [(name, COMMANDS[name][2]) for name in self.list_commands(ctx)]
+        rows = [(name, self.table[name][2]) for name in self.list_commands(ctx)]
         with formatter.section("Commands"):
             formatter.write_dl(rows)
 

@@ -4,69 +4,24 @@ from __future__ import annotations
 
 import asyncio
 import json
-import logging
 import os
 import sys
-import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 import click
 
 from rcmlconf.cli.console import Output
 from rcmlconf.cli.interrupts import Interrupts
-from rcmlconf.diagnostics import Diagnostic
+from rcmlconf.cli.logs import log_lines
+from rcmlconf.cli.models import load_or_exit
 from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
 from rcmlconf.rctp.url import DEFAULT_PORT, FILES_PORT_OFFSET, http_base
 from rcmlconf.reference.drivers import AUTO, DRIVERS, DriverError, choose_driver
 from rcmlconf.reference.server.adapter import ReferenceServer, ServerSettings
-from rcmlconf.validate.report import summary_line
-from rcmlconf.validate.validator import InvalidRobot, load_robot
+from rcmlconf.validate.validator import load_robot
 from rcmlconf.wording import plural
 
 _PORT = click.IntRange(0, 65535)
-_LOGGER = "rcmlconf.server"
-
-
-class _LogLines(logging.Handler):
-    """The server's log (one line per request, session and stream event), through `Output`."""
-
-    def __init__(self, output: Output) -> None:
-        super().__init__()
-        self.output = output
-
-    def emit(self, record: logging.LogRecord) -> None:
-        try:
-            stamp = time.strftime("%H:%M:%S", time.localtime(record.created))
-            style = "bold red" if record.levelno >= logging.WARNING else ""
-            self.output.live(
-                [(f"{stamp}.{int(record.msecs):03d} ", "dim"), (record.getMessage(), style)]
-            )
-        except OSError:  # the reader went away (`| head`): the server goes on, unlogged
-            logging.getLogger(_LOGGER).removeHandler(self)
-        except Exception:  # logging's contract: a handler never raises into the code that logs
-            self.handleError(record)
-
-
-@contextmanager
-def _server_log(output: Output, verbose: int) -> Iterator[None]:
-    """-v: the server's INFO lines on stdout, -vv its DEBUG lines too; none otherwise."""
-    if not verbose:
-        yield
-        return
-    logger = logging.getLogger(_LOGGER)
-    handler = _LogLines(output)
-    level, propagate = logger.level, logger.propagate
-    logger.setLevel(logging.DEBUG if verbose > 1 else logging.INFO)
-    logger.addHandler(handler)
-    logger.propagate = False  # printed once, here, not again by a handler of the root logger
-    try:
-        yield
-    finally:
-        logger.removeHandler(handler)
-        logger.setLevel(level)
-        logger.propagate = propagate
 
 
 @click.command()
@@ -146,22 +101,11 @@ def serve(
     output = Output()
     if no_http and http_port is not None:
         raise click.UsageError("--http-port and --no-http exclude each other")
-    warnings: list[Diagnostic] = []
+    model = load_or_exit(output, "serve", rcml, load_robot)
     try:
-        model = load_robot(rcml, warnings)
         chosen = choose_driver(driver, model)
-    except InvalidRobot as exc:
-        if exc.report is None:  # unreadable
-            output.problem("serve", str(exc))
-            sys.exit(2)
-        for diagnostic in exc.report.diagnostics:
-            output.diagnostic(diagnostic)
-        output.summary(summary_line([exc.report]), ok=False)
-        sys.exit(1)
     except DriverError as exc:
         raise click.UsageError(str(exc)) from None
-    for warning in warnings:  # a valid robot may still have something to say (R-RCML-27)
-        output.diagnostic(warning)
     tcp = model.site.port_or_default if port is None else port
     settings = ServerSettings(
         host=host,
@@ -171,7 +115,7 @@ def serve(
         session_timeout=session_timeout,
     )
     server = ReferenceServer(rcml, model, chosen, settings)
-    with _server_log(output, verbose):
+    with log_lines(output, verbose, "rcmlconf.server"):
         status = asyncio.run(_serve(server, output, ready_file))
     sys.exit(status)
 

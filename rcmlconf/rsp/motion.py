@@ -33,20 +33,6 @@ class _Effector:
     ramp_from: float = 0.0
 
 
-def _first(field: Field) -> Value:
-    """An effector's value before anything arrives: its zero (D-RSP-20's safe state)."""
-    return field.zero() if field.type.base.numeric else _empty(field)
-
-
-_EMPTY: dict[Kind, Scalar] = {Kind.BOOL: False, Kind.STRING: "", Kind.BYTES: b""}
-
-
-def _empty(field: Field) -> Value:
-    base = field.type.base
-    item = _EMPTY.get(base.kind, 0)
-    return tuple([item] * field.type.count) if field.type.is_array else item
-
-
 def _between(field: Field, start: Value, end: Value, share: float) -> Value:
     """A numeric field `share` of the way from `start` to `end` (integers rounded)."""
     if not field.type.base.numeric:
@@ -70,7 +56,7 @@ class MotionFilter:
     def __init__(self, model: RobotModel, period: float) -> None:
         self.period = period
         self._effectors = {
-            d.position: _Effector(d, {f.name: _first(f) for f in d.fields})
+            d.position: _Effector(d, {f.name: f.zero() for f in d.fields})
             for d in model.devices
             if d.kind is DeviceKind.EFFECTOR
         }
@@ -82,7 +68,7 @@ class MotionFilter:
         self.link_lost = True
         for effector in self._effectors.values():
             if effector.device.on_loss is OnLoss.ZERO:
-                effector.target = {f.name: _first(f) for f in effector.device.fields}
+                effector.target = {f.name: f.zero() for f in effector.device.fields}
                 effector.start = None
 
     def receive(self, device: Device, values: Mapping[str, Value], stamp: int, now: float) -> None:

@@ -119,6 +119,10 @@ def _float_text(base: DataType, value: float) -> str:
     if base.name == "float32":
         for digits in range(1, 10):  # 9 significant digits always give a binary32 back
             shortest = float(f"{value:.{digits}g}")
-            if _FLOAT32.unpack(_FLOAT32.pack(shortest))[0] == value:
+            try:
+                back = _FLOAT32.unpack(_FLOAT32.pack(shortest))[0]
+            except OverflowError:  # rounded past the largest float32 (3.4028235e38)
+                continue
+            if back == value:
                 return repr(shortest)  # Python's spelling, an XML Schema double: 2000.0
     return repr(value)

@@ -2,80 +2,41 @@
 
 from __future__ import annotations
 
-import json
 import signal
 import socket
 import subprocess
-import sys
-import time
 import urllib.request
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from support.processes import BOUND, Running, run_command, running
 from support.robots import CAMERA, ROVER, robot
 from support.servers import run
 
 from rcmlconf.reference.client.adapter import Client
 from rcmlconf.reference.client.session import Closed, ServerRequest
 
-SCRIPT = Path(sys.executable).parent / "rcmlconf"
-COMMAND = [str(SCRIPT)] if SCRIPT.exists() else [sys.executable, "-m", "rcmlconf"]
 INVALID = Path(__file__).parents[2] / "vectors" / "xml" / "invalid"
-#: Every wait of these tests is bounded by this many seconds.
-BOUND = 20.0
 
 
-@dataclass
-class Serving:
-    process: subprocess.Popen[str]
-    ready: dict[str, object]
-    ready_file: Path
-
+class Serving(Running):
     @property
     def url(self) -> str:
         return str(self.ready["rctp"])
-
-    def stop(self, sig: signal.Signals = signal.SIGINT) -> tuple[int, str, str]:
-        """Send `sig`; the exit status and everything the process printed."""
-        self.process.send_signal(sig)
-        out, err = self.process.communicate(timeout=BOUND)
-        assert "Traceback" not in err, err
-        return self.process.returncode, out, err
 
 
 @contextmanager
 def serving(tmp_path: Path, rcml: Path, *args: str, http: bool = True) -> Iterator[Serving]:
     """`rcmlconf serve` on free ports, once its ready file says it listens."""
-    ready_file = tmp_path / "ready.json"
     ports = ["--port", "0", *(["--http-port", "0"] if http else ["--no-http"])]
-    process = subprocess.Popen(
-        [*COMMAND, "serve", *ports, "--ready-file", str(ready_file), *args, str(rcml)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        deadline = time.monotonic() + BOUND
-        while not ready_file.exists():
-            assert process.poll() is None, process.communicate()
-            assert time.monotonic() < deadline, "the server never said it was ready"
-            time.sleep(0.02)
-        yield Serving(process, json.loads(ready_file.read_text()), ready_file)
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.communicate()
+    with running(tmp_path, "serve", *ports, *args, str(rcml)) as started:
+        yield Serving(started.process, started.ready, started.ready_file)
 
 
 def run_serve(*args: str) -> subprocess.CompletedProcess[str]:
-    done = subprocess.run(
-        [*COMMAND, "serve", *args], capture_output=True, text=True, timeout=BOUND, check=False
-    )
-    assert "Traceback" not in done.stderr, done.stderr
-    return done
+    return run_command("serve", *args)
 
 
 def test_serves_until_ctrl_c_then_says_bye_to_every_session(tmp_path: Path) -> None:

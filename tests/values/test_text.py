@@ -153,6 +153,8 @@ def test_every_value_round_trips_through_its_text(data: st.DataObject, base: Dat
         ("float32", 0.30000001192092896, "0.3"),
         ("float64", 0.1, "0.1"),
         ("float32", 2000.0, "2000.0"),
+        # Rounded to 4 digits it is past the largest float32 (3.403e38): more digits are needed.
+        ("float32", 3.4025001647762064e38, "3.4025002e+38"),
         ("bool", True, "true"),
         ("bytes", b"\x00\xff", "00ff"),
         ("float64", -math.inf, "-INF"),

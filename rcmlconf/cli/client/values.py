@@ -14,7 +14,16 @@ from collections.abc import Iterable, Mapping, Sequence
 
 from rcmlconf.errors import ValueTextError
 from rcmlconf.rcml.model import AccessNode, DataNode
-from rcmlconf.values import DataType, Kind, Scalar, Value, format_value_text, parse_value_text
+from rcmlconf.rctp.bodies import Typed
+from rcmlconf.values import (
+    DataType,
+    Kind,
+    Scalar,
+    Value,
+    ValueType,
+    format_value_text,
+    parse_value_text,
+)
 
 _FLOAT32 = struct.Struct(">f")
 #: C0 and C1 controls and DEL: a robot's string must not move the terminal's cursor or change
@@ -24,7 +33,12 @@ _CONTROLS = {c: f"\\x{c:02x}" for c in (*range(0x20), *range(0x7F, 0xA0))}
 
 def parse_node_value(node: DataNode, text: str) -> Value:
     """The value of `node` typed as `text`: its text form, an array's items comma-separated."""
-    vtype = node.type
+    return parse_typed_value(node.type, text, node.path)
+
+
+def parse_typed_value(vtype: ValueType, text: str, where: str) -> Value:
+    """A value of `vtype` typed as `text` (an RCML data node's, an RSP field's); errors name
+    `where`."""
     try:
         if not vtype.is_array:
             return parse_value_text(vtype.base, text, vtype.size)
@@ -36,7 +50,7 @@ def parse_node_value(node: DataNode, text: str) -> Value:
             items = [item.strip(" ") for item in items]
         return tuple(parse_value_text(vtype.base, item, vtype.size) for item in items)
     except ValueTextError as exc:
-        raise ValueTextError(f"{node.path} ({vtype}): {exc}") from None
+        raise ValueTextError(f"{where} ({vtype}): {exc}") from None
 
 
 def parse_assignments(access: AccessNode, texts: Sequence[str]) -> dict[str, Value]:
@@ -58,24 +72,24 @@ def parse_assignments(access: AccessNode, texts: Sequence[str]) -> dict[str, Val
     return values
 
 
-def value_text(node: DataNode, value: Value) -> str:
+def value_text(node: Typed, value: Value) -> str:
     """The text form of a value of `node` (D-RCML-14), readable back by `parse_node_value`."""
     return ",".join(_scalar_text(node.type.base, item) for item in _items(value))
 
 
-def values_text(nodes: Iterable[DataNode], values: Mapping[str, Value]) -> list[str]:
+def values_text(nodes: Iterable[Typed], values: Mapping[str, Value]) -> list[str]:
     """`name=value` for each of `nodes` that `values` holds, in canonical order."""
     return [f"{n.name}={value_text(n, values[n.name])}" for n in nodes if n.name in values]
 
 
-def value_json(node: DataNode, value: Value) -> object:
+def value_json(node: Typed, value: Value) -> object:
     """A JSON value: numbers as numbers (a float32 with its shortest digits), bytes as hex,
     and INF, -INF and NaN as those strings, since JSON has no such numbers."""
     items = [_scalar_json(node.type.base, item) for item in _items(value)]
     return items if node.type.is_array else items[0]
 
 
-def values_json(nodes: Iterable[DataNode], values: Mapping[str, Value]) -> dict[str, object]:
+def values_json(nodes: Iterable[Typed], values: Mapping[str, Value]) -> dict[str, object]:
     return {n.name: value_json(n, values[n.name]) for n in nodes if n.name in values}
 
 

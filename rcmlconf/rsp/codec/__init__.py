@@ -3,7 +3,8 @@
 - `header`: the 20-byte header of Table II and the packet types (D-RSP-10, D-RSP-11).
 - `bodies`: the session bodies (HELLO ... PERIOD) and `Item`, what one Device Map bit brings.
 - `payloads`: one device's payload in one packet type, value by value (the reference path).
-- `flat`: the payloads of a whole packet as one struct when they all have fixed sizes.
+- `flat`: the payloads of a whole packet as one struct when they all have fixed sizes, read and
+  written by code compiled for the map.
 - `maps`: a Device Map and its payloads; `packets`: `RspCodec`, whole packets of one model.
 """
 

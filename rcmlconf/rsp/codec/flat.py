@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Callable, Sequence
+from functools import lru_cache
+from types import CodeType
 from typing import Any
 
 from rcmlconf.rsp.codec.bodies import Item
@@ -123,13 +125,22 @@ class FlatLayout:
             "_SIZE": payloads.size,
         }
         self.source = _unpack_source(layout, first, namespace) + _pack_source(layout, namespace)
-        exec(compile(self.source, f"<FlatLayout of {len(slots)} slots>", "exec"), namespace)
+        exec(_compiled(self.source), namespace)
         #: (body, start) -> the items of payloads that fill `body` from `start`; None when the
         #: slots must say.
         self.unpack: Unpack = namespace["unpack"]
         #: items, one to a slot -> the prefix and the payloads; None when the slots must say, or
         #: one of `DECLINED` raised.
         self.pack: Pack = namespace["pack"]
+
+
+@lru_cache(maxsize=256)
+def _compiled(source: str) -> CodeType:
+    """The code of a layout's source. Compiling takes most of a layout's making (about a
+    millisecond): the codecs of one model (a robot's, its local system's, each session's) share
+    it. What differs between layouts of the same source, such as bounds, is in their namespaces.
+    """
+    return compile(source, "<FlatLayout>", "exec")
 
 
 def _bound(value: _Value, name: str, namespace: dict[str, Any], item: str) -> str | None:

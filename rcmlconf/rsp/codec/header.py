@@ -1,9 +1,11 @@
 """The 20-byte header of every RSP packet (D-RSP-10) and the packet types it names (D-RSP-11).
 
-`pull_header` and `push_header` check what holds for any model: version 1 (R-RSP-13), a known
-encryption and type, a session ID that is 0 exactly in HELLO and REFUSED, and a buffer byte of the
-form its sender gives it. `HeaderRules` also holds a model's own rules — its model ID, its
-`commandBuffers` — so that a codec made for one model refuses the packets of another.
+`pull_header` and `push_header` check what holds for any model: version 1 (R-RSP-13), a model ID
+from 1 to 65,535 (D-RSP-6: 0 names none), a known encryption and type, a session ID that is 0
+exactly in HELLO and REFUSED, and a buffer byte of the form its sender gives it. `HeaderRules` also
+holds a model's own rules — its model ID, its `commandBuffers` — so that a codec made for one model
+refuses the packets of another. Both check every field with one expression and ask `fault`, field
+by field, only for the reason and offset of a header they refuse.
 
 `Header` is a NamedTuple, not a frozen dataclass: one is made for every packet a session sends or
 receives (every T, D-RSP-13), and a frozen dataclass of nine fields costs seven times as much to

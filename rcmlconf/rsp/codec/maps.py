@@ -24,8 +24,11 @@ from rcmlconf.rsp.model import RobotModel
 NEVER_RULE = "R-RSP-17"
 #: Plans kept per codec: a session uses a handful, a hostile peer could send 2^1024.
 MAX_PLANS = 4096
-#: A plan's flat layout is compiled when its map is read or written for this time.
-COMPILE_AT = 3
+#: A plan's flat layout is compiled when its map is read or written for this time: a map a
+#: session keeps sending (D-RSP-18), not one an event or a command brings for a few periods. A
+#: compilation costs about a millisecond, so a peer sending each new map this many times costs
+#: about as much per packet as the slots.
+COMPILE_AT = 8
 #: An item's attributes, for an object that lacks one.
 _MISSING = object()
 
@@ -72,7 +75,10 @@ class _Plan:
         """The map and the payloads, slot by slot (the reference path)."""
         out = Buffer(self.device_map)
         for slot, item in zip(self.slots, items, strict=True):
-            slot.push(out, item)
+            try:
+                slot.push(out, item)
+            except AttributeError:
+                raise EncodeError(f"{slot.name}: a map body holds Items, not {item!r}") from None
         return out.data()
 
 
@@ -161,16 +167,23 @@ class MapCodec:
     def push(self, items: Sequence[Item]) -> bytes:
         """A body from items in model order, one per set bit."""
         try:
-            plan = self._by_devices.get(tuple([item.device for item in items]))
+            devices = tuple([item.device for item in items])
+            plan = self._by_devices.get(devices)
         except (AttributeError, TypeError):  # not items, or a device that is no number
             plan = None
-        if plan is not None and plan.flat is not None:
-            try:
-                packed = plan.flat.pack(items)
-            except DECLINED:
-                packed = None
-            if packed is not None:
-                return packed
+        if plan is not None:
+            flat = plan.flat
+            if flat is not None:
+                try:
+                    packed = flat.pack(items)
+                except DECLINED:
+                    packed = None
+                if packed is not None:
+                    return packed
+            elif all(type(device) is int for device in devices):
+                # The plan's devices, checked when it was made: the slots check the rest.
+                plan.use()
+                return plan.push(items)
         return self._push_slots(items)
 
     def _push_slots(self, items: Sequence[Item]) -> bytes:

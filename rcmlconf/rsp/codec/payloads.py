@@ -22,7 +22,7 @@ from rcmlconf.rsp.codec.bodies import RULE, Item
 from rcmlconf.rsp.layout import Bit
 from rcmlconf.rsp.model import Device, Field, RobotModel
 from rcmlconf.values import Value, first_outside
-from rcmlconf.values.binary import encode_value
+from rcmlconf.values.binary import codec_for, encode_value
 
 #: An occurrence's ID: 1 or 2 bytes (D-RSP-5), as struct codes.
 ID_CODES = {1: "B", 2: "H"}
@@ -34,6 +34,7 @@ class Slot:
     __slots__ = (
         "_bounded",
         "_id",
+        "_pullers",
         "device",
         "fields",
         "fixed",
@@ -56,6 +57,8 @@ class Slot:
         self.values = (
             ValuesCodec(self.fields, device.name, RULE, canonical=False) if carries else None
         )
+        #: Each field and how to read its value (D-RCML-10).
+        self._pullers = tuple((field, codec_for(field.type)[0]) for field in self.fields)
         #: The fields with a range, and their places (D-RCML-12).
         self._bounded = tuple(
             (number, field)
@@ -71,14 +74,24 @@ class Slot:
         """The payload at the buffer's position; offsets in errors are the buffer's, and a
         payload cut short has no rule yet (the caller's)."""
         ident = buf.pull_struct(self._id)[0] if self.has_id else None
-        values = None
-        if self.values is not None:
+        if self.values is None:
+            return Item(self.device, ident, None)
+        values = {}
+        # Field by field, each value's range checked as it is read: the first fault in the bytes
+        # is the one reported.
+        for field, pull in self._pullers:
             start = buf.position
-            values = self.values.pull(buf)
-            fault = self._out_of_range(values)
-            if fault is not None:
-                reason, offset = fault
-                raise ProtocolError(reason, start + offset, RULE)
+            value = pull(buf)
+            if field.minimum is not None or field.maximum is not None:
+                index = first_outside(value, field.minimum, field.maximum)
+                if index is not None:
+                    item = value[index] if isinstance(value, tuple) else value
+                    raise ProtocolError(
+                        f"{field.name}: {item!r} is outside {field.minimum} to {field.maximum}",
+                        start + index * field.type.base.width,
+                        RULE,
+                    )
+            values[field.name] = value
         return Item(self.device, ident, values)
 
     def push(self, buf: Buffer, item: Item) -> None:

@@ -21,7 +21,7 @@ from collections import deque
 from collections.abc import Mapping
 
 from rcmlconf.errors import ProtocolError
-from rcmlconf.rctp.datastream.order import Arrival
+from rcmlconf.rctp.datastream.order import Arrival, SequenceCounts
 from rcmlconf.rsp.codec import (
     CLEAR_BUFFER,
     Bye,
@@ -155,6 +155,15 @@ class LocalEndpoint:
         """Memory commands that may start now (D-RSP-19)."""
         in_flight = sum(1 for o in self._sender.in_flight() if o.device.kind is _K.MEMORY_COMMAND)
         return max(self.free_buffers - in_flight, 0)
+
+    @property
+    def packets_sent(self) -> int:
+        return self._wire.sent
+
+    @property
+    def received(self) -> SequenceCounts:
+        """The robot's packets of this session: received, lost, late, duplicates (D-RSP-15)."""
+        return self._wire.tracker.counts
 
     # -- I/O -----------------------------------------------------------------------------------
 

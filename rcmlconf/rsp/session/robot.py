@@ -38,6 +38,7 @@ from rcmlconf.rsp.codec import (
     RspCodec,
     Welcome,
     pull_header,
+    push_header,
 )
 from rcmlconf.rsp.codec.bodies import Body
 from rcmlconf.rsp.layout import MAC_SIZE, NONCE_SIZE, Bit, MapPacket, bit
@@ -281,9 +282,21 @@ class RobotEndpoint:
                 return session_id
 
     def _refuse(self, header: Header, reason: RefusedReason, peer: Address, now: float) -> None:
-        wire = SessionWire(self.codec, header.encryption, Direction.UPLINK)
-        wire.tracker.see(header.sequence)
-        self._out.append((wire.build(PacketType.REFUSED, Refused(reason), now), peer))
+        """D-RSP-12: REFUSED belongs to no session; it echoes the HELLO's model ID and encryption
+        byte, so that a local system of another model reads it too."""
+        refused = Header(
+            1,
+            header.model_id,
+            header.encryption,
+            PacketType.REFUSED,
+            0,
+            0,
+            0,
+            header.sequence,
+            self.free_buffers,
+        )
+        data = push_header(refused) + self.codec.push_body(refused, Refused(reason))
+        self._out.append((data, peer))
 
     def _downlink(
         self, session: _Session, header: Header, body: MapBody, arrival: Arrival, now: float

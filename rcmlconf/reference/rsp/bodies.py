@@ -1,0 +1,60 @@
+"""What the reference robot moves: a body that takes effector values and reports its sensors and
+monitors. CUBO (D-RSP-8) has a simulated body of its own (`cubo`); any other model gets a generic
+one. Bodies are pure: time comes in as `now`."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Protocol
+
+from rcmlconf.rsp.model import DeviceKind, RobotModel
+from rcmlconf.values import Value
+
+Values = Mapping[str, Value]
+
+
+class Body(Protocol):
+    def apply(self, effectors: Mapping[str, Values], now: float) -> None:
+        """What each effector is to do now (the motion filter's output, D-RSP-20)."""
+
+    def advance(self, now: float) -> None:
+        """Move on to `now`."""
+
+    def sensors(self, now: float) -> Mapping[str, Values]:
+        """Every sensor's and monitor's value now, by device name."""
+
+
+class GenericBody:
+    """Any model: effectors do at once what they are told, monitors say so, sensors read their
+    fields' zero values (D-RSP-20's safe state)."""
+
+    def __init__(self, model: RobotModel) -> None:
+        self._monitors = {d.name: d.of for d in model.devices if d.kind is DeviceKind.MONITOR}
+        self._sensors = {
+            d.name: {f.name: f.zero() for f in d.fields}
+            for d in model.devices
+            if d.kind is DeviceKind.SENSOR
+        }
+        self._effectors: dict[str, Values] = {}
+
+    def apply(self, effectors: Mapping[str, Values], now: float) -> None:
+        self._effectors = dict(effectors)
+
+    def advance(self, now: float) -> None:
+        pass
+
+    def sensors(self, now: float) -> Mapping[str, Values]:
+        found: dict[str, Values] = dict(self._sensors)
+        for monitor, effector in self._monitors.items():
+            if effector is not None and effector in self._effectors:
+                found[monitor] = self._effectors[effector]
+        return found
+
+
+def body_for(model: RobotModel, seed: int) -> Body:
+    """CUBO's simulated body for the CUBO model, a generic one for any other."""
+    if model.name == "CUBO":
+        from rcmlconf.reference.rsp.cubo import CuboBody
+
+        return CuboBody(model, seed=seed)
+    return GenericBody(model)

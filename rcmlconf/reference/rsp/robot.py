@@ -1,0 +1,153 @@
+"""The reference RSP robot on asyncio: one UDP socket and a control loop around `RobotEndpoint`.
+
+Nothing here decides anything about RSP. Each datagram goes to the endpoint; after anything
+reaches it, what it has to send is sent and its timer moved (`LoopTimer`). Every control period
+the body (a simulated CUBO, or a generic body for any other model) gets the motion filter's
+output, moves, and its sensors and monitors go back to the endpoint for the next UPLINK; memory
+commands are executed one after another (D-RSP-19), each taking its `duration` field in
+milliseconds if it has one.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from dataclasses import dataclass
+from typing import cast
+
+from rcmlconf.reference.rsp.bodies import Body, body_for
+from rcmlconf.reference.timers import LoopTimer
+from rcmlconf.rsp.codec import Encryption
+from rcmlconf.rsp.model import RobotModel
+from rcmlconf.rsp.reliable import Occurrence
+from rcmlconf.rsp.session import events
+from rcmlconf.rsp.session.robot import RobotEndpoint
+
+log = logging.getLogger("rcmlconf.robot")
+
+#: D-RSP-9.
+DEFAULT_PORT = 7340
+
+
+@dataclass(frozen=True, slots=True)
+class RobotSettings:
+    host: str = "127.0.0.1"
+    #: 0 picks a free port.
+    port: int = DEFAULT_PORT
+    encryptions: frozenset[Encryption] = frozenset({Encryption.NONE})
+    psk: bytes | None = None
+    seed: int = 0
+
+
+class ReferenceRobot(asyncio.DatagramProtocol):
+    """A robot serving one RSP session at a time on a UDP port."""
+
+    def __init__(
+        self, model: RobotModel, settings: RobotSettings, body: Body | None = None
+    ) -> None:
+        self.model = model
+        self.settings = settings
+        self.endpoint = RobotEndpoint(model, encryptions=settings.encryptions, psk=settings.psk)
+        self.body = body if body is not None else body_for(model, settings.seed)
+        self.transport: asyncio.DatagramTransport | None = None
+        self._timer: LoopTimer | None = None
+        self._control: asyncio.TimerHandle | None = None
+        #: The memory command being executed, and when it is done (D-RSP-19).
+        self._executing: Occurrence | None = None
+        self._done_at = 0.0
+        #: Every event of the endpoint, for tests and the command's log (bounded).
+        self.history: list[events.Event] = []
+
+    # -- lifetime ------------------------------------------------------------------------------
+
+    async def start(self) -> None:
+        loop = asyncio.get_running_loop()
+        await loop.create_datagram_endpoint(
+            lambda: self, local_addr=(self.settings.host, self.settings.port)
+        )
+        self._timer = LoopTimer(loop, self._timer_fired)
+        self._control = loop.call_at(loop.time(), self._control_tick)
+
+    @property
+    def address(self) -> tuple[str, int]:
+        assert self.transport is not None
+        host, port = self.transport.get_extra_info("sockname")[:2]
+        return host, port
+
+    def stop(self) -> None:
+        """BYE (reason 2) to the session, if one is open, and close the socket."""
+        loop = asyncio.get_running_loop()
+        self.endpoint.close(loop.time())
+        self._flush()
+        if self._control is not None:
+            self._control.cancel()
+        if self._timer is not None:
+            self._timer.set(None)
+        if self.transport is not None:
+            self.transport.close()
+
+    # -- asyncio -------------------------------------------------------------------------------
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        # The selector loop's datagram transport does not derive from DatagramTransport.
+        self.transport = cast(asyncio.DatagramTransport, transport)
+
+    def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
+        self.endpoint.receive_datagram(data, (addr[0], addr[1]), self._now())
+        self._flush()
+
+    def error_received(self, exc: Exception) -> None:
+        log.debug("UDP error: %s", exc)  # an ICMP unreachable from a local system gone away
+
+    def _now(self) -> float:
+        return asyncio.get_running_loop().time()
+
+    def _timer_fired(self) -> None:
+        self.endpoint.handle_timer(self._now())
+        self._flush()
+
+    def _flush(self) -> None:
+        now = self._now()
+        if self.transport is not None:
+            for data, addr in self.endpoint.datagrams_to_send(now):
+                self.transport.sendto(data, addr)
+        while (event := self.endpoint.next_event()) is not None:
+            self._log(event)
+        if self._timer is not None:
+            self._timer.set(self.endpoint.get_timer())
+
+    def _log(self, event: events.Event) -> None:
+        if len(self.history) < 10_000:
+            self.history.append(event)
+        if isinstance(event, events.StateReceived):
+            log.debug("%s <- %s", event.device, dict(event.values))
+        elif isinstance(event, events.PacketDropped):
+            log.warning("dropped a packet: %s [%s]", event.reason, event.rule)
+        else:
+            log.info("%s", event)
+
+    # -- the control loop ----------------------------------------------------------------------
+
+    def _control_tick(self) -> None:
+        """One control period: effectors out, the body on, sensors and monitors back."""
+        loop = asyncio.get_running_loop()
+        now = loop.time()
+        session = self.endpoint.session
+        period = session.beat.period if session is not None else self.model.period
+        self.body.apply(self.endpoint.effectors(now), now)
+        self.body.advance(now)
+        for name, values in self.body.sensors(now).items():
+            self.endpoint.set_state(name, values)
+        self._execute(now)
+        self._flush()
+        self._control = loop.call_at(now + period, self._control_tick)
+
+    def _execute(self, now: float) -> None:
+        """D-RSP-19: memory commands in the order taken, each when the one before is done."""
+        if self._executing is not None and now < self._done_at:
+            return
+        self._executing = self.endpoint.take_memory_command()
+        if self._executing is not None:
+            duration = self._executing.values.get("duration", 0)
+            self._done_at = now + (duration / 1000 if isinstance(duration, int | float) else 0)
+            log.info("executing %s #%d", self._executing.device.name, self._executing.id)

@@ -1,0 +1,306 @@
+"""The simulacrum: the local middleware of the paper's Fig. 2 on asyncio, around `LocalEndpoint`.
+
+- *Robot Device Manager* and *downlink handler*: the endpoint holds effector values, requests and
+  occurrences, and sends a DOWNLINK every T (`set_period` changes T while running);
+- *uplink handler* and *Robot Environment Data Buffer*: every value and occurrence the robot
+  reports is kept here — the newest of each sensor and monitor, the occurrences of each event not
+  yet read — with blocking reads (`read`, with a timeout) and listeners;
+- *Robot API*: this object is `rcmlconf.rsp.api.DeviceAccess`, which the typed modules of
+  `rcmlconf rsp generate` drive.
+
+It runs in an asyncio loop: `await Simulacrum(...).open()` inside one, or
+`Simulacrum.start(...)` from plain code, which runs the loop in a thread of its own. Every
+DeviceAccess method may be called from any thread: the endpoint is only touched under a lock, and
+listeners are called from the loop's thread.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+from collections import deque
+from collections.abc import Callable
+from concurrent.futures import Future
+from typing import cast
+
+from rcmlconf.errors import RcmlconfError
+from rcmlconf.reference.timers import LoopTimer
+from rcmlconf.rsp.api import Values
+from rcmlconf.rsp.codec import Encryption
+from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
+from rcmlconf.rsp.session import events
+from rcmlconf.rsp.session.local import LocalEndpoint
+
+Address = tuple[str, int]
+#: Occurrences kept per device for `read` (the oldest go first when an application reads none).
+MAX_UNREAD = 1024
+_STATES = (DeviceKind.SENSOR, DeviceKind.MONITOR)
+_OCCURRENCES = (DeviceKind.EVENT, DeviceKind.MEMORY_EVENT)
+
+
+class NoSession(RcmlconfError):
+    """The robot refused the session, never answered, or ended it."""
+
+
+class Simulacrum:
+    """A local system's session with one robot, as the Robot API sees it."""
+
+    def __init__(
+        self,
+        model: RobotModel,
+        robot: Address,
+        *,
+        period: float | None = None,
+        encryption: Encryption = Encryption.NONE,
+        psk: bytes | None = None,
+    ) -> None:
+        self.model = model
+        self.robot = robot
+        self.endpoint = LocalEndpoint(model, period=period, encryption=encryption, psk=psk)
+        self._lock = threading.RLock()
+        self._changed = threading.Condition(self._lock)
+        #: The Robot Environment Data Buffer: newest values, how many came, occurrences unread.
+        self._latest: dict[str, Values] = {}
+        self._counts: dict[str, int] = {}
+        self._read_counts: dict[str, int] = {}
+        self._unread: dict[str, deque[Values]] = {}
+        self._listeners: dict[str, list[Callable[[Values], None]]] = {}
+        self._written: dict[str, Values] = {}
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._transport: asyncio.DatagramTransport | None = None
+        self._timer: LoopTimer | None = None
+        self._opened: asyncio.Future[events.SessionOpened] | None = None
+        self.closed: events.SessionClosed | events.SessionRefused | None = None
+        #: Every event except states, for those who watch the session (bounded).
+        self.history: deque[events.Event] = deque(maxlen=10_000)
+        self._thread: threading.Thread | None = None
+
+    # -- lifetime ------------------------------------------------------------------------------
+
+    async def open(self, timeout: float = 3.0) -> events.SessionOpened:
+        """Connect, send HELLO and wait for WELCOME (D-RSP-12); NoSession when refused."""
+        loop = self._loop = asyncio.get_running_loop()
+        self._opened = loop.create_future()
+        await loop.create_datagram_endpoint(lambda: _Protocol(self), remote_addr=self.robot)
+        self._timer = LoopTimer(loop, self._timer_fired)
+        with self._lock:
+            self.endpoint.connect(loop.time())
+        self._flush()
+        try:
+            return await asyncio.wait_for(self._opened, timeout)
+        except TimeoutError:
+            self._close_socket()
+            raise NoSession(f"no answer from {self.robot[0]}:{self.robot[1]}") from None
+        except NoSession:
+            self._close_socket()
+            raise
+
+    async def aclose(self) -> None:
+        """BYE, and the socket closed."""
+        if self._loop is None:
+            return
+        with self._lock:
+            self.endpoint.close(self._loop.time())
+        self._flush()
+        self._close_socket()
+
+    @classmethod
+    def start(cls, model: RobotModel, robot: Address, **options: object) -> Simulacrum:
+        """A simulacrum running in a thread of its own, its session open; `stop()` ends it."""
+        simulacrum = cls(model, robot, **options)  # type: ignore[arg-type]
+        ready: Future[None] = Future()
+
+        def run() -> None:
+            loop = asyncio.new_event_loop()
+            try:
+                loop.run_until_complete(simulacrum.open())
+            except BaseException as exc:
+                ready.set_exception(exc)
+                loop.close()
+                return
+            ready.set_result(None)
+            loop.run_forever()
+            loop.run_until_complete(simulacrum.aclose())
+            loop.close()
+
+        simulacrum._thread = threading.Thread(target=run, name="rsp-simulacrum", daemon=True)
+        simulacrum._thread.start()
+        ready.result()
+        return simulacrum
+
+    def stop(self) -> None:
+        """End a simulacrum that `start` began: BYE, and its thread joined."""
+        loop, thread = self._loop, self._thread
+        if loop is None or thread is None:
+            return
+        loop.call_soon_threadsafe(loop.stop)
+        thread.join(timeout=5.0)
+
+    def _close_socket(self) -> None:
+        if self._timer is not None:
+            self._timer.set(None)
+        if self._transport is not None:
+            self._transport.close()
+
+    # -- DeviceAccess (rcmlconf.rsp.api) -------------------------------------------------------
+
+    def write(self, device: str, values: Values) -> None:
+        with self._lock:
+            self.endpoint.write(device, values)
+            self._written[device] = dict(values)
+
+    def set_active(self, device: str, active: bool) -> None:
+        with self._lock:
+            self.endpoint.set_active(device, active)
+
+    def latest(self, device: str) -> Values | None:
+        with self._lock:
+            self._known(device)
+            if device in self._written:
+                return self._written[device]
+            return self._latest.get(device)
+
+    def read(self, device: str, timeout: float | None = None) -> Values:
+        found = self._known(device)
+        with self._changed:
+            if found.kind in _OCCURRENCES:
+                unread = self._unread.setdefault(device, deque(maxlen=MAX_UNREAD))
+                if not self._changed.wait_for(lambda: bool(unread) or self._ended(), timeout):
+                    raise TimeoutError(f"no {device} within {timeout} s")
+                if not unread:
+                    raise NoSession(f"the session ended: {self.closed}")
+                return unread.popleft()
+            if found.kind not in _STATES:
+                raise TypeError(f"{device} is a {found.kind.value}: only what the robot reports")
+            seen = self._read_counts.get(device, 0)
+            if not self._changed.wait_for(
+                lambda: self._counts.get(device, 0) > seen or self._ended(), timeout
+            ):
+                raise TimeoutError(f"no new value of {device} within {timeout} s")
+            if self._counts.get(device, 0) == seen:
+                raise NoSession(f"the session ended: {self.closed}")
+            self._read_counts[device] = self._counts[device]
+            return self._latest[device]
+
+    def issue(self, device: str, values: Values) -> int:
+        with self._lock:
+            return self.endpoint.issue(device, values)
+
+    def listen(self, device: str, listener: Callable[[Values], None]) -> Callable[[], None]:
+        found = self._known(device)
+        if found.kind not in (*_STATES, *_OCCURRENCES):
+            raise TypeError(f"{device} is a {found.kind.value}: only what the robot reports")
+        with self._lock:
+            self._listeners.setdefault(device, []).append(listener)
+
+        def stop() -> None:
+            with self._lock:
+                listeners = self._listeners.get(device, [])
+                if listener in listeners:
+                    listeners.remove(listener)
+
+        return stop
+
+    # -- more of the Device Manager ------------------------------------------------------------
+
+    def set_period(self, seconds: float) -> None:
+        """T from now on (D-RSP-13)."""
+        loop = self._loop
+        with self._lock:
+            self.endpoint.set_period(seconds, loop.time() if loop is not None else 0.0)
+        self._soon()
+
+    def clear_buffer(self) -> None:
+        with self._lock:
+            self.endpoint.clear_buffer()
+
+    # -- the packet handlers -------------------------------------------------------------------
+
+    def _known(self, device: str) -> Device:
+        found = self.model.device(device)
+        if found is None:
+            raise KeyError(f"{self.model.name} has no device {device!r}")
+        return found
+
+    def _ended(self) -> bool:
+        return self.closed is not None
+
+    def _soon(self) -> None:
+        """Flush from the loop's thread, whichever thread asked."""
+        loop = self._loop
+        if loop is not None and not loop.is_closed():
+            loop.call_soon_threadsafe(self._flush)
+
+    def _timer_fired(self) -> None:
+        assert self._loop is not None
+        with self._lock:
+            self.endpoint.handle_timer(self._loop.time())
+        self._flush()
+
+    def received(self, data: bytes) -> None:
+        assert self._loop is not None
+        with self._lock:
+            self.endpoint.receive_datagram(data, self._loop.time())
+        self._flush()
+
+    def _flush(self) -> None:
+        loop = self._loop
+        if loop is None:
+            return
+        calls: list[tuple[Callable[[Values], None], Values]] = []
+        with self._lock:
+            if self._transport is not None and not self._transport.is_closing():
+                for data in self.endpoint.datagrams_to_send(loop.time()):
+                    self._transport.sendto(data)
+            while (event := self.endpoint.next_event()) is not None:
+                calls += self._take(event)
+            if self._timer is not None:
+                self._timer.set(self.endpoint.get_timer())
+            self._changed.notify_all()
+        for listener, values in calls:
+            listener(values)
+
+    def _take(self, event: events.Event) -> list[tuple[Callable[[Values], None], Values]]:
+        """Into the data buffer; the listeners to call, outside the lock."""
+        if isinstance(event, events.StateReceived | events.OccurrenceReceived):
+            device = event.device
+            if isinstance(event, events.StateReceived):
+                self._latest[device] = event.values
+                self._counts[device] = self._counts.get(device, 0) + 1
+            else:
+                self.history.append(event)
+                unread = self._unread.setdefault(device, deque(maxlen=MAX_UNREAD))
+                unread.append(event.values)
+            return [(listener, event.values) for listener in self._listeners.get(device, ())]
+        self.history.append(event)
+        if isinstance(event, events.SessionOpened) and self._opened is not None:
+            if not self._opened.done():
+                self._opened.set_result(event)
+        elif isinstance(event, events.SessionRefused | events.SessionClosed):
+            self.closed = event
+            if self._opened is not None and not self._opened.done():
+                self._opened.set_exception(NoSession(_refusal(event)))
+        return []
+
+
+def _refusal(event: events.SessionRefused | events.SessionClosed) -> str:
+    if isinstance(event, events.SessionRefused):
+        if event.reason is None:
+            return "no answer to HELLO (sent 6 times, D-RSP-12)"
+        return f"the robot refused: {event.reason.name.lower().replace('_', ' ')}"
+    return f"the session ended: {event.reason.name.lower()}"
+
+
+class _Protocol(asyncio.DatagramProtocol):
+    def __init__(self, simulacrum: Simulacrum) -> None:
+        self.simulacrum = simulacrum
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        # The selector loop's datagram transport does not derive from DatagramTransport.
+        self.simulacrum._transport = cast(asyncio.DatagramTransport, transport)
+
+    def datagram_received(self, data: bytes, addr: Address) -> None:
+        self.simulacrum.received(data)
+
+    def error_received(self, exc: Exception) -> None:
+        pass  # ICMP unreachable: the robot is not there (yet); HELLO is repeated, D-RSP-12

@@ -1,0 +1,908 @@
+"""The paper's module creator (§II.B, Fig. 2, Fig. 4): a robot model in, a typed Robot API out.
+
+`generate_module` writes the text of a Python module with one class per device of the model, named
+after it (`LeftWheelEffector`, `PositionSensor`, `IrFireCommand`), whose methods are those of the
+device's kind, and one class named after the model (`Cubo`) with an attribute per device
+(`cubo.left_wheel.write(speed=100)`). The classes only name devices and fields for the application
+and convert values; everything else is done by the `rcmlconf.rsp.api.DeviceAccess` they are built
+over (the simulacrum), whose codec is generic: nothing per robot runs below this layer.
+
+The text is deterministic (a model and a source name give one text) and ASCII but for identifiers
+of other scripts; it is `mypy --strict`- and `ruff check`-clean, and laid out as `ruff format`
+lays it out (100 columns) for names of up to 50 characters: `_Writer` splits lines the way ruff
+does for the shapes the module has, and a line longer names make too long gets `# noqa: E501`.
+XML Names become Python identifiers deterministically: `-`, `.`, `_`,
+`:` and characters no identifier may hold separate words, camelCase splits words too; devices and
+fields become snake_case (`leftWheel` -> `left_wheel`), classes PascalCase (`irFire` ->
+`IrFire...`). A name that is a keyword or that the module needs for itself gets a `_` suffix
+(`class` -> `class_`); two devices (or two fields of a device) that become the same identifier are
+refused (`NameClash`), since either would hide the other.
+"""
+
+from __future__ import annotations
+
+import keyword
+import re
+import textwrap
+import unicodedata
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+from rcmlconf.errors import RcmlconfError
+from rcmlconf.rsp.model import Device, DeviceKind, Field, OnLoss, RobotModel
+from rcmlconf.values import Kind
+
+#: The project's line length (pyproject.toml), which `ruff format` and `ruff check` apply.
+LINE_LENGTH = 100
+_STEP = 4
+
+
+class NameClash(RcmlconfError):
+    """Two names of the model become the same Python identifier."""
+
+
+# -- names ----------------------------------------------------------------------------------------
+
+#: Where camelCase starts a word: `leftWheel`, `IRFire`, `lcd2Left`.
+_CAMEL = re.compile(r"(?<=[a-z0-9])(?=[A-Z])|(?<=[A-Z])(?=[A-Z][a-z])")
+_UPPER = str.maketrans("abcdefghijklmnopqrstuvwxyz", "ABCDEFGHIJKLMNOPQRSTUVWXYZ")
+_LOWER = str.maketrans("ABCDEFGHIJKLMNOPQRSTUVWXYZ", "abcdefghijklmnopqrstuvwxyz")
+#: What the generated module uses as types: a field or attribute of that name would hide them.
+_TYPES = frozenset({"int", "float", "bool", "str", "bytes", "tuple"})
+#: A field is a NamedTuple field (tuple has `count` and `index`) and a keyword argument of a method.
+_FIELD_RESERVED = _TYPES | {"self", "count", "index"}
+#: A device is an attribute of its module's class, beside `set_active`.
+_DEVICE_RESERVED = _TYPES | {"set_active"}
+#: Module-level names the generated module imports or defines besides classes.
+_TOP_RESERVED = frozenset(
+    {
+        "Callable",
+        "DeviceAccess",
+        "Final",
+        "LookupError",
+        "NamedTuple",
+        "TypeError",
+        "Value",
+        "Values",
+    }
+)
+
+_KIND_SUFFIX = {
+    DeviceKind.MODULE: "Module",
+    DeviceKind.EFFECTOR: "Effector",
+    DeviceKind.SENSOR: "Sensor",
+    DeviceKind.MONITOR: "Monitor",
+    DeviceKind.COMMAND: "Command",
+    DeviceKind.EVENT: "Event",
+    DeviceKind.MEMORY_COMMAND: "MemoryCommand",
+    DeviceKind.MEMORY_EVENT: "MemoryEvent",
+}
+
+
+def _keeps(char: str) -> bool:
+    """A character an identifier may hold: ASCII letters and digits, and the letters, marks and
+    digits of other scripts that Python takes (after NFKC, which Python applies to identifiers)."""
+    if char.isascii():
+        return char.isalnum()
+    return ("a" + unicodedata.normalize("NFKC", char)).isidentifier()
+
+
+def words(name: str) -> list[str]:
+    """An XML Name's words: split at characters identifiers do not keep and at camelCase."""
+    chunks = "".join(c if _keeps(c) else " " for c in name).split()
+    return [word for chunk in chunks for word in _CAMEL.sub(" ", chunk).split()]
+
+
+def snake_name(name: str, reserved: Iterable[str] = ()) -> str:
+    """`leftWheel` -> `left_wheel`; ASCII letters only change case."""
+    text = "_".join(w.translate(_LOWER) for w in words(name)) or "x"
+    return _usable(text if text.isidentifier() else "x_" + text, reserved)
+
+
+def pascal_name(name: str, reserved: Iterable[str] = ()) -> str:
+    """`irFire` -> `IrFire`, `IRFire` -> `IrFire`."""
+    text = "".join(w[0].translate(_UPPER) + w[1:].translate(_LOWER) for w in words(name)) or "X"
+    return _usable(text if text.isidentifier() else "X" + text, reserved)
+
+
+def _usable(text: str, reserved: Iterable[str]) -> str:
+    # Python reads `ﬁ` as `fi` and `e` with a combining acute as `\xe9`: compare what it reads.
+    text = unicodedata.normalize("NFKC", text)
+    taken = set(reserved)
+    while keyword.iskeyword(text) or text in taken:
+        text += "_"
+    return text
+
+
+# -- what each device becomes ---------------------------------------------------------------------
+
+_PY_TYPES = {
+    Kind.BOOL: "bool",
+    Kind.INTEGER: "int",
+    Kind.FLOAT: "float",
+    Kind.STRING: "str",
+    Kind.BYTES: "bytes",
+}
+
+
+@dataclass(frozen=True)
+class _FieldName:
+    field: Field
+    #: Its NamedTuple field and keyword argument.
+    ident: str
+
+    @property
+    def annotation(self) -> str:
+        item = _PY_TYPES[self.field.type.base.kind]
+        return f"tuple[{item}, ...]" if self.field.type.is_array else item
+
+    @property
+    def converter(self) -> str:
+        item = _PY_TYPES[self.field.type.base.kind]
+        return f"_as_{item}_tuple" if self.field.type.is_array else f"_as_{item}"
+
+
+@dataclass(frozen=True)
+class _DeviceNames:
+    device: Device
+    #: Its attribute in the model's class and its module's.
+    attr: str
+    #: Its class.
+    cls: str
+    #: The class of its values, and the function that makes one from a mapping (a monitor's are
+    #: its effector's); None for a module.
+    values: str | None
+    reader: str | None
+    fields: tuple[_FieldName, ...]
+
+
+@dataclass(frozen=True)
+class _Names:
+    model_cls: str
+    #: What the module's docstring calls the model's object.
+    model_var: str
+    #: By device name, in model order.
+    by_name: dict[str, _DeviceNames]
+
+    @property
+    def devices(self) -> Iterable[_DeviceNames]:
+        return self.by_name.values()
+
+    def of(self, name: str) -> _DeviceNames:
+        return self.by_name[name]
+
+
+def _clash(what: str, first: str, second: str, ident: str) -> NameClash:
+    return NameClash(
+        f"{what} {first!r} and {second!r} both become the Python name {ident!r}; rename one"
+    )
+
+
+def _name_fields(device: Device) -> tuple[_FieldName, ...]:
+    seen: dict[str, str] = {}
+    names = []
+    for field in device.fields:
+        ident = snake_name(field.name, _FIELD_RESERVED)
+        if ident in seen:
+            raise _clash(f"fields of {device.name!r}:", seen[ident], field.name, ident)
+        seen[ident] = field.name
+        names.append(_FieldName(field, ident))
+    return tuple(names)
+
+
+def _class_names(devices: Sequence[Device]) -> list[str]:
+    """`leftWheel` -> `LeftWheelEffector`; a name already ending in its kind keeps one
+    (`leftWheelMonitor` -> `LeftWheelMonitor`) unless another device's class has that name."""
+    full, short = [], []
+    for device in devices:
+        suffix = _KIND_SUFFIX[device.kind]
+        pascal = pascal_name(device.name)
+        full.append(pascal + suffix)
+        ends = pascal.endswith(suffix) and pascal != suffix
+        short.append(pascal if ends else pascal + suffix)
+    chosen = []
+    for index, name in enumerate(short):
+        others = {*full[:index], *full[index + 1 :], *short[:index], *short[index + 1 :]}
+        chosen.append(full[index] if name in others else name)
+    return chosen
+
+
+def _names(model: RobotModel) -> _Names:
+    attrs: dict[str, str] = {}
+    top: dict[str, str] = {}
+    classes = _class_names(model.devices)
+    named: list[_DeviceNames] = []
+    for device, cls in zip(model.devices, classes, strict=True):
+        attr = snake_name(device.name, _DEVICE_RESERVED)
+        if attr in attrs:
+            raise _clash("devices", attrs[attr], device.name, attr)
+        attrs[attr] = device.name
+        own = [cls]
+        values = reader = None
+        if device.kind is DeviceKind.MONITOR:
+            effector = next(d for d in named if d.device.name == device.of)  # before it (D-RSP-4)
+            values, reader = effector.values, effector.reader
+        elif device.kind is not DeviceKind.MODULE:
+            values = pascal_name(device.name) + "Values"
+            reader = f"_{attr}_values"
+            own.append(values)
+        for ident in own:
+            if ident in top:
+                raise _clash("devices", top[ident], device.name, ident)
+            top[ident] = device.name
+        named.append(_DeviceNames(device, attr, cls, values, reader, _name_fields(device)))
+    short = _first_words(model.name)
+    model_cls = pascal_name(short, {*_TOP_RESERVED, *top})
+    return _Names(model_cls, snake_name(short), {d.device.name: d for d in named})
+
+
+def _first_words(text: str, limit: int = 40) -> str:
+    """The first words of the model's name, which is free text (`CUBO`, `Every kind`), as many
+    as make at most `limit` characters (and one at least): its class's name need not be a
+    sentence."""
+    kept: list[str] = []
+    for word in words(text):
+        if kept and sum(map(len, kept)) + len(word) > limit:
+            break
+        kept.append(word)
+    return " ".join(kept)
+
+
+# -- text -----------------------------------------------------------------------------------------
+
+
+def _escape(text: str) -> str:
+    """Text as it may stand in a string literal, docstring or comment: printable ASCII, with
+    escapes for the rest (so that no lint finds a confusable character) and for `"` and `\\`."""
+    out = []
+    for char in text:
+        code = ord(char)
+        if char == "\\":
+            out.append("\\\\")
+        elif char == '"':
+            out.append("\\x22")
+        elif 0x20 <= code < 0x7F:
+            out.append(char)
+        elif code < 0x100:
+            out.append(f"\\x{code:02x}")
+        elif code < 0x10000:
+            out.append(f"\\u{code:04x}")
+        else:
+            out.append(f"\\U{code:08x}")
+    return "".join(out)
+
+
+def _prose(text: str) -> str:
+    """Free text of the model (a title, a description) for a docstring or comment: one line."""
+    return _escape(" ".join(text.split()))
+
+
+def _literal(text: str) -> str:
+    return f'"{_escape(text)}"'
+
+
+def _width(text: str) -> int:
+    """Columns, as ruff counts them: East Asian wide characters take two, combining ones none."""
+    total = 0
+    for char in text:
+        if unicodedata.combining(char):
+            continue
+        total += 2 if unicodedata.east_asian_width(char) in ("W", "F") else 1
+    return total
+
+
+@dataclass(frozen=True)
+class _Call:
+    """Something in brackets that may be split one item a line, as `ruff format` splits it when
+    it does not fit: the trailing comma then keeps it split (the magic trailing comma)."""
+
+    open: str
+    items: tuple[tuple[str, _Expr], ...]
+    close: str
+
+    def flat(self) -> str:
+        return self.open + ", ".join(p + _flat(e) for p, e in self.items) + self.close
+
+
+_Expr = str | _Call
+
+
+def _flat(expr: _Expr) -> str:
+    return expr if isinstance(expr, str) else expr.flat()
+
+
+def _call(open_: str, *args: _Expr, close: str = ")") -> _Call:
+    return _Call(open_, tuple(("", a) for a in args), close)
+
+
+class _Writer:
+    def __init__(self) -> None:
+        self.lines: list[str] = []
+
+    def blank(self, count: int = 1) -> None:
+        self.lines.extend([""] * count)
+
+    def line(self, indent: int, text: str) -> None:
+        """A line of code. One too long, which only names too long for any line make, gets a
+        `# noqa: E501` (which ruff format does not count) unless ruff's E501 allows it anyway,
+        as it does a line of one word."""
+        text = " " * indent + text if text else ""
+        if not self.fits(0, text) and len(text.split()) > 1:
+            text += "  # noqa: E501"
+        self.lines.append(text)
+
+    def stmt(
+        self, indent: int, prefix: str, expr: _Expr, suffix: str = "", *, parens: bool = False
+    ) -> None:
+        """`prefix`, `expr` and `suffix` on one line if they fit, else split as `ruff format`
+        splits them. `parens`: the statement is an assignment or a `return`, whose value ruff
+        puts in parentheses when that is what makes it fit."""
+        flat = prefix + _flat(expr) + suffix
+        if self.fits(indent, flat):
+            self.line(indent, flat)
+            return
+        inner = indent + _STEP
+        splits = isinstance(expr, _Call) and bool(expr.items)
+        head = prefix + expr.open if isinstance(expr, _Call) and splits else flat
+        # In parentheses when its own brackets cannot help and the parentheses can.
+        if (
+            parens
+            and self.fits(indent, prefix + "(")
+            and not (splits and self.fits(indent, head))
+            and self.fits(inner, expr.open if isinstance(expr, _Call) and splits else _flat(expr))
+        ):
+            self.line(indent, prefix + "(")
+            self.stmt(inner, "", expr)
+            self.line(indent, ")" + suffix)
+            return
+        if not isinstance(expr, _Call) or not splits:
+            self.line(indent, flat)  # nothing to split: ruff leaves it too long too
+            return
+        self.line(indent, head)
+        for item_prefix, item in expr.items:
+            self.stmt(inner, item_prefix, item, ",")
+        self.line(indent, expr.close + suffix)
+
+    @staticmethod
+    def fits(indent: int, text: str) -> bool:
+        return indent + _width(text) <= LINE_LENGTH
+
+    def doc(self, indent: int, *paragraphs: str | Sequence[str]) -> None:
+        """A docstring: a paragraph of (escaped) text is wrapped, a sequence of lines is kept.
+        Its closing quotes have a line of their own unless the docstring is one line of text,
+        where ruff puts them on that line however long it is."""
+        pad = " " * indent
+        paragraphs = tuple(p for p in paragraphs if p)
+        first = paragraphs[0]
+        if len(paragraphs) == 1 and isinstance(first, str):
+            lines = _wrap(f'"""{first}"""', pad, pad)
+            if len(lines) == 1:
+                self.lines.extend(lines)
+                return
+            # Two lines at least, so that the closing quotes stay on their own.
+            lines = _wrap(first, pad + '"""', pad, LINE_LENGTH - 3)
+            if len(lines) == 1:
+                self.lines.append(lines[0] + '"""')
+                return
+            self.lines.extend(lines)
+            self.lines.append(pad + '"""')
+            return
+        for index, paragraph in enumerate(paragraphs):
+            start = pad + '"""' if index == 0 else pad
+            if index:
+                self.blank()
+            if isinstance(paragraph, str):
+                self.lines.extend(_wrap(paragraph, start, pad))
+                continue
+            for number, line in enumerate(paragraph):
+                self.lines.append((start if number == 0 else pad) + line if line else "")
+        self.lines.append(pad + '"""')
+
+    def comment(self, text: str) -> None:
+        self.lines.extend(_wrap(text, "# ", "# "))
+
+    def text(self) -> str:
+        return "\n".join(self.lines).rstrip("\n") + "\n"
+
+
+def _wrap(text: str, first: str, rest: str, width: int = LINE_LENGTH) -> list[str]:
+    """Lines of at most `width` columns, but for a word too long for any (which ruff allows
+    alone on its line)."""
+    return textwrap.wrap(
+        text,
+        width,
+        initial_indent=first,
+        subsequent_indent=rest,
+        break_long_words=False,
+        break_on_hyphens=False,
+    )
+
+
+# -- the module -----------------------------------------------------------------------------------
+
+#: Kinds whose values the application reads back (a monitor reads its effector's).
+_READ_BACK = frozenset(
+    {DeviceKind.EFFECTOR, DeviceKind.SENSOR, DeviceKind.EVENT, DeviceKind.MEMORY_EVENT}
+)
+#: Kinds with `listen`, and so `Callable` to import.
+_LISTENS = frozenset(
+    {DeviceKind.SENSOR, DeviceKind.MONITOR, DeviceKind.EVENT, DeviceKind.MEMORY_EVENT}
+)
+_KIND_WORDS = {
+    DeviceKind.MODULE: "module",
+    DeviceKind.EFFECTOR: "effector",
+    DeviceKind.SENSOR: "sensor",
+    DeviceKind.MONITOR: "monitor",
+    DeviceKind.COMMAND: "command",
+    DeviceKind.EVENT: "event",
+    DeviceKind.MEMORY_COMMAND: "memory command",
+    DeviceKind.MEMORY_EVENT: "memory event",
+}
+#: Python type -> the test that a value the middleware gave back is of it, and the value to return.
+_CHECKS = {
+    "bool": ("isinstance(value, bool)", "value"),
+    "int": ("isinstance(value, int) and not isinstance(value, bool)", "value"),
+    "float": ("isinstance(value, int | float) and not isinstance(value, bool)", "float(value)"),
+    "str": ("isinstance(value, str)", "value"),
+    "bytes": ("isinstance(value, bytes)", "value"),
+}
+
+
+def generate_module(model: RobotModel, source: str) -> str:
+    """The text of the Robot API module of `model`; `source` names the model in its header (the
+    path it was read from). Raises NameClash when two devices, or two fields of a device, become
+    the same Python identifier."""
+    return _Module(model, source).text()
+
+
+def _number(value: int | float) -> str:
+    return repr(value)
+
+
+def _field_doc(field: Field) -> str:
+    """`int16, from -500 to 500, in mm/s.` and the field's description, escaped."""
+    vtype = field.type
+    base = vtype.base.name
+    if vtype.base.sized:
+        base += f" of at most {vtype.size} bytes"
+    parts = [f"an array of {vtype.count} {base}" if vtype.is_array else base]
+    each = "each " if vtype.is_array else ""
+    if field.minimum is not None and field.maximum is not None:
+        parts.append(f"{each}from {_number(field.minimum)} to {_number(field.maximum)}")
+    elif field.minimum is not None:
+        parts.append(f"{each}at least {_number(field.minimum)}")
+    elif field.maximum is not None:
+        parts.append(f"{each}at most {_number(field.maximum)}")
+    if field.unit:
+        parts.append(f"in {_prose(field.unit)}")
+    text = ", ".join(parts) + "."
+    description = _description(field.meta)
+    return f"{text} {_sentences(description)}" if description else text
+
+
+def _example(field: Field) -> str:
+    """A value of the field for the module's example: its value nearest 0."""
+    kind = field.type.base.kind
+    item = {Kind.BOOL: "False", Kind.STRING: "''", Kind.BYTES: "b''"}.get(kind)
+    if item is None:
+        return repr(field.zero())
+    return f"({', '.join([item] * field.type.count)})" if field.type.is_array else item
+
+
+def _description(meta: Iterable[tuple[str, str]]) -> str:
+    return next((_prose(content) for name, content in meta if name == "description"), "")
+
+
+def _sentences(*texts: str) -> str:
+    """Texts as sentences: capitalised, each ending in a full stop."""
+    return " ".join(t[0].upper() + t[1:] + ("" if t.endswith(".") else ".") for t in texts if t)
+
+
+class _Module:
+    def __init__(self, model: RobotModel, source: str) -> None:
+        self.model = model
+        self.source = source
+        self.names = _names(model)
+        self.out = _Writer()
+        self.helpers = self._helpers_used()
+        #: Effector -> its monitors.
+        self.monitors: dict[str, list[str]] = {}
+        for device in model.devices:
+            if device.of is not None:
+                self.monitors.setdefault(device.of, []).append(device.name)
+
+    def text(self) -> str:
+        out = self.out
+        self._header()
+        self._imports()
+        out.blank()
+        self._model_name()
+        out.line(0, f"MODEL_ID: Final = {self.model.model_id}")
+        for converter in self.helpers:
+            out.blank(2)
+            self._helper(converter)
+        for names in self.names.devices:
+            kind = names.device.kind
+            if kind not in (DeviceKind.MODULE, DeviceKind.MONITOR):
+                out.blank(2)
+                self._values(names)
+            if kind in _READ_BACK:
+                out.blank(2)
+                self._reader(names)
+            out.blank(2)
+            self._device(names)
+        out.blank(2)
+        self._model_class()
+        return out.text()
+
+    # -- the head of the module
+
+    def _model_name(self) -> None:
+        """MODEL_NAME, a string split in parts at spaces when it is too long for a line (ruff
+        keeps them apart as long as they would not fit joined)."""
+        out = self.out
+        literal = _literal(self.model.name)
+        prefix = "MODEL_NAME: Final = "
+        if out.fits(0, prefix + literal) or out.fits(_STEP, literal):
+            out.stmt(0, prefix, literal, parens=True)
+            return
+        words = re.findall(r"\S*\s*", self.model.name)
+        out.line(0, prefix + "(")
+        part = ""
+        for word in words:
+            if part and not out.fits(_STEP, _literal(part + word)):
+                out.line(_STEP, _literal(part))
+                part = ""
+            part += word
+        if part:
+            out.line(_STEP, _literal(part))
+        out.line(0, ")")
+
+    def _header(self) -> None:
+        model = self.model
+        out = self.out
+        out.comment(
+            f"Generated by `rcmlconf rsp generate` from {_prose(self.source)}: do not edit, "
+            "generate it again when the model changes."
+        )
+        out.comment(
+            f"Robot model {_prose(model.name)}, model ID {model.model_id}, "
+            f"{len(model.devices)} devices (specs/rsp.md section 1)."
+        )
+        title = f" ({_prose(model.title)})" if model.title else ""
+        out.doc(
+            0,
+            f"The Robot API of {_prose(model.name)}{title}: a class per device (paper Fig. 4) "
+            "over a `rcmlconf.rsp.api.DeviceAccess` such as the simulacrum, which sends and "
+            "receives everything. The classes name the devices and fields, and type the values.",
+            self._usage(),
+        )
+
+    def _usage(self) -> list[str]:
+        names = self.names
+        var = names.model_var
+
+        def first(*kinds: DeviceKind) -> _DeviceNames | None:
+            return next((d for d in names.devices if d.device.kind in kinds), None)
+
+        def arguments(device: _DeviceNames) -> str:
+            return ", ".join(f"{f.ident}={_example(f.field)}" for f in device.fields)
+
+        lines = [f"{var} = {names.model_cls}(access)"]
+        effector = first(DeviceKind.EFFECTOR)
+        if effector is not None:
+            lines.append(f"{var}.{effector.attr}.write({arguments(effector)})")
+        sensor = first(DeviceKind.SENSOR, DeviceKind.EVENT)
+        if sensor is not None:
+            lines.append(f"value = {var}.{sensor.attr}.read(timeout=1.0)")
+        command = first(DeviceKind.COMMAND, DeviceKind.MEMORY_COMMAND)
+        if command is not None:
+            lines.append(f"occurrence = {var}.{command.attr}.issue({arguments(command)})")
+        # A line too long to read is left out of the example.
+        kept = ["    " + _escape(line) for line in lines]
+        return ["For example:", ""] + [line for line in kept if len(line) <= 90]
+
+    def _imports(self) -> None:
+        out = self.out
+        devices = self.names.devices
+        out.blank()
+        out.line(0, "from __future__ import annotations")
+        out.blank()
+        if any(d.device.kind in _LISTENS for d in devices):
+            out.line(0, "from collections.abc import Callable")
+        values = any(d.values is not None for d in devices)
+        out.line(
+            0, "from typing import Final, NamedTuple" if values else "from typing import Final"
+        )
+        out.blank()
+        reads = any(d.device.kind in _READ_BACK for d in devices)
+        out.line(0, f"from rcmlconf.rsp.api import DeviceAccess{', Values' if reads else ''}")
+        if self.helpers:
+            out.line(0, "from rcmlconf.values import Value")
+
+    # -- what checks the values the middleware gives back
+
+    def _helpers_used(self) -> list[str]:
+        used = {
+            f.converter for d in self.names.devices if d.device.kind in _READ_BACK for f in d.fields
+        }
+        order = [name for item in _CHECKS for name in (f"_as_{item}", f"_as_{item}_tuple")]
+        # A tuple's helper checks its items with the scalar's.
+        return [
+            name
+            for name in order
+            if name in used or (not name.endswith("_tuple") and f"{name}_tuple" in used)
+        ]
+
+    def _helper(self, name: str) -> None:
+        out = self.out
+        item = name.removeprefix("_as_").removesuffix("_tuple")
+        if name.endswith("_tuple"):
+            out.line(0, f"def {name}(value: Value) -> tuple[{item}, ...]:")
+            out.line(4, "if isinstance(value, tuple):")
+            out.line(8, f"return tuple(_as_{item}(item) for item in value)")
+            out.line(4, f'raise TypeError(f"expected a tuple of {item}, not {{value!r}}")')
+            return
+        check, result = _CHECKS[item]
+        out.line(0, f"def {name}(value: Value) -> {item}:")
+        out.line(4, f"if {check}:")
+        out.line(8, f"return {result}")
+        out.line(4, f'raise TypeError(f"expected {item}, not {{value!r}}")')
+
+    # -- per device
+
+    def _values(self, names: _DeviceNames) -> None:
+        out = self.out
+        device = names.device
+        out.line(0, f"class {names.values}(NamedTuple):")
+        monitors = self.monitors.get(device.name, [])
+        also = f" and of its monitor {_list(monitors)}" if monitors else ""
+        out.doc(
+            4,
+            f"A value of {_KIND_WORDS[device.kind]} {_escape(device.name)}{also}: its fields "
+            "in model order.",
+        )
+        out.blank()
+        for field in names.fields:
+            out.line(4, f"{field.ident}: {field.annotation}")
+            out.doc(4, _field_doc(field.field))
+
+    def _reader(self, names: _DeviceNames) -> None:
+        assert names.values is not None
+        assert names.reader is not None
+        out = self.out
+        out.stmt(
+            0,
+            "",
+            _call(f"def {names.reader}(", "values: Values", close=f") -> {names.values}"),
+            ":",
+        )
+        items = tuple(
+            (f"{f.ident}=", _call(f"{f.converter}(", f"values[{_literal(f.field.name)}]"))
+            for f in names.fields
+        )
+        out.stmt(4, "return ", _Call(f"{names.values}(", items, ")"), parens=True)
+
+    def _device(self, names: _DeviceNames) -> None:
+        out = self.out
+        device = names.device
+        out.line(0, f"class {names.cls}:")
+        out.doc(4, self._device_doc(names))
+        out.blank()
+        out.stmt(4, "NAME: Final = ", _literal(device.name), parens=True)
+        out.blank()
+        out.line(4, "def __init__(self, access: DeviceAccess) -> None:")
+        out.line(8, "self._access = access")
+        if device.kind is DeviceKind.MODULE:
+            for member in self.model.members(device.name):
+                mine = self.names.of(member.name)
+                out.stmt(
+                    8, f"self.{mine.attr}: Final = ", _call(f"{mine.cls}(", "access"), parens=True
+                )
+        for method in _METHODS[device.kind]:
+            out.blank()
+            method(self, names)
+
+    def _device_doc(self, names: _DeviceNames) -> str:
+        device = names.device
+        where = f", in module {_escape(device.module)}" if device.module else ""
+        head = (
+            f"{_KIND_WORDS[device.kind].capitalize()} {_escape(device.name)}: bit "
+            f"{device.position} of the Device Map{where}"
+        )
+        what = _KIND_DOCS.get(device.kind, "")
+        if device.kind is DeviceKind.MODULE:
+            members = [m.name for m in self.model.members(device.name)]
+            holds = f"it holds {_list(members)}" if members else "it holds no device"
+            return _sentences(head, holds, what, _description(device.meta))
+        if device.kind is DeviceKind.MONITOR:
+            what = f"what effector {_escape(device.of or '')} does, as the robot reports it"
+        elif device.kind is DeviceKind.EFFECTOR:
+            what += (
+                " it goes to zero" if device.on_loss is OnLoss.ZERO else " it holds its value"
+            ) + " (D-RSP-20)"
+        return _sentences(head, what, _description(device.meta))
+
+    # -- methods
+
+    def _signature(self, name: str, *params: str, returns: str) -> None:
+        self.out.stmt(4, "", _call(f"def {name}(", "self", *params, close=f") -> {returns}"), ":")
+
+    def _keywords(self, names: _DeviceNames) -> list[str]:
+        return ["*", *(f"{f.ident}: {f.annotation}" for f in names.fields)] if names.fields else []
+
+    def _arguments(self, names: _DeviceNames) -> _Call:
+        return _Call(
+            "{",
+            tuple((f"{_literal(f.field.name)}: ", f.ident) for f in names.fields),
+            "}",
+        )
+
+    def _field_lines(self, names: _DeviceNames) -> list[str]:
+        lines: list[str] = []
+        for f in names.fields:
+            lines.extend(_wrap(f"{f.ident}: {_field_doc(f.field)}", "", "    ", LINE_LENGTH - 8))
+        return lines
+
+    def _write(self, names: _DeviceNames) -> None:
+        self._signature("write", *self._keywords(names), returns="None")
+        self.out.doc(
+            8,
+            "Send this value in every DOWNLINK from now on; it also makes the effector active "
+            "(D-RSP-18).",
+            self._field_lines(names),
+        )
+        self.out.stmt(8, "", _call("self._access.write(", "self.NAME", self._arguments(names)))
+
+    def _issue(self, names: _DeviceNames) -> None:
+        self._signature("issue", *self._keywords(names), returns="int")
+        memory = names.device.kind is DeviceKind.MEMORY_COMMAND
+        how = (
+            "sent until acknowledged (D-RSP-17) and then executed in turn from the robot's "
+            "command buffers (D-RSP-19)"
+            if memory
+            else "sent until acknowledged (D-RSP-17)"
+        )
+        self.out.doc(
+            8,
+            f"Queue an occurrence, {how}; returns its ID (D-RSP-5).",
+            self._field_lines(names),
+        )
+        self.out.stmt(
+            8,
+            "return ",
+            _call("self._access.issue(", "self.NAME", self._arguments(names)),
+            parens=True,
+        )
+
+    def _read_written(self, names: _DeviceNames) -> None:
+        assert names.reader is not None
+        out = self.out
+        self._signature("read", returns=str(names.values))
+        out.doc(8, "The value last written (Fig. 4's read); LookupError before the first write.")
+        out.line(8, "values = self._access.latest(self.NAME)")
+        out.line(8, "if values is None:")
+        out.line(12, 'raise LookupError(f"{self.NAME}: nothing written yet")')
+        out.stmt(8, "return ", _call(f"{names.reader}(", "values"), parens=True)
+
+    def _read_next(self, names: _DeviceNames) -> None:
+        assert names.reader is not None
+        occurrence = names.device.kind.occurrence
+        self._signature("read", "timeout: float | None = None", returns=str(names.values))
+        wait = (
+            "Wait for the next occurrence"
+            if occurrence
+            else "Wait for a value newer than the one the last `read` gave"
+        )
+        self.out.doc(8, f"{wait}; TimeoutError after `timeout` seconds (None: no limit).")
+        self.out.stmt(
+            8,
+            "return ",
+            _call(f"{names.reader}(", _call("self._access.read(", "self.NAME", "timeout")),
+            parens=True,
+        )
+
+    def _latest(self, names: _DeviceNames) -> None:
+        assert names.reader is not None
+        out = self.out
+        self._signature("latest", returns=f"{names.values} | None")
+        out.doc(8, "The newest value, without waiting; None before any arrived.")
+        out.line(8, "values = self._access.latest(self.NAME)")
+        out.line(8, "if values is None:")
+        out.line(12, "return None")
+        out.stmt(8, "return ", _call(f"{names.reader}(", "values"), parens=True)
+
+    def _listen(self, names: _DeviceNames) -> None:
+        assert names.reader is not None
+        what = "occurrence" if names.device.kind.occurrence else "new value"
+        callback = _call("callback: Callable[", f"[{names.values}]", "None", close="]")
+        self.out.stmt(
+            4,
+            "",
+            _call("def listen(", "self", callback, close=") -> Callable[[], None]"),
+            ":",
+        )
+        self.out.doc(
+            8,
+            f"Call `callback` with each {what}, from the middleware's thread; returns the "
+            "function that stops it.",
+        )
+        convert = _call("callback(", _call(f"{names.reader}(", "values"))
+        lambda_ = _Call(
+            "self._access.listen(", (("", "self.NAME"), ("lambda values: ", convert)), ")"
+        )
+        self.out.stmt(8, "return ", lambda_, parens=True)
+
+    def _set_active(self, names: _DeviceNames) -> None:
+        self._signature("set_active", "active: bool", returns="None")
+        self.out.doc(8, _ACTIVE_DOCS[names.device.kind])
+        self.out.line(8, "self._access.set_active(self.NAME, active)")
+
+    # -- the model
+
+    def _model_class(self) -> None:
+        out = self.out
+        model = self.model
+        names = self.names
+        out.line(0, f"class {names.model_cls}:")
+        title = _sentences(_prose(model.title)) if model.title else ""
+        out.doc(
+            4,
+            _sentences(
+                f"Robot {_prose(model.name)}, model ID {model.model_id}",
+                title,
+                _description(model.meta),
+                "An attribute per device, in model order; a module's devices are its attributes "
+                "too",
+            ),
+        )
+        out.blank()
+        out.line(4, "def __init__(self, access: DeviceAccess) -> None:")
+        for device in names.devices:
+            prefix = f"self.{device.attr}: Final = "
+            if device.device.module is None:
+                out.stmt(8, prefix, _call(f"{device.cls}(", "access"), parens=True)
+            else:
+                module = names.of(device.device.module)
+                out.stmt(8, prefix, f"self.{module.attr}.{device.attr}", parens=True)
+
+
+def _list(items: Sequence[str]) -> str:
+    escaped = [_escape(i) for i in items]
+    return escaped[0] if len(escaped) == 1 else ", ".join(escaped[:-1]) + " and " + escaped[-1]
+
+
+_KIND_DOCS = {
+    DeviceKind.MODULE: "activating or deactivating it does so to all of them (Table I)",
+    DeviceKind.EFFECTOR: "its value goes to the robot in every DOWNLINK while it is active; "
+    "when the link is lost",
+    DeviceKind.SENSOR: "the robot sends its values while it is requested",
+    DeviceKind.COMMAND: "each occurrence is sent until the robot acknowledges it",
+    DeviceKind.EVENT: "the robot sends an occurrence when its condition is met",
+    DeviceKind.MEMORY_COMMAND: "each occurrence waits in the robot's command buffers until it is "
+    "executed, in turn",
+    DeviceKind.MEMORY_EVENT: "an event the robot sends once, until acknowledged",
+}
+_ACTIVE_DOCS = {
+    DeviceKind.MODULE: "Activate or deactivate the module, and so all its devices (Fig. 4's "
+    "setACTIVATED).",
+    DeviceKind.EFFECTOR: "Whether its value goes in DOWNLINKs (Fig. 4's setACTIVE).",
+    DeviceKind.SENSOR: "Whether to request its values: its bit in the DOWNLINK's Device Map "
+    "(D-RSP-14).",
+    DeviceKind.MONITOR: "Whether to request its values: its bit in the DOWNLINK's Device Map "
+    "(D-RSP-14).",
+    DeviceKind.EVENT: "Whether to request its occurrences: its bit in the DOWNLINK's Device Map "
+    "(D-RSP-14).",
+    DeviceKind.MEMORY_EVENT: "Whether to request its occurrences: its bit in the DOWNLINK's "
+    "Device Map (D-RSP-14).",
+}
+_METHODS = {
+    DeviceKind.MODULE: (_Module._set_active,),
+    DeviceKind.EFFECTOR: (_Module._write, _Module._read_written, _Module._set_active),
+    DeviceKind.SENSOR: (_Module._read_next, _Module._latest, _Module._set_active, _Module._listen),
+    DeviceKind.MONITOR: (_Module._read_next, _Module._latest, _Module._set_active, _Module._listen),
+    DeviceKind.COMMAND: (_Module._issue,),
+    DeviceKind.MEMORY_COMMAND: (_Module._issue,),
+    DeviceKind.EVENT: (_Module._read_next, _Module._listen, _Module._set_active),
+    DeviceKind.MEMORY_EVENT: (_Module._read_next, _Module._listen, _Module._set_active),
+}

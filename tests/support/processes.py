@@ -1,0 +1,63 @@
+"""rcmlconf commands as a user runs them: real processes, ready files, signals, exit statuses."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+SCRIPT = Path(sys.executable).parent / "rcmlconf"
+COMMAND = [str(SCRIPT)] if SCRIPT.exists() else [sys.executable, "-m", "rcmlconf"]
+#: Every wait of these tests is bounded by this many seconds.
+BOUND = 20.0
+
+
+@dataclass
+class Running:
+    process: subprocess.Popen[str]
+    ready: dict[str, object]
+    ready_file: Path
+
+    def stop(self, sig: signal.Signals = signal.SIGINT) -> tuple[int, str, str]:
+        """Send `sig`; the exit status and everything the process printed."""
+        self.process.send_signal(sig)
+        out, err = self.process.communicate(timeout=BOUND)
+        assert "Traceback" not in err, err
+        return self.process.returncode, out, err
+
+
+@contextmanager
+def running(tmp_path: Path, *args: str) -> Iterator[Running]:
+    """`rcmlconf ARGS --ready-file F`, once F says it listens; killed at the end if still up."""
+    ready_file = tmp_path / "ready.json"
+    process = subprocess.Popen(
+        [*COMMAND, *args, "--ready-file", str(ready_file)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + BOUND
+        while not ready_file.exists():
+            assert process.poll() is None, process.communicate()
+            assert time.monotonic() < deadline, "the command never said it was ready"
+            time.sleep(0.02)
+        yield Running(process, json.loads(ready_file.read_text()), ready_file)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+
+
+def run_command(*args: str) -> subprocess.CompletedProcess[str]:
+    done = subprocess.run(
+        [*COMMAND, *args], capture_output=True, text=True, timeout=BOUND, check=False
+    )
+    assert "Traceback" not in done.stderr, done.stderr
+    return done
