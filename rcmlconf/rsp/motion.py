@@ -31,6 +31,9 @@ class _Effector:
     #: A ramp from `start` toward `target` over one period, from `ramp_from` (seconds).
     start: dict[str, Value] | None = None
     ramp_from: float = 0.0
+    #: Every field numeric: only such an effector is interpolated (D-RSP-20); an LCD's picture or
+    #: a speaker's fragment (D-RSP-22) is taken whole.
+    numeric: bool = True
 
 
 def _between(field: Field, start: Value, end: Value, share: float) -> Value:
@@ -56,7 +59,11 @@ class MotionFilter:
     def __init__(self, model: RobotModel, period: float) -> None:
         self.period = period
         self._effectors = {
-            d.position: _Effector(d, {f.name: f.zero() for f in d.fields})
+            d.position: _Effector(
+                d,
+                {f.name: f.zero() for f in d.fields},
+                numeric=all(f.type.base.numeric for f in d.fields),
+            )
             for d in model.devices
             if d.kind is DeviceKind.EFFECTOR
         }
@@ -78,6 +85,7 @@ class MotionFilter:
         effector = self._effectors[device.position]
         late = (
             effector.stamp is not None
+            and effector.numeric
             and ((stamp - effector.stamp) % (1 << 32)) > GAP_PERIODS * self.period * 1000
         )
         effector.start = self._now(effector, now) if late else None

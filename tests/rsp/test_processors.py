@@ -22,12 +22,22 @@ WHEEL = Device(
 ARM = Device(
     1, "leftArm", DeviceKind.EFFECTOR, (Field("angle", ValueType(DATA_TYPES["int16"]), -900, 900),)
 )
-MODEL = RobotModel("bot", 1, (WHEEL, ARM))
+SPEAKER = Device(
+    2,
+    "speaker",
+    DeviceKind.EFFECTOR,
+    (
+        Field("fragment", ValueType(DATA_TYPES["uint16"])),
+        Field("samples", ValueType(DATA_TYPES["bytes"], 1, 4)),
+    ),
+)
+MODEL = RobotModel("bot", 1, (WHEEL, ARM, SPEAKER))
 
 
 def test_a_value_is_held_until_the_next() -> None:
     motion = MotionFilter(MODEL, T)
-    assert motion.output(0.0) == {"leftWheel": {"speed": 0}, "leftArm": {"angle": 0}}
+    assert motion.output(0.0)["leftWheel"] == {"speed": 0}
+    assert motion.output(0.0)["leftArm"] == {"angle": 0}
     motion.receive(ARM, {"angle": 300}, 0, 0.0)
     for now in (0.02, 0.04, 0.5):
         assert motion.output(now)["leftArm"] == {"angle": 300}  # R-RSP-34
@@ -52,12 +62,21 @@ def test_a_value_after_losses_is_reached_over_one_period() -> None:
     assert motion.output(0.12)["leftArm"] == {"angle": 500}
 
 
+def test_an_effector_with_bytes_is_taken_whole_after_losses() -> None:
+    """D-RSP-20, D-RSP-22: a fragment number is never interpolated away from its samples."""
+    motion = MotionFilter(MODEL, T)
+    motion.receive(SPEAKER, {"fragment": 10, "samples": b"a"}, 0, 0.0)
+    motion.receive(SPEAKER, {"fragment": 14, "samples": b"e"}, 80, 0.08)
+    assert motion.output(0.09)["speaker"] == {"fragment": 14, "samples": b"e"}
+
+
 def test_a_lost_link_stops_the_wheels_and_holds_the_arms() -> None:
     motion = MotionFilter(MODEL, T)
     motion.receive(WHEEL, {"speed": 300}, 0, 0.0)
     motion.receive(ARM, {"angle": 300}, 0, 0.0)
     motion.lose_link()
-    assert motion.output(0.6) == {"leftWheel": {"speed": 0}, "leftArm": {"angle": 300}}
+    assert motion.output(0.6)["leftWheel"] == {"speed": 0}
+    assert motion.output(0.6)["leftArm"] == {"angle": 300}
     motion.receive(ARM, {"angle": 310}, 600, 0.6)  # the link is back: the wheel stays stopped
     assert motion.output(0.7)["leftWheel"] == {"speed": 0}
 
