@@ -44,7 +44,6 @@ import argparse
 import asyncio
 import contextlib
 import cProfile
-import os
 import random
 import re
 import selectors
@@ -54,12 +53,22 @@ import struct
 import sys
 import time
 from collections import deque
-from collections.abc import Iterator
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
-from pathlib import Path
 
-from children import Child, cpu_seconds, serve_camera, start_child, until_stopped
+from children import Child, serve_camera, start_child, until_stopped
+from scale import (
+    SO_TIMESTAMPNS,
+    TIMESPEC,
+    Usage,
+    UsageProbe,
+    load_average,
+    percentile,
+    split_cpus,
+    steps,
+)
+from scale import best_of as _best_of
+from scale import verdict as _verdict
 
 STREAM = "/stream/control"
 INTERVAL = 0.016
@@ -78,9 +87,6 @@ RECEIVE_BUFFER = 4 << 20
 #: epoll would make every sendto of the sender wake it (an inter-processor interrupt, costly in a
 #: VM, paid in the sender's CPU time), which a server's real, remote clients do not cost it.
 POLL_EVERY = 0.002
-#: Linux's values where the socket module does not name them.
-SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)
-TIMESPEC = struct.Struct("@qq")
 #: The anchor's packet: version 2, one payload, sequence, tag, NTP time; DATA, stream 1, 16 bytes.
 HEADER = struct.Struct(">BBHIQBBH")
 NTP_EPOCH = 2_208_988_800
@@ -273,40 +279,6 @@ class Heartbeats:
 
 
 @dataclass
-class Usage:
-    """CPU use over the window, as fractions of one CPU: the sender's, the load generator's;
-    on the sender's CPU, the time the hypervisor took (steal) and what other processes used."""
-
-    sender: float = 0.0
-    generator: float = 0.0
-    steal: float = 0.0
-    other: float = 0.0
-
-
-class UsageProbe:
-    def __init__(self, pid: int | None, cpu: int | None) -> None:
-        self.pid, self.cpu = pid, cpu
-        self.start = self._read()
-
-    def _read(self) -> tuple[float, float, float, float, float]:
-        busy = steal = 0.0
-        with contextlib.suppress(OSError, ValueError, IndexError):
-            for line in Path("/proc/stat").read_text().splitlines():
-                name, *fields = line.split()
-                if name == f"cpu{self.cpu}":
-                    ticks = [int(f) / os.sysconf("SC_CLK_TCK") for f in fields]
-                    busy = ticks[0] + ticks[1] + ticks[2] + ticks[5] + ticks[6]
-                    steal = ticks[7]
-        sender = cpu_seconds(self.pid) if self.pid is not None else 0.0
-        return time.monotonic(), sender, time.process_time(), busy, steal
-
-    def usage(self) -> Usage:
-        end = self._read()
-        wall, sender, generator, busy, steal = (b - a for a, b in zip(self.start, end, strict=True))
-        return Usage(sender / wall, generator / wall, steal / wall, max(0.0, busy - sender) / wall)
-
-
-@dataclass
 class Row:
     n: int
     seconds: float
@@ -328,10 +300,7 @@ class Row:
 
     def percentile(self, p: float) -> float:
         """Jitter in ms at percentile p (nearest rank)."""
-        if not self.jitter:
-            return float("inf")
-        index = min(len(self.jitter) - 1, max(0, round(p / 100 * len(self.jitter)) - 1))
-        return self.jitter[index] / 1e6
+        return percentile(self.jitter, p)
 
     @property
     def passed(self) -> bool:
@@ -462,23 +431,10 @@ def run(
     return row, report
 
 
-def steps(max_n: int, quick: bool) -> Iterator[int]:
-    if quick:
-        yield from (n for n in (50, 200) if n <= max_n)
-        return
-    yield from (n for n in STEPS if n <= max_n)
-    if max_n not in STEPS and max_n > 0:
-        yield max_n
-
-
 def verdict(row: Row, anchor: Row | None = None) -> str:
     """pass; FAIL; or `noisy`: failed by jitter alone where the anchor failed too, with a p99
     at most NOISY times the anchor's (the machine's doing, as far as this run can tell)."""
-    if row.passed:
-        return "pass"
-    if row.lost or row.silent or row.rate < 0.99 or anchor is None or anchor.passed:
-        return "FAIL"
-    return "noisy" if row.percentile(99) <= NOISY * anchor.percentile(99) else "FAIL"
+    return _verdict(row, anchor, NOISY)
 
 
 def print_row(label: str, row: Row, anchor: Row | None = None) -> None:
@@ -495,15 +451,7 @@ def print_row(label: str, row: Row, anchor: Row | None = None) -> None:
 
 def best_of(kind: str, n: int, cpu: int | None, args: argparse.Namespace) -> Row:
     """Up to --tries rows until one passes; the best (the machine's noise only adds jitter)."""
-    rows = []
-    for _ in range(max(1, args.tries)):
-        row, _ = run(kind, n, cpu, args)
-        rows.append(row)
-        if row.passed:
-            break
-    best = min(rows, key=lambda r: (not r.passed, r.percentile(99)))
-    best.tries = len(rows)
-    return best
+    return _best_of(lambda: run(kind, n, cpu, args)[0], args.tries)
 
 
 def main() -> None:
@@ -521,12 +469,9 @@ def main() -> None:
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     if args.quick:
         args.seconds, args.warm_up, args.tries = min(args.seconds, 2.0), min(args.warm_up, 1), 1
-    cpus = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
-    server_cpu = cpus[0] if len(cpus) > 1 else None
-    if len(cpus) > 1:
-        os.sched_setaffinity(0, {cpus[-1]})
+    server_cpu, generator_cpu = split_cpus()
     where = (
-        f"server on CPU {server_cpu}, load generator on CPU {cpus[-1]}"
+        f"server on CPU {server_cpu}, load generator on CPU {generator_cpu}"
         if server_cpu is not None
         else "one CPU: the server and the load generator share it"
     )
@@ -536,7 +481,7 @@ def main() -> None:
         print_row("server", row)
         print(report or "(no profile came back)")
         return
-    load = Path("/proc/loadavg").read_text().split()[0] if Path("/proc/loadavg").exists() else "?"
+    load = load_average()
     print(f"N sessions, each a read stream of {STREAM} every 16 ms; {where}; load average {load}")
     print(
         f"jitter = |interval between a session's DATA packets - 16 ms| by kernel receive stamps,"
@@ -559,7 +504,7 @@ def main() -> None:
     best = held = 0
     last: Row | None = None
     try:
-        for n in steps(args.max_n, args.quick):
+        for n in steps(args.max_n, args.quick, STEPS):
             last = row = best_of("rctp", n, server_cpu, args)
             anchor = best_of("anchor", n, server_cpu, args)
             print_row("server", row, anchor)
