@@ -29,6 +29,7 @@ from rcmlconf.rsp.api import Values
 from rcmlconf.rsp.codec import Encryption
 from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
 from rcmlconf.rsp.session import events
+from rcmlconf.rsp.session.devices import device
 from rcmlconf.rsp.session.local import LocalEndpoint
 
 Address = tuple[str, int]
@@ -36,6 +37,8 @@ Address = tuple[str, int]
 MAX_UNREAD = 1024
 _STATES = (DeviceKind.SENSOR, DeviceKind.MONITOR)
 _OCCURRENCES = (DeviceKind.EVENT, DeviceKind.MEMORY_EVENT)
+#: What the robot reports, which `read` and `listen` take.
+_REPORTED = (*_STATES, *_OCCURRENCES)
 
 
 class NoSession(RcmlconfError):
@@ -155,13 +158,13 @@ class Simulacrum:
 
     def latest(self, device: str) -> Values | None:
         with self._lock:
-            self._known(device)
+            self._known(device, tuple(DeviceKind), "be looked up")
             if device in self._written:
                 return self._written[device]
             return self._latest.get(device)
 
     def read(self, device: str, timeout: float | None = None) -> Values:
-        found = self._known(device)
+        found = self._known(device, _REPORTED, "be read")
         with self._changed:
             if found.kind in _OCCURRENCES:
                 unread = self._unread.setdefault(device, deque(maxlen=MAX_UNREAD))
@@ -170,8 +173,6 @@ class Simulacrum:
                 if not unread:
                     raise NoSession(f"the session ended: {self.closed}")
                 return unread.popleft()
-            if found.kind not in _STATES:
-                raise TypeError(f"{device} is a {found.kind.value}: only what the robot reports")
             seen = self._read_counts.get(device, 0)
             if not self._changed.wait_for(
                 lambda: self._counts.get(device, 0) > seen or self._ended(), timeout
@@ -187,9 +188,7 @@ class Simulacrum:
             return self.endpoint.issue(device, values)
 
     def listen(self, device: str, listener: Callable[[Values], None]) -> Callable[[], None]:
-        found = self._known(device)
-        if found.kind not in (*_STATES, *_OCCURRENCES):
-            raise TypeError(f"{device} is a {found.kind.value}: only what the robot reports")
+        self._known(device, _REPORTED, "be listened to")
         with self._lock:
             self._listeners.setdefault(device, []).append(listener)
 
@@ -216,11 +215,8 @@ class Simulacrum:
 
     # -- the packet handlers -------------------------------------------------------------------
 
-    def _known(self, device: str) -> Device:
-        found = self.model.device(device)
-        if found is None:
-            raise KeyError(f"{self.model.name} has no device {device!r}")
-        return found
+    def _known(self, name: str, kinds: tuple[DeviceKind, ...], what: str) -> Device:
+        return device(self.endpoint.codec, name, kinds, what)
 
     def _ended(self) -> bool:
         return self.closed is not None

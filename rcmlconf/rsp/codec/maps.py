@@ -164,6 +164,15 @@ class MapCodec:
 
     # -- writing -------------------------------------------------------------------------------
 
+    def check(self, item: Item) -> None:
+        """EncodeError unless a body of this type can carry `item`: what `push` checks of one
+        item, by its slot alone, with no Device Map made and no plan kept (an application's
+        values are checked when it gives them, not in the beat that sends them)."""
+        slot = self._slots[item.device]
+        if slot.meaning is Bit.NEVER:
+            raise EncodeError(f"{slot.name}'s bit is never set in {self.packet.value} (D-RSP-14)")
+        slot.push(Buffer(), item)
+
     def push(self, items: Sequence[Item]) -> bytes:
         """A body from items in model order, one per set bit."""
         try:

@@ -12,6 +12,7 @@ from rcmlconf.errors import EncodeError, ProtocolError
 from rcmlconf.rsp.codec.bodies import (
     BODIES,
     Body,
+    Item,
     MapBody,
     Packet,
     map_body,
@@ -86,6 +87,10 @@ class RspCodec:
         if isinstance(body, MapBody):
             return self._maps[header.type].push(body.items)
         return push_session_body(header, body)
+
+    def check_item(self, kind: PacketType, item: Item) -> None:
+        """EncodeError unless a DOWNLINK, UPLINK or ACK (`kind`) can carry `item`."""
+        self._maps[kind].check(item)
 
     def pull_packet(self, data: bytes | bytearray | memoryview) -> Packet:
         """A whole plaintext datagram."""

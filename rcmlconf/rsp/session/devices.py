@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Collection, Mapping
 
-from rcmlconf.rsp.codec import Encryption, Header, Item, MapBody, PacketType, RspCodec
+from rcmlconf.rsp.codec import Item, PacketType, RspCodec
 from rcmlconf.rsp.model import Device, DeviceKind
 from rcmlconf.values import Value
 
@@ -24,7 +24,6 @@ def check_values(
     codec: RspCodec, kind: PacketType, found: Device, values: Mapping[str, Value], ident: int | None
 ) -> dict[str, Value]:
     """The values as a packet of `kind` would carry them; EncodeError if it could not."""
-    header = Header(1, codec.model.model_id, Encryption.NONE, kind, 0, 0, 1, 0, 0)
     copied = dict(values)
-    codec.push_body(header, MapBody((Item(found.position, ident, copied),)))
+    codec.check_item(kind, Item(found.position, ident, copied))
     return copied

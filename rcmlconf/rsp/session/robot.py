@@ -107,6 +107,8 @@ class RobotEndpoint:
         self._memory_events = ReliableSender(self._ids, model.period)
         #: D-RSP-19: memory commands taken and not yet started.
         self._buffer: deque[Occurrence] = deque()
+        #: What the effectors do without a session: their zero values (D-RSP-20).
+        self._idle = MotionFilter(model, model.period)
         self._reported = {
             d.position for d in model.devices if bit(d.kind, MapPacket.UPLINK) is Bit.STATE
         }
@@ -137,9 +139,8 @@ class RobotEndpoint:
 
     def effectors(self, now: float) -> dict[str, dict[str, Value]]:
         """What every effector is to do now (D-RSP-20); zero values before any session."""
-        if self.session is None:
-            return MotionFilter(self.model, self.model.period).output(now)
-        return self.session.motion.output(now)
+        motion = self._idle if self.session is None else self.session.motion
+        return motion.output(now)
 
     def take_memory_command(self) -> Occurrence | None:
         """The next memory command to execute, in the order taken (D-RSP-19)."""
@@ -370,7 +371,7 @@ class RobotEndpoint:
         items: dict[int, Item] = {}
         for position in self._reported & session.requested:
             values = self._states.get(position)
-            if values is not None and self._reports(position):
+            if values is not None and self._in_active(self.model.devices[position]):
                 items[position] = Item(position, None, values)
         for occurrence in self._events_out.ride():
             position = occurrence.device.position
