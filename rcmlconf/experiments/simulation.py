@@ -246,7 +246,7 @@ class RspSimulation(Clock):
         body = self.body
         assert body is not None
         body.apply(self.robot.effectors(now), now)
-        for name, values in body.sensors(now).items():
+        for name, values in body.sensors(now, self.robot.reporting()).items():
             self.robot.set_state(name, values)
 
     # -- the clock's parts ---------------------------------------------------------------------

@@ -109,6 +109,11 @@ def test_same_seed_same_readings_and_time_never_runs_backwards() -> None:
     first = [one.sensors(t) for t in ticks]
     assert first == [two.sensors(t) for t in ticks]
     assert first != [other.sensors(t) for t in ticks]  # the noise differs
+    picky = CuboBody(model, seed=7)  # measures two devices only: the same values
+    picky.apply(wheels(300, 280), 5.0)
+    only = [picky.sensors(t, ["position", "leftWheelMonitor"]) for t in ticks]
+    assert only == [{n: v for n, v in f.items() if n in only[0]} for f in first]
+    assert set(only[0]) == {"position", "leftWheelMonitor"}
     pose = one.pose
     one.advance(1.0)  # earlier than the body's clock: nothing moves
     assert one.pose == pose

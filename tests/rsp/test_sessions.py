@@ -64,6 +64,25 @@ def test_the_robot_reports_only_what_was_requested() -> None:
     assert len(of(events.StateReceived, pair.local_events)) == settled
 
 
+def test_the_robot_names_what_the_next_uplink_carries_and_when() -> None:
+    """D-RSP-14: requested sensors and monitors, not those of an inactive module; T by PERIOD."""
+    robot = RobotEndpoint(robot_model())
+    assert robot.reporting() == []
+    assert robot.next_beat() is None
+    pair = opened(open_pair(robot_model(), robot=robot))
+    pair.local.set_active("battery", True)
+    pair.local.set_active("leftWheelMonitor", True)  # in base, which is not active
+    pair.run_until(pair.now + 0.1)
+    assert robot.reporting() == ["battery"]
+    pair.local.set_active("base", True)
+    pair.run_until(pair.now + 0.1)
+    assert sorted(robot.reporting()) == ["battery", "leftWheelMonitor"]
+    beat = robot.next_beat()
+    assert beat is not None
+    assert pair.now < beat <= pair.now + robot.period
+    assert pair.local.next_beat() is not None
+
+
 def test_an_idle_session_stays_alive_on_empty_maps() -> None:
     """D-RSP-13: nothing to set, a packet every 5 periods: silence means loss, not idleness."""
     pair = opened(open_pair(robot_model()))

@@ -4,7 +4,7 @@ one. Bodies are pure: time comes in as `now`."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from typing import Protocol
 
 from rcmlconf.rsp.model import DeviceKind, RobotModel
@@ -20,8 +20,9 @@ class Body(Protocol):
     def advance(self, now: float) -> None:
         """Move on to `now`."""
 
-    def sensors(self, now: float) -> Mapping[str, Values]:
-        """Every sensor's and monitor's value now, by device name."""
+    def sensors(self, now: float, only: Collection[str] | None = None) -> Mapping[str, Values]:
+        """Each sensor's and monitor's value now, by device name: those named in `only`, or
+        every one."""
 
 
 class GenericBody:
@@ -43,12 +44,12 @@ class GenericBody:
     def advance(self, now: float) -> None:
         pass
 
-    def sensors(self, now: float) -> Mapping[str, Values]:
+    def sensors(self, now: float, only: Collection[str] | None = None) -> Mapping[str, Values]:
         found: dict[str, Values] = dict(self._sensors)
         for monitor, effector in self._monitors.items():
             if effector is not None and effector in self._effectors:
                 found[monitor] = self._effectors[effector]
-        return found
+        return found if only is None else {name: found[name] for name in only if name in found}
 
 
 def body_for(model: RobotModel, seed: int) -> Body:

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import math
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 
 from rcmlconf.reference.drivers.room import Pose, drive
 from rcmlconf.rsp.model import Device, DeviceKind, Field, RobotModel
@@ -132,12 +132,18 @@ class CuboBody:
             self._step(step)
             self._time = now if step == now - self._time else self._time + step
 
-    def sensors(self, now: float) -> dict[str, dict[str, Value]]:
-        """Every sensor's and monitor's value at `now` (after moving on to it), by device name."""
+    def sensors(
+        self, now: float, only: Collection[str] | None = None
+    ) -> dict[str, dict[str, Value]]:
+        """Each sensor's and monitor's value at `now` (after moving on to it), by device name:
+        those named in `only`, or every one. Noise is a function of the tick, so what is not
+        measured changes nothing of what is."""
         self.advance(now)
         tick = math.floor(now / NOISE_TICK)
         found: dict[str, dict[str, Value]] = {}
         for device in self._reported:
+            if only is not None and device.name not in only:
+                continue
             if device.kind is DeviceKind.MONITOR:
                 assert device.of is not None
                 found[device.name] = self.actual(device.of)

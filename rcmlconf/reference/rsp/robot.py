@@ -3,9 +3,10 @@
 Nothing here decides anything about RSP. Each datagram goes to the endpoint; after anything
 reaches it, what it has to send is sent and its timer moved (`LoopTimer`). Every control period
 the body (a simulated CUBO, or a generic body for any other model) gets the motion filter's
-output, moves, and its sensors and monitors go back to the endpoint for the next UPLINK; memory
-commands are executed one after another (D-RSP-19), each taking its `duration` field in
-milliseconds if it has one.
+output, moves, and the sensors and monitors the next UPLINK carries go back to the endpoint;
+memory commands are executed one after another (D-RSP-19), each taking its `duration` field in
+milliseconds if it has one. In a session the control tick falls on the UPLINK beat, just before
+it: the UPLINK carries what was measured that instant, and one wake-up of the loop serves both.
 """
 
 from __future__ import annotations
@@ -52,7 +53,8 @@ class ReferenceRobot(asyncio.DatagramProtocol):
         self.body = body if body is not None else body_for(model, settings.seed)
         self.transport: asyncio.DatagramTransport | None = None
         self._timer: LoopTimer | None = None
-        self._control: asyncio.TimerHandle | None = None
+        #: When the control loop ticks next (loop time).
+        self._tick_at = 0.0
         #: The memory command being executed, and when it is done (D-RSP-19).
         self._executing: Occurrence | None = None
         self._done_at = 0.0
@@ -67,7 +69,8 @@ class ReferenceRobot(asyncio.DatagramProtocol):
             lambda: self, local_addr=(self.settings.host, self.settings.port)
         )
         self._timer = LoopTimer(loop, self._timer_fired)
-        self._control = loop.call_at(loop.time(), self._control_tick)
+        self._tick_at = loop.time()
+        self._timer.set(self._tick_at)
 
     @property
     def address(self) -> tuple[str, int]:
@@ -79,11 +82,10 @@ class ReferenceRobot(asyncio.DatagramProtocol):
         """BYE (reason 2) to the session, if one is open, and close the socket."""
         loop = asyncio.get_running_loop()
         self.endpoint.close(loop.time())
-        self._flush()
-        if self._control is not None:
-            self._control.cancel()
         if self._timer is not None:
             self._timer.set(None)
+            self._timer = None
+        self._flush()
         if self.transport is not None:
             self.transport.close()
 
@@ -104,7 +106,13 @@ class ReferenceRobot(asyncio.DatagramProtocol):
         return asyncio.get_running_loop().time()
 
     def _timer_fired(self) -> None:
-        self.endpoint.handle_timer(self._now())
+        now = self._now()
+        ticked = now >= self._tick_at
+        if ticked:
+            self._control_tick(now)
+        self.endpoint.handle_timer(now)
+        if ticked:
+            self._tick_at = self._next_tick(now)
         self._flush()
 
     def _flush(self) -> None:
@@ -115,7 +123,8 @@ class ReferenceRobot(asyncio.DatagramProtocol):
         while (event := self.endpoint.next_event()) is not None:
             self._log(event)
         if self._timer is not None:
-            self._timer.set(self.endpoint.get_timer())
+            deadline = self.endpoint.get_timer()
+            self._timer.set(self._tick_at if deadline is None else min(deadline, self._tick_at))
 
     def _log(self, event: events.Event) -> None:
         if isinstance(event, events.StateReceived):
@@ -132,19 +141,20 @@ class ReferenceRobot(asyncio.DatagramProtocol):
 
     # -- the control loop ----------------------------------------------------------------------
 
-    def _control_tick(self) -> None:
+    def _control_tick(self, now: float) -> None:
         """One control period: effectors out, the body on, sensors and monitors back."""
-        loop = asyncio.get_running_loop()
-        now = loop.time()
-        session = self.endpoint.session
-        period = session.beat.period if session is not None else self.model.period
-        self.body.apply(self.endpoint.effectors(now), now)
+        endpoint = self.endpoint
+        self.body.apply(endpoint.effectors(now), now)
         self.body.advance(now)
-        for name, values in self.body.sensors(now).items():
-            self.endpoint.set_state(name, values)
+        for name, values in self.body.sensors(now, endpoint.reporting()).items():
+            endpoint.set_state(name, values)
         self._execute(now)
-        self._flush()
-        self._control = loop.call_at(now + period, self._control_tick)
+
+    def _next_tick(self, now: float) -> float:
+        """On the next UPLINK beat if one falls within a period; else a period on."""
+        period = self.endpoint.period
+        beat = self.endpoint.next_beat()
+        return beat if beat is not None and now < beat <= now + period else now + period
 
     def _execute(self, now: float) -> None:
         """D-RSP-19: memory commands in the order taken, each when the one before is done."""

@@ -174,6 +174,10 @@ class LocalEndpoint:
     def next_event(self) -> events.Event | None:
         return self._events.popleft() if self._events else None
 
+    def next_beat(self) -> float | None:
+        """When the next DOWNLINK is due (D-RSP-13); None without a session."""
+        return self._beat.next if self.state == "open" else None
+
     def get_timer(self) -> float | None:
         if self.state == "hello":
             return self._hello_at

@@ -126,6 +126,19 @@ class RobotEndpoint:
             self.codec, PacketType.UPLINK, found, values, None
         )
 
+    def reporting(self) -> list[str]:
+        """The sensors and monitors the next UPLINK carries (requested by the newest DOWNLINK, in
+        an active module, D-RSP-14): the only ones worth measuring and passing to `set_state`."""
+        session = self.session
+        if session is None:
+            return []
+        devices = self.model.devices
+        return [
+            devices[p].name
+            for p in sorted(self._reported & session.requested)
+            if self._in_active(devices[p])
+        ]
+
     def occur(self, name: str, values: Mapping[str, Value]) -> int | None:
         """An event or memory event; its ID, or None when the local system has not requested the
         device (nothing of an unrequested device is reported, D-RSP-14)."""
@@ -158,6 +171,15 @@ class RobotEndpoint:
 
     def next_event(self) -> events.Event | None:
         return self._events.popleft() if self._events else None
+
+    @property
+    def period(self) -> float:
+        """T now, seconds: the session's (PERIOD changes it, D-RSP-13), else the model's."""
+        return self.session.beat.period if self.session is not None else self.model.period
+
+    def next_beat(self) -> float | None:
+        """When the next UPLINK is due (D-RSP-13); None without a session."""
+        return self.session.beat.next if self.session is not None else None
 
     def get_timer(self) -> float | None:
         session = self.session
