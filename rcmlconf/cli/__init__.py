@@ -16,6 +16,11 @@ from rcmlconf import __version__
 
 #: name -> (module, function, one-line help)
 COMMANDS = {
+    "cases": (
+        "rcmlconf.cli.cases",
+        "cases",
+        "List the conformance cases, and which requirement of specs/ each one checks.",
+    ),
     "client": (
         "rcmlconf.cli.client.commands",
         "client",
@@ -35,6 +40,11 @@ COMMANDS = {
         "rcmlconf.cli.rsp",
         "rsp",
         "Tools over RSP robot models: generate a robot's typed Robot API (paper Fig. 4).",
+    ),
+    "run": (
+        "rcmlconf.cli.run",
+        "run",
+        "Run the conformance cases against an RCTP server or RSP robot (or the reference).",
     ),
     "serve": (
         "rcmlconf.cli.serve",

@@ -11,8 +11,8 @@ from __future__ import annotations
 import json
 import os
 import sys
-from collections.abc import Sequence
-from typing import IO, TYPE_CHECKING
+from collections.abc import Callable, Sequence
+from typing import IO, TYPE_CHECKING, Any
 
 from rcmlconf.diagnostics import Diagnostic, Severity
 
@@ -90,3 +90,43 @@ class Output:
     def problem(self, command: str, text: str) -> None:
         """The one line that says why a command ends: `rcmlconf client: READ /x: 404 ...`."""
         self.err.line([(f"rcmlconf {command}: ", "bold"), (text, "bold red")])
+
+    def progress(self, total: int, what: str) -> Progress:
+        """A live bar on standard error while `total` things run, on a terminal only."""
+        return Progress(self.err, total, what)
+
+
+class Progress:
+    """`with output.progress(n, "cases") as step:` then `step(label)` as each one ends."""
+
+    def __init__(self, stream: _Stream, total: int, what: str) -> None:
+        self._stream, self._total, self._what = stream, total, what
+        self._bar: Any = None
+        self._task: Any = None
+
+    def __enter__(self) -> Callable[[str], None]:
+        console = self._stream._console
+        if console is not None:
+            from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn
+            from rich.progress import Progress as Bar
+
+            self._bar = Bar(
+                TextColumn("{task.description}"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TimeElapsedColumn(),
+                TextColumn("{task.fields[last]}", style="dim"),
+                console=console,
+                transient=True,
+            )
+            self._bar.start()
+            self._task = self._bar.add_task(f"running {self._what}", total=self._total, last="")
+        return self._step
+
+    def _step(self, label: str) -> None:
+        if self._bar is not None:
+            self._bar.update(self._task, advance=1, last=label)
+
+    def __exit__(self, *exc: object) -> None:
+        if self._bar is not None:
+            self._bar.stop()

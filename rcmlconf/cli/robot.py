@@ -16,6 +16,7 @@ from rcmlconf.cli.interrupts import Interrupts
 from rcmlconf.cli.logs import log_lines
 from rcmlconf.cli.models import load_or_exit
 from rcmlconf.cli.rsp_options import ENCRYPTIONS, psk_option, read_psk
+from rcmlconf.reference.faults import faults_named, names
 from rcmlconf.reference.rsp.robot import DEFAULT_PORT, ReferenceRobot, RobotSettings
 from rcmlconf.validate.validator import load_robot_model
 
@@ -46,6 +47,15 @@ from rcmlconf.validate.validator import load_robot_model
     help='Once listening, write {"host": H, "port": N} there (removed at exit).',
 )
 @click.option(
+    "--fault",
+    "faults",
+    type=click.Choice(names("robot")),
+    multiple=True,
+    metavar="NAME",
+    help="Misbehave as NAME says (repeat for several): for testing a conformance harness, never "
+    "for a real robot. NAME is one of " + ", ".join(names("robot")) + ".",
+)
+@click.option(
     "-v", "--verbose", count=True, help="A line per session event (-vv: every effector value)."
 )
 def robot(
@@ -56,6 +66,7 @@ def robot(
     psk_file: Path | None,
     seed: int,
     ready_file: Path | None,
+    faults: tuple[str, ...],
     verbose: int,
 ) -> None:
     """Run a robot of MODEL.rmodel that speaks RSP on UDP (the reference robot), until Ctrl-C
@@ -77,7 +88,8 @@ def robot(
     output = Output()
     model = load_or_exit(output, "robot", model_path, load_robot_model)
     chosen = {ENCRYPTIONS[name] for name in encryptions or ("none",)}
-    settings = RobotSettings(host, port, frozenset(chosen), read_psk(psk_file, chosen), seed)
+    psk = read_psk(psk_file, chosen)
+    settings = RobotSettings(host, port, frozenset(chosen), psk, seed, faults_named(faults))
     with log_lines(output, verbose, "rcmlconf.robot"):
         sys.exit(asyncio.run(_run(ReferenceRobot(model, settings), output, ready_file)))
 

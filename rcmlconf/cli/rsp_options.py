@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from rcmlconf.rsp.codec import Encryption
-from rcmlconf.rsp.security import KEY_SIZE
+from rcmlconf.rsp.security import key_from_file
 
 #: D-RSP-21's AEADs by the names the options take.
 ENCRYPTIONS = {
@@ -29,17 +29,9 @@ def read_psk(path: Path | None, encryptions: set[Encryption]) -> bytes | None:
     except OSError as exc:
         raise click.UsageError(f"cannot read {path}: {exc.strerror or exc}") from None
     try:
-        text = data.decode("ascii").strip()
-        if len(text) == 2 * KEY_SIZE:
-            return bytes.fromhex(text)
-    except (UnicodeDecodeError, ValueError):
-        pass
-    if len(data) == KEY_SIZE:
-        return data
-    raise click.UsageError(
-        f"{path}: a key is {2 * KEY_SIZE} hex digits or {KEY_SIZE} bytes"
-        " (make one with: python -c 'import secrets; print(secrets.token_hex(32))')"
-    )
+        return key_from_file(data)
+    except ValueError as error:
+        raise click.UsageError(f"{path}: {error}") from None
 
 
 def parse_address(text: str, default_port: int) -> tuple[str, int]:

@@ -17,6 +17,7 @@ from rcmlconf.cli.models import load_or_exit
 from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
 from rcmlconf.rctp.url import DEFAULT_PORT, FILES_PORT_OFFSET, http_base
 from rcmlconf.reference.drivers import AUTO, DRIVERS, DriverError, choose_driver
+from rcmlconf.reference.faults import faults_named, names
 from rcmlconf.reference.server.adapter import ReferenceServer, ServerSettings
 from rcmlconf.validate.validator import load_robot
 from rcmlconf.wording import plural
@@ -64,6 +65,15 @@ _PORT = click.IntRange(0, 65535)
     "(removed at exit): for scripts that start the server with --port 0.",
 )
 @click.option(
+    "--fault",
+    "faults",
+    type=click.Choice(names("server")),
+    multiple=True,
+    metavar="NAME",
+    help="Misbehave as NAME says (repeat for several): for testing a conformance harness, never "
+    "for a real robot. NAME is one of " + ", ".join(names("server")) + ".",
+)
+@click.option(
     "-v",
     "--verbose",
     count=True,
@@ -79,6 +89,7 @@ def serve(
     seed: int,
     session_timeout: int,
     ready_file: Path | None,
+    faults: tuple[str, ...],
     verbose: int,
 ) -> None:
     """Serve the robot ROBOT.rcml describes: RCTP/2.0 on TCP, its data stream on UDP, and its
@@ -113,6 +124,7 @@ def serve(
         http_port=None if no_http else _http_port(tcp, http_port),
         seed=seed,
         session_timeout=session_timeout,
+        faults=faults_named(faults),
     )
     server = ReferenceServer(rcml, model, chosen, settings)
     with log_lines(output, verbose, "rcmlconf.server"):

@@ -263,6 +263,11 @@ class Connection:
         """D-RCTP-25: the protocol's own checks, in order; the first that fails answers."""
         request = inbound.request
         assert request is not None  # a slot for a broken message is never deferred
+        if self.session_state is SessionState.CLOSED:
+            # D-RCTP-13: nothing is sent in closed. A request pipelined after BYE is checked
+            # once the BYE is answered, and is dropped unanswered and unapplied.
+            self._inbound.remove(inbound)
+            return None
         # The CSeq is read first, so that every answer that can echo it does (R-RCTP-3).
         cseq_texts = request.headers.get_all("CSeq")
         cseq_problem = None

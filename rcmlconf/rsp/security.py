@@ -29,6 +29,26 @@ from rcmlconf.rsp.layout import HEADER_SIZE, MAC_SIZE, TAG_SIZE
 
 #: The pre-shared key and every session key: 256 bits.
 KEY_SIZE = 32
+#: How a key file is made, for messages about a bad one.
+KEY_RECIPE = "python -c 'import secrets; print(secrets.token_hex(32))'"
+
+
+def key_from_file(data: bytes) -> bytes:
+    """A pre-shared key (D-RSP-21) from a key file's bytes: 64 hex digits or 32 raw bytes;
+    ValueError for anything else."""
+    try:
+        text = data.decode("ascii").strip()
+        if len(text) == 2 * KEY_SIZE:
+            return bytes.fromhex(text)
+    except (UnicodeDecodeError, ValueError):
+        pass
+    if len(data) == KEY_SIZE:
+        return data
+    raise ValueError(
+        f"a key is {2 * KEY_SIZE} hex digits or {KEY_SIZE} bytes (make one: {KEY_RECIPE})"
+    )
+
+
 #: D-RSP-21: a session ends before its index needs more than 48 bits (178 years at 50 Hz).
 MAX_INDEX = (1 << 48) - 1
 _RULE = "R-RSP-18"

@@ -149,6 +149,26 @@ def test_a_closing_session_takes_no_more_requests() -> None:
     assert event.status == 455
 
 
+def test_a_request_pipelined_after_bye_is_neither_answered_nor_applied() -> None:
+    """D-RCTP-13: nothing is sent in closed. ACQUIRE behind BYE in one segment would otherwise
+    be granted to a session that is over, and hold the privilege for ever."""
+    client, server = pair()
+    client.send_request("BYE", "*", now=1.0)
+    client.send_request("ACQUIRE", "/a", now=1.0)
+    events = received(server, client)
+    for event in events:  # the application answers BYE if the core hands it over
+        if isinstance(event, RequestReceived):
+            assert event.request.method == "BYE"
+            server.send_response(event.request, 200)
+    events += drain(server)
+    assert [type(e) for e in events if not isinstance(e, RequestReceived)] == [SessionEnded]
+    assert server.session_state is SessionState.CLOSED
+    answers = server.data_to_send()
+    assert answers.count(b"RCTP/2.0 ") == 1  # BYE's 200, nothing for ACQUIRE
+    assert answers.startswith(b"RCTP/2.0 200 OK\r\nCSeq: 2\r\n")
+    assert server.answers_due == 0
+
+
 def test_the_answer_to_connect_names_the_session_and_its_timeout() -> None:
     client, server = Connection(Role.CLIENT, 0), Connection(Role.SERVER, 0)
     client.send_request("CONNECT", "/", now=0)

@@ -17,6 +17,7 @@ from collections import deque
 from dataclasses import dataclass
 from typing import cast
 
+from rcmlconf.reference.faults import Fault, describe
 from rcmlconf.reference.rsp.bodies import Body, body_for
 from rcmlconf.reference.timers import LoopTimer
 from rcmlconf.rsp.codec import Encryption
@@ -39,6 +40,8 @@ class RobotSettings:
     encryptions: frozenset[Encryption] = frozenset({Encryption.NONE})
     psk: bytes | None = None
     seed: int = 0
+    #: Misbehaviours, none but to test a conformance harness (`reference.faults`).
+    faults: frozenset[Fault] = frozenset()
 
 
 class ReferenceRobot(asyncio.DatagramProtocol):
@@ -49,7 +52,9 @@ class ReferenceRobot(asyncio.DatagramProtocol):
     ) -> None:
         self.model = model
         self.settings = settings
-        self.endpoint = RobotEndpoint(model, encryptions=settings.encryptions, psk=settings.psk)
+        self.endpoint = RobotEndpoint(
+            model, encryptions=settings.encryptions, psk=settings.psk, faults=settings.faults
+        )
         self.body = body if body is not None else body_for(model, settings.seed)
         self.transport: asyncio.DatagramTransport | None = None
         self._timer: LoopTimer | None = None
@@ -64,6 +69,11 @@ class ReferenceRobot(asyncio.DatagramProtocol):
     # -- lifetime ------------------------------------------------------------------------------
 
     async def start(self) -> None:
+        if self.settings.faults:
+            log.warning(
+                "running with faults, to test a conformance harness: %s",
+                describe(self.settings.faults),
+            )
         loop = asyncio.get_running_loop()
         await loop.create_datagram_endpoint(
             lambda: self, local_addr=(self.settings.host, self.settings.port)

@@ -24,6 +24,7 @@ from rcmlconf.rctp.datastream.packets import peek_tag
 from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
 from rcmlconf.rctp.url import DEFAULT_PORT, FILES_PORT_OFFSET, RctpUrl
 from rcmlconf.reference.drivers import Driver
+from rcmlconf.reference.faults import CONTROL_FAULTS, Fault, describe, rewrite_control
 from rcmlconf.reference.server.files import FileServer, robot_files
 from rcmlconf.reference.server.robot import Robot
 from rcmlconf.reference.server.session import ServerSession
@@ -44,6 +45,8 @@ class ServerSettings:
     http_port: int | None = DEFAULT_PORT + FILES_PORT_OFFSET
     seed: int = 0
     session_timeout: int = DEFAULT_SESSION_TIMEOUT
+    #: Misbehaviours, none but to test a conformance harness (`reference.faults`).
+    faults: frozenset[Fault] = frozenset()
 
 
 class _Control(asyncio.Protocol):
@@ -129,6 +132,8 @@ class ReferenceServer:
         self.model = model
         self.driver = driver
         self.settings = settings
+        #: The faults that rewrite what the control connections write (`rewrite_control`).
+        self._control_faults = settings.faults & CONTROL_FAULTS
         #: Every open control connection, by its session.
         self.controls: dict[ServerSession, _Control] = {}
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -161,6 +166,11 @@ class ReferenceServer:
     async def start(self) -> None:
         """Listen: RCTP on TCP, the data stream on UDP, the files on HTTP. If one cannot be had
         (a port in use), what was opened before it is closed again and the OSError raised."""
+        if self.settings.faults:
+            log.warning(
+                "running with faults, to test a conformance harness: %s",
+                describe(self.settings.faults),
+            )
         try:
             await self._listen()
         except BaseException:
@@ -186,6 +196,7 @@ class ReferenceServer:
             data_port=udp.get_extra_info("sockname")[1],
             session_timeout=settings.session_timeout,
             unix_offset=time.time() - loop.time(),
+            faults=settings.faults,
         )
         self._beats = BeatClock(loop, self._beat)
         self._robot_timer = LoopTimer(loop, self._tick)
@@ -259,6 +270,8 @@ class ReferenceServer:
         if session is None or transport is None:
             return
         data = session.data_to_send()
+        if data and self._control_faults:  # fault: those of faults.CONTROL_FAULTS
+            data = rewrite_control(data, self._control_faults)
         if data and not transport.is_closing():
             transport.write(data)
         datagrams, peer = session.datagrams_to_send(self.loop.time())

@@ -12,6 +12,7 @@ from collections.abc import Iterator
 
 from rcmlconf.rcml.paths import is_within
 from rcmlconf.rctp.targets import ROOT
+from rcmlconf.reference.faults import Fault
 
 
 def _ancestors(path: str) -> Iterator[str]:
@@ -23,9 +24,11 @@ def _ancestors(path: str) -> Iterator[str]:
 
 
 class Privileges:
-    def __init__(self) -> None:
+    def __init__(self, faults: frozenset[Fault] = frozenset()) -> None:
         #: Held path -> the session holding it.
         self._held: dict[str, str] = {}
+        #: `reference.faults`: none but to test a conformance harness.
+        self.faults = faults
 
     def holder(self, path: str) -> str | None:
         """The session whose privilege covers `path` (it holds the path or a path above)."""
@@ -50,7 +53,8 @@ class Privileges:
     def acquire(self, session: str, path: str) -> bool:
         """Take `path` for `session`; False when another session holds an overlapping path.
         Acquiring what the session holds already, or a path below it, changes nothing."""
-        if self.conflict(session, path) is not None:
+        other = self.conflict(session, path)  # fault: acquire-not-exclusive
+        if other is not None and Fault.ACQUIRE_NOT_EXCLUSIVE not in self.faults:
             return False
         if self.covers(session, path):
             return True
@@ -63,7 +67,7 @@ class Privileges:
     def release(self, session: str, path: str) -> bool:
         """Give back a path the session acquired; False when it does not hold exactly that."""
         if self._held.get(path) != session:
-            return False
+            return Fault.RELEASE_UNHELD in self.faults  # fault: release-unheld
         del self._held[path]
         return True
 

@@ -18,6 +18,7 @@ from rcmlconf.rctp.datastream.flow import Direction
 from rcmlconf.rctp.datastream.values import stream_codec
 from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
 from rcmlconf.reference.drivers import Driver
+from rcmlconf.reference.faults import Fault
 from rcmlconf.reference.server.privileges import Privileges
 from rcmlconf.values import Value
 
@@ -44,9 +45,11 @@ class Robot:
         session_timeout: int = DEFAULT_SESSION_TIMEOUT,
         unix_offset: float = 0.0,
         random_bytes: Callable[[int], bytes] = os.urandom,
+        faults: frozenset[Fault] = frozenset(),
     ) -> None:
         """`data_port` is the UDP port every session's data stream uses (D-RCTP-28);
-        `unix_offset` turns `now` into Unix time, for data-stream timestamps."""
+        `unix_offset` turns `now` into Unix time, for data-stream timestamps; `faults` are
+        none but to test a conformance harness (`reference.faults`)."""
         self.model = model
         self.site_path = model.site.path or "/"
         self.driver = driver
@@ -54,7 +57,8 @@ class Robot:
         self.session_timeout = session_timeout
         self.unix_offset = unix_offset
         self.random_bytes = random_bytes
-        self.privileges = Privileges()
+        self.faults = faults
+        self.privileges = Privileges(faults)
         #: Open sessions by ID, and by their data-stream tag (the adapter's demultiplexer).
         self.sessions: dict[str, ServerSession] = {}
         self.by_tag: dict[int, ServerSession] = {}
@@ -126,7 +130,8 @@ class Robot:
         """The session is over: its privileges go (R-RCTP-36), its watches and tag too."""
         if session_id is not None:
             self.sessions.pop(session_id, None)
-            self.privileges.release_all(session_id)
+            if Fault.PRIVILEGES_KEPT not in self.faults:  # fault: privileges-kept
+                self.privileges.release_all(session_id)
         if tag is not None:
             self.by_tag.pop(tag, None)
         for watchers in self._watchers.values():
@@ -163,7 +168,8 @@ class Robot:
         self._bodies.clear()
         for access, names in by_access.items():
             for session in tuple(self._watchers.get(access, ())):
-                if session is not by:
+                # fault: echo-own-writes
+                if session is not by or Fault.ECHO_OWN_WRITES in self.faults:
                     session.note_changes(access, names, now)
                     self._touched.add(session)
 

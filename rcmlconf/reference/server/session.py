@@ -17,6 +17,7 @@ import logging
 from collections import deque
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from functools import partial
 
 from rcmlconf import __version__
 from rcmlconf.errors import ProtocolError, ValueTextError
@@ -41,6 +42,8 @@ from rcmlconf.rctp.messages import TEXT_TYPE, VALUES_TYPE, Request
 from rcmlconf.rctp.states import Role, SessionState, StreamState
 from rcmlconf.rctp.targets import STAR, Target, format_target
 from rcmlconf.reference.ends import SessionEnd
+from rcmlconf.reference.faults import STREAM_FAULTS, Fault
+from rcmlconf.reference.server.faulty_stream import FaultyEndpoint
 from rcmlconf.reference.server.robot import Robot
 from rcmlconf.wording import shorten
 
@@ -78,6 +81,8 @@ class ServerSession(SessionEnd):
         super().__init__(Role.SERVER, now)
         self.robot = robot
         self.peer = peer
+        #: `reference.faults`: none but to test a conformance harness.
+        self.faults = robot.faults
         self.id: str | None = None
         #: Stream accesses set up, by path; a stream keeps its id after STOP (D-RCTP-28).
         self._streams: dict[str, _StreamSetUp] = {}
@@ -119,7 +124,10 @@ class ServerSession(SessionEnd):
                 log.info("%s session timed out: BYE", self._who())
             elif isinstance(event, ProtocolFailure):
                 log.info("%s %s [%s]", self._who(), event.error.reason, event.error.rule)
-                self._end()
+                if Fault.OPEN_AFTER_BAD_FRAMING in self.faults:  # fault: open-after-bad-framing
+                    self.conn.session_state = SessionState.CLOSED  # the connection stays open
+                else:
+                    self._end()
             elif isinstance(event, SessionEnded | ConnectionClosed):
                 self._end()
         endpoint = self.endpoint
@@ -198,6 +206,8 @@ class ServerSession(SessionEnd):
             )
         if self.id is None:
             self.id = self.robot.open_session(self)
+        elif Fault.REFRESH_REFUSED in self.faults:  # fault: refresh-refused
+            raise Refused(455, "this connection has a session already", "R-RCTP-22")
         session = f"{self.id};timeout={self.robot.session_timeout}"
         return 200, [("Session", session), ("Server", PRODUCT)], b""
 
@@ -215,7 +225,8 @@ class ServerSession(SessionEnd):
             if Direction.WRITE in MODE_DIRECTIONS[setup.mode]
             and (target.is_session or is_within(path, target.path))
         ]
-        if writing:  # R-RCTP-35: the stream would write without the privilege
+        # R-RCTP-35: the stream would write without the privilege; fault: release-while-writing
+        if writing and Fault.RELEASE_WHILE_WRITING not in self.faults:
             raise Refused(455, f"{writing[0]} is set up for writing: STOP it first", "R-RCTP-35")
         if target.is_session:
             self.robot.privileges.release_all(self._session_id())
@@ -252,6 +263,9 @@ class ServerSession(SessionEnd):
         for node in nodes:
             problem = node.out_of_range(values[node.name])
             if problem is not None:
+                if Fault.PARTIAL_WRITE in self.faults:  # fault: partial-write
+                    fine = [n for n in nodes if n.out_of_range(values[n.name]) is None]
+                    self.robot.command(self, {n.path: values[n.name] for n in fine}, now)
                 raise Refused(422, problem, "R-RCTP-28")
         self.robot.command(self, {node.path: values[node.name] for node in nodes}, now)
         return 200, [], b""
@@ -268,7 +282,8 @@ class ServerSession(SessionEnd):
             nodes = self._listed(request, self._access(target), needed)
         verb = "read" if needed is Permission.READ else "written"
         for node in nodes:
-            if needed not in node.permission:  # R-RCTP-27
+            # R-RCTP-27; fault: permission-ignored
+            if needed not in node.permission and Fault.PERMISSION_IGNORED not in self.faults:
                 raise Refused(
                     403, f"{node.path} may not be {verb} ({node.permission.to_text()})", "R-RCTP-27"
                 )
@@ -301,6 +316,8 @@ class ServerSession(SessionEnd):
         """R-RCTP-34: writing needs the privilege of the path."""
         holder = self.robot.privileges.holder(path)
         if holder is None:
+            if Fault.WRITE_WITHOUT_ACQUIRE in self.faults:  # fault: write-without-acquire
+                return
             raise Refused(470, f"ACQUIRE {path} (or a path above it) first", "R-RCTP-34")
         if holder != self.id:
             raise Refused(471, f"another session holds {path}", "R-RCTP-34")
@@ -318,7 +335,9 @@ class ServerSession(SessionEnd):
             stream = self._stream_ids[access.path] = len(self._stream_ids) + 1
         assert transport.client_port is not None
         endpoint = self._endpoint(now)
-        endpoint.peer = (self.peer[0], transport.client_port)  # R-RCTP-56
+        # fault: first-client-port
+        if Fault.FIRST_CLIENT_PORT not in self.faults or endpoint.peer is None:
+            endpoint.peer = (self.peer[0], transport.client_port)  # R-RCTP-56
         endpoint.add_stream(stream, access, transport.mode)
         self._streams[access.path] = _StreamSetUp(access, stream, transport.mode)
         answer = Transport(
@@ -357,7 +376,9 @@ class ServerSession(SessionEnd):
     def _endpoint(self, now: float) -> Endpoint:
         if self.endpoint is None:
             robot = self.robot
-            self.endpoint = Endpoint(
+            faults = self.faults & STREAM_FAULTS  # fault: the data stream's (faulty_stream)
+            make = partial(FaultyEndpoint, faults) if faults else Endpoint
+            self.endpoint = make(
                 Role.SERVER,
                 robot.new_tag(self),
                 first_sequence=int.from_bytes(robot.random_bytes(2), "big"),  # R-RCTP-41
@@ -382,7 +403,7 @@ class ServerSession(SessionEnd):
         kind = self._node_kind(request, target)
         if kind is TargetKind.EVENT_ACCESS:
             self.robot.unwatch(self, target.path)
-        else:
+        elif Fault.PAUSE_IGNORED not in self.faults:  # fault: pause-ignored
             assert self.endpoint is not None
             self.endpoint.pause(self._streams[target.path].stream)
         return 200, [], b""
@@ -425,6 +446,8 @@ class ServerSession(SessionEnd):
         setup = self._stream_by_id(stream)
         if setup is None or self.endpoint is None:
             return
+        if Fault.NO_TIMEOUT_STOP in self.faults:  # fault: no-timeout-stop
+            return
         self.endpoint.pause(stream)
         self._stops.append((format_target(setup.access.path), "timeout"))
         log.info("%s %s: no DATA for its timeout: STOP", self._who(), setup.access.path)
@@ -446,6 +469,8 @@ class ServerSession(SessionEnd):
         room = MAX_UNANSWERED - sum(
             1 for r in conn.requests_unanswered if r.method in ("WRITE", "STOP")
         )
+        if Fault.UNBOUNDED_PUSHES in self.faults:  # fault: unbounded-pushes
+            room = len(self._stops) + len(self._changes)
         while room > 0 and (self._stops or self._changes):
             if self._stops:
                 target, reason = self._stops.popleft()
@@ -459,6 +484,8 @@ class ServerSession(SessionEnd):
     def _push(self, access_path: str, names: set[str], now: float) -> None:
         """A data-change event: WRITE of the access with the changed nodes' newest values."""
         if self.conn.streams.get(access_path) is not StreamState.PLAYING:
+            return
+        if Fault.NO_CHANGE_PUSH in self.faults:  # fault: no-change-push
             return
         access = self.robot.model.node(access_path)
         assert isinstance(access, AccessNode)

@@ -21,7 +21,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from rcmlconf.errors import ProtocolError
-from rcmlconf.rctp.datastream.order import Arrival
+from rcmlconf.rctp.datastream.order import Arrival, SequenceTracker
+from rcmlconf.reference.faults import Fault
 from rcmlconf.rsp.codec import (
     CLEAR_BUFFER,
     Bye,
@@ -88,7 +89,9 @@ class RobotEndpoint:
         psk: bytes | None = None,
         min_period: float | None = None,
         random: Callable[[int], bytes] = os.urandom,
+        faults: frozenset[Fault] = frozenset(),
     ) -> None:
+        """`faults` are none but to test a conformance harness (`reference.faults`)."""
         if any(e is not Encryption.NONE for e in encryptions) and psk is None:
             raise ValueError("encrypted sessions need the robot's pre-shared key")
         self.model = model
@@ -97,6 +100,7 @@ class RobotEndpoint:
         self._psk = psk
         self._min_period_ms = round((model.period if min_period is None else min_period) * 1000)
         self._random = random
+        self.faults = faults
         self._ids = 1 << (8 * model.id_length)
         self.session: _Session | None = None
         self._out: list[tuple[bytes, Address]] = []
@@ -117,6 +121,8 @@ class RobotEndpoint:
 
     @property
     def free_buffers(self) -> int:
+        if Fault.FREE_BUFFERS_STUCK in self.faults:  # fault: free-buffers-stuck
+            return self.model.command_buffers
         return self.model.command_buffers - len(self._buffer)
 
     def set_state(self, name: str, values: Mapping[str, Value]) -> None:
@@ -193,10 +199,14 @@ class RobotEndpoint:
             return
         silence = session.live.check(now)
         if silence is Silence.TIMEOUT:
+            if Fault.SILENT_TIMEOUT in self.faults:  # fault: silent-timeout
+                self._end(events.SessionClosed(ByeReason.TIMEOUT, by_peer=False))
+                return
             self._bye(ByeReason.TIMEOUT, now)
             return
         if silence is Silence.LOST:
-            session.motion.lose_link()  # R-RSP-36
+            if Fault.NO_STOP_ON_LOSS not in self.faults:  # fault: no-stop-on-loss
+                session.motion.lose_link()  # R-RSP-36
             self._events.append(events.LinkLost())
         if session.beat.due(now):
             self._uplink(session, now)
@@ -211,12 +221,19 @@ class RobotEndpoint:
 
     def _receive(self, data: bytes, peer: Address, now: float) -> None:
         session = self.session
-        if session is None or peer != session.peer or data[4:5] == _HELLO:
+        # fault: source-unchecked
+        if (
+            session is None
+            or (peer != session.peer and Fault.SOURCE_UNCHECKED not in self.faults)
+            or data[4:5] == _HELLO
+        ):
             header = pull_header(data)
             if header.type is not PacketType.HELLO:
                 raise ProtocolError(f"a {header.type.name} from outside a session", 4, "R-RSP-18")
             self._hello(header, data, peer, now)
             return
+        if self.faults:
+            data = self._faulty_read(session, data)  # fault: those of _faulty_read
         packet, arrival = session.wire.read(data, self._psk)
         header, body = packet
         if session.live.heard(now):
@@ -263,7 +280,8 @@ class RobotEndpoint:
         session = self.session
         if session is not None and session.peer == peer:
             if hello.client_nonce == session.client_nonce:
-                self._out.append((session.welcome, peer))
+                if Fault.NO_RETRANSMISSION not in self.faults:  # fault: no-retransmission
+                    self._out.append((session.welcome, peer))
                 return
             # The same local system with a new nonce lost its session: the new one replaces it.
             self._end(events.SessionClosed(ByeReason.CLOSED, by_peer=True))
@@ -309,7 +327,7 @@ class RobotEndpoint:
         byte, so that a local system of another model reads it too."""
         refused = Header(
             1,
-            header.model_id,
+            self.model.model_id if Fault.REFUSED_OWN_MODEL in self.faults else header.model_id,
             header.encryption,
             PacketType.REFUSED,
             0,
@@ -326,18 +344,24 @@ class RobotEndpoint:
     ) -> None:
         devices = self.model.devices
         if arrival is Arrival.NEWER:
-            if header.buffer & CLEAR_BUFFER:  # R-RSP-33: before the payloads
+            # R-RSP-33: before the payloads; fault: clear-buffer-ignored
+            if header.buffer & CLEAR_BUFFER and Fault.CLEAR_BUFFER_IGNORED not in self.faults:
                 self._buffer.clear()
             flags = {item.device for item in body.items if item.values is None and item.id is None}
             session.active_modules = frozenset(p for p in flags if devices[p].kind is _K.MODULE)
             session.requested = frozenset(flags) - session.active_modules
+            if Fault.UNREQUESTED_REPORTED in self.faults:  # fault: unrequested-reported
+                session.requested |= self._reported
         acks = []
         for item in body.items:
             found = devices[item.device]
             if item.id is not None:
                 assert item.values is not None
                 if self._occurrence(session, item.device, item.id, item.values):
-                    acks.append(Item(item.device, item.id))  # R-RSP-26
+                    ack = Item(item.device, item.id)  # R-RSP-26
+                    if Fault.ACK_NEXT_ID in self.faults:  # fault: ack-next-id
+                        ack = Item(item.device, (item.id + 1) % self._ids)
+                    acks.append(ack)
             elif item.values is not None and arrival is Arrival.NEWER and self._in_active(found):
                 session.motion.receive(found, item.values, header.timestamp, now)
                 self._events.append(events.StateReceived(found.name, item.values, header.timestamp))
@@ -349,8 +373,9 @@ class RobotEndpoint:
     ) -> bool:
         """Take a command or memory command once (R-RSP-25); whether to acknowledge it."""
         found = self.model.devices[position]
-        if not session.commands.is_new(position, ident):
-            return True  # seen before: acknowledged again, its sender still waits
+        # fault: duplicates-taken (every occurrence is new), repeat-not-acked (no ACK again)
+        if not (session.commands.is_new(position, ident) or Fault.DUPLICATES_TAKEN in self.faults):
+            return Fault.REPEAT_NOT_ACKED not in self.faults  # seen before: acknowledged again
         if found.kind is _K.MEMORY_COMMAND:
             if not self.free_buffers:  # R-RSP-31: neither taken nor acknowledged
                 return False
@@ -387,6 +412,8 @@ class RobotEndpoint:
 
     def _send(self, session: _Session, kind: PacketType, body: Body, now: float) -> None:
         data = session.wire.build(kind, body, now, self.free_buffers, self._psk)
+        if Fault.SEQUENCE_FROZEN in self.faults:  # fault: sequence-frozen
+            session.wire.sent -= 1
         self._out.append((data, session.peer))
 
     def _uplink(self, session: _Session, now: float) -> None:
@@ -399,6 +426,8 @@ class RobotEndpoint:
             position = occurrence.device.position
             items[position] = Item(position, occurrence.id, occurrence.values)
         due = self._memory_events.due(now, lambda found: True)
+        if Fault.NO_RETRANSMISSION in self.faults:  # fault: no-retransmission
+            due = [occurrence for occurrence in due if occurrence.last_sent is None]
         for occurrence in due:
             position = occurrence.device.position
             items[position] = Item(position, occurrence.id, occurrence.values)
@@ -407,6 +436,17 @@ class RobotEndpoint:
         session.beat.sent()
         self._send(session, PacketType.UPLINK, MapBody(tuple(items[p] for p in sorted(items))), now)
         self._memory_events.sent(due, now)
+
+    # -- faults (reference.faults), none but to test a conformance harness --------------------
+
+    def _faulty_read(self, session: _Session, data: bytes) -> bytes:
+        """What the faults of reading a session's packet make of it before it is read."""
+        if Fault.REPLAY_WINDOW_OFF in self.faults:  # fault: replay-window-off
+            session.wire.tracker = SequenceTracker()  # every packet is the first, so newer
+        if Fault.SESSION_ID_UNCHECKED in self.faults and len(data) >= 17:
+            # fault: session-id-unchecked: whatever the packet names, it is the session's
+            data = data[:11] + session.wire.session_id.to_bytes(6, "big") + data[17:]
+        return data
 
     def _bye(self, reason: ByeReason, now: float) -> None:
         session = self.session

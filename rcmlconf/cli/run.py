@@ -1,0 +1,414 @@
+"""`rcmlconf run`: the conformance suite against an implementation, or the embedded reference."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import logging
+import sys
+import time
+from collections.abc import AsyncIterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import click
+
+from rcmlconf.cli.console import Output
+from rcmlconf.cli.rsp_options import parse_address
+from rcmlconf.conformance.ics import EVERYTHING, Ics, IcsError, load_ics
+from rcmlconf.conformance.probes.clients import ClientListener
+from rcmlconf.conformance.registry import Case, all_cases, select
+from rcmlconf.conformance.reports.baseline import BaselineError, load_baseline, mark_known
+from rcmlconf.conformance.reports.json_report import to_json
+from rcmlconf.conformance.reports.junit import to_junit
+from rcmlconf.conformance.reports.summary import counts, explain, new_failures
+from rcmlconf.conformance.runner import RunOptions, run_cases, under_test
+from rcmlconf.conformance.targets import REFERENCE_RCML, Target, embedded_reference
+from rcmlconf.conformance.verdicts import Result, Verdict
+from rcmlconf.impair.spec import ImpairmentError, parse_impairment
+from rcmlconf.rcml.model import RcmlDocument
+from rcmlconf.rctp.url import DEFAULT_PORT as RCTP_PORT
+from rcmlconf.validate.validator import InvalidRobot, load_robot, load_robot_model
+
+#: D-RSP-9.
+RSP_PORT = 7340
+_STYLE = {
+    Verdict.PASS: "green",
+    Verdict.FAIL: "bold red",
+    Verdict.INCONCLUSIVE: "yellow",
+    Verdict.NOT_APPLICABLE: "dim",
+    Verdict.ERROR: "magenta",
+}
+
+
+def _address(default_port: int) -> Any:
+    def convert(ctx: click.Context, param: click.Parameter, value: str | None) -> Any:
+        return None if value is None else parse_address(value, default_port)
+
+    return convert
+
+
+@click.command()
+@click.option(
+    "--target",
+    metavar="HOST[:PORT]",
+    callback=_address(RCTP_PORT),
+    help=f"An RCTP/2.0 server under test (port {RCTP_PORT} by default).",
+)
+@click.option(
+    "--rcml",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    help="The RCML file of --target's robot: the cases pick its nodes from it.",
+)
+@click.option("--site", metavar="PATH", help="--target's site path (default: the RCML's).")
+@click.option(
+    "--rsp-target",
+    metavar="HOST[:PORT]",
+    callback=_address(RSP_PORT),
+    help=f"An RSP robot under test (port {RSP_PORT} by default); needs --model.",
+)
+@click.option(
+    "--model",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    help="The robot model (.rmodel) of --rsp-target.",
+)
+@click.option(
+    "--ics",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    help="Implementation conformance statement (TOML): optional features the target lacks.",
+)
+@click.option(
+    "--role",
+    type=click.Choice(["server", "client"]),
+    default="server",
+    show_default=True,
+    help="client: the harness plays the server and tests the RCTP client that connects to"
+    " --listen, once per case (reconnect it after each).",
+)
+@click.option(
+    "--listen",
+    metavar="[HOST:]PORT",
+    help="With --role client: where the client under test connects (127.0.0.1 by default).",
+)
+@click.option("--list", "list_only", is_flag=True, help="List the cases that would run; run none.")
+@click.option("--only", multiple=True, metavar="GLOB", help="Run the cases whose ID matches.")
+@click.option("--skip", multiple=True, metavar="GLOB", help="Leave out the cases whose ID matches.")
+@click.option("--repeat", type=click.IntRange(1, 1000), default=1, show_default=True)
+@click.option(
+    "--timeout-scale",
+    type=click.FloatRange(0.1, 100),
+    default=1.0,
+    show_default=True,
+    help="Multiply every case's timeout (a slow target, a loaded CI machine).",
+)
+@click.option("--seed", type=int, default=0, show_default=True, help="Seeds every impairment.")
+@click.option(
+    "--impair",
+    metavar="SPEC",
+    help="Impair every UDP flow: loss=5%,burst=3,delay=40ms,jitter=10ms,reorder=2%,...",
+)
+@click.option(
+    "--concurrency",
+    type=click.IntRange(1, 256),
+    default=16,
+    show_default=True,
+    help="Cases in flight at once (those that share state run alone).",
+)
+@click.option("--junit", type=click.Path(dir_okay=False, path_type=Path), help="JUnit XML here.")
+@click.option(
+    "--json", "json_file", type=click.Path(dir_okay=False, path_type=Path), help="JSON here."
+)
+@click.option(
+    "--baseline",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    help="Known failures (case IDs a line, or an earlier --json): only new ones fail the run.",
+)
+@click.option(
+    "--capture",
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Write a pcap of each case's traffic into this directory (rcmlconf dissect reads it).",
+)
+@click.option("-v", "--verbose", is_flag=True, help="A line for every case, passes too.")
+def run(
+    target: tuple[str, int] | None,
+    rcml: Path | None,
+    site: str | None,
+    rsp_target: tuple[str, int] | None,
+    model: Path | None,
+    ics: Path | None,
+    role: str,
+    listen: str | None,
+    list_only: bool,
+    only: tuple[str, ...],
+    skip: tuple[str, ...],
+    repeat: int,
+    timeout_scale: float,
+    seed: int,
+    impair: str | None,
+    concurrency: int,
+    junit: Path | None,
+    json_file: Path | None,
+    baseline: Path | None,
+    capture: Path | None,
+    verbose: bool,
+) -> None:
+    """Run the conformance cases against an implementation and give each a verdict.
+
+    With no target, the embedded reference implementation (an RCTP/2.0 server of the rover
+    robot and RSP robots of the CUBO model) is started and tested: every case passes there.
+
+    Verdicts: pass; fail (the target broke the requirement named); inconclusive (the case could
+    not tell); not applicable (the target lacks an optional feature, or the robot a kind of
+    node); error (the harness or the network failed, not the target).
+
+    Exit status: 0 when nothing failed but what --baseline lists, 1 when a case failed, 2 for a
+    usage error or when the harness could not do its job.
+
+    \b
+    Examples:
+      rcmlconf run                                   # the embedded reference
+      rcmlconf run --target robot.local --rcml rover.rcml --junit report.xml
+      rcmlconf run --rsp-target 10.0.0.7 --model cubo.rmodel --only 'rsp/*'
+      rcmlconf run --only 'rctp/msg/*' --repeat 20 --impair loss=5%,reorder=2% --seed 7
+      rcmlconf run --role client --listen 7330 --timeout-scale 3   # then start your client
+      rcmlconf run --list
+    """
+    output = Output()
+    try:
+        declared = load_ics(ics) if ics is not None else EVERYTHING
+        known = load_baseline(baseline) if baseline is not None else frozenset()
+        impairment = parse_impairment(impair) if impair is not None else None
+    except (IcsError, BaselineError, ImpairmentError) as error:
+        raise click.UsageError(str(error)) from None
+    if rsp_target is not None and model is None:
+        raise click.UsageError("--rsp-target needs the robot's --model")
+    if role == "client":
+        if listen is None:
+            raise click.UsageError("--role client needs --listen PORT for the client to connect")
+        if target is not None or rsp_target is not None:
+            raise click.UsageError("--role client tests a client: leave out --target/--rsp-target")
+    elif listen is not None:
+        raise click.UsageError("--listen is for --role client")
+    elif (rcml is not None or site is not None) and target is None:
+        raise click.UsageError("--rcml and --site describe --target: give --target too")
+    registry = all_cases()
+    chosen = select(registry.values(), only, skip)
+    if not chosen:
+        raise click.UsageError("no case matches --only/--skip (rcmlconf run --list shows them)")
+    if list_only:
+        _list(output, chosen)
+        return
+    options = RunOptions(timeout_scale, seed, concurrency, repeat, impairment, capture)
+    if capture is not None:
+        try:
+            capture.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise click.UsageError(f"--capture {capture}: {error}") from None
+    external: Target | ClientTarget | None = None
+    if target is not None or rsp_target is not None:
+        external = _external(output, target, rcml, site, rsp_target, model, declared)
+    elif listen is not None:
+        robot = _robot(rcml) if rcml is not None else load_robot(REFERENCE_RCML)
+        address = listen if ":" in listen else f"127.0.0.1:{listen}"
+        external = ClientTarget(parse_address(address, RCTP_PORT), robot, declared.features)
+    if external is None:
+        _quiet_reference()
+    started = time.time()
+    try:
+        tested, results = asyncio.run(_run(external, declared, chosen, options, output, verbose))
+    except OSError as error:
+        output.problem("run", f"cannot start the embedded reference: {error}")
+        sys.exit(2)
+    results = mark_known(results, known)
+    settings = {"seed": seed, "repeat": repeat, "timeout_scale": timeout_scale, "impair": impair}
+    _write_reports(output, results, registry, tested, settings, started, junit, json_file)
+    _report(output, results, registry, tested)
+    sys.exit(_exit_status(results))
+
+
+async def _run(
+    external: Target | ClientTarget | None,
+    declared: Ics,
+    chosen: Sequence[Case],
+    options: RunOptions,
+    output: Output,
+    verbose: bool,
+) -> tuple[Target, list[Result]]:
+    async with _target(external, declared) as target:
+        cases = [c for c in chosen if under_test(c, target)]
+        if len(cases) < len(chosen):
+            output.notice(
+                f"{len(chosen) - len(cases)} of the cases chosen test a role {target.name} "
+                "does not play (give --target or --rsp-target); they are left out"
+            )
+        with output.progress(len(cases) * options.repeat, "cases") as step:
+
+            def done(result: Result) -> None:
+                step(f"{result.verdict.value}: {result.case}")
+                if verbose or result.verdict in (Verdict.FAIL, Verdict.ERROR):
+                    output.live(
+                        [
+                            (f"{result.verdict.value:>14} ", _STYLE[result.verdict]),
+                            (result.case, "bold"),
+                            (f"  {result.reason}", "dim"),
+                        ]
+                    )
+
+            results = await run_cases(cases, target, options, done)
+        return target, results
+
+
+def _quiet_reference() -> None:
+    """The embedded reference's own logs (a dropped packet a case sent on purpose) are not the
+    run's output: the verdicts say what happened."""
+    quiet = logging.getLogger("rcmlconf")
+    quiet.addHandler(logging.NullHandler())
+    quiet.propagate = False
+
+
+@contextlib.asynccontextmanager
+async def _target(external: Target | ClientTarget | None, declared: Ics) -> AsyncIterator[Target]:
+    if isinstance(external, ClientTarget):
+        listener = ClientListener()
+        await listener.start(*external.listen)
+        try:
+            host, port = listener.address
+            yield Target(
+                robot=external.robot,
+                site_path=external.robot.site.path,
+                clients=listener,
+                features=external.features,
+                name=f"the client connecting to {host}:{port}",
+            )
+        finally:
+            await listener.close()
+        return
+    if external is not None:
+        yield external
+        return
+    async with embedded_reference(declared.features) as reference:
+        yield reference
+
+
+def _external(
+    output: Output,
+    target: tuple[str, int] | None,
+    rcml: Path | None,
+    site: str | None,
+    rsp_target: tuple[str, int] | None,
+    model: Path | None,
+    declared: Ics,
+) -> Target:
+    robot = _robot(rcml) if rcml is not None else None
+    try:
+        rsp_model = load_robot_model(model) if model is not None else None
+    except InvalidRobot as error:
+        raise click.UsageError(str(error)) from None
+    if target is not None and robot is None:
+        output.notice("no --rcml: the cases that need the robot's nodes are not applicable")
+    names = []
+    for address in (target, rsp_target):
+        if address is not None:
+            names.append(f"{address[0]}:{address[1]}")
+    return Target(
+        server=target,
+        robot=robot,
+        site_path=site or (robot.site.path if robot is not None else "/"),
+        rsp=(rsp_target,) if rsp_target is not None else (),
+        rsp_model=rsp_model,
+        rsp_psk=declared.psk,
+        features=declared.features,
+        name=" and ".join(names),
+    )
+
+
+@dataclass(frozen=True)
+class ClientTarget:
+    """--role client: where to listen, and the robot the harness serves."""
+
+    listen: tuple[str, int]
+    robot: RcmlDocument
+    features: frozenset[str]
+
+
+def _robot(rcml: Path) -> RcmlDocument:
+    try:
+        return load_robot(rcml)
+    except InvalidRobot as error:
+        raise click.UsageError(str(error)) from None
+
+
+def _list(output: Output, cases: Sequence[Case]) -> None:
+    for case in cases:
+        output.out.line(
+            [
+                (case.id, "bold"),
+                (f"  [{', '.join(case.requirements)}]", "cyan"),
+                (f" ({case.role.value}) ", "dim"),
+                (case.purpose, ""),
+            ]
+        )
+    output.summary(f"{len(cases)} cases", True)
+
+
+def _write_reports(
+    output: Output,
+    results: list[Result],
+    registry: dict[str, Case],
+    target: Target,
+    settings: dict[str, Any],
+    started: float,
+    junit: Path | None,
+    json_file: Path | None,
+) -> None:
+    try:
+        if junit is not None:
+            junit.write_bytes(to_junit(results, registry, started))
+        if json_file is not None:
+            report = to_json(results, registry, target.name, settings)
+            json_file.write_text(json.dumps(report, indent=2, ensure_ascii=False) + "\n")
+    except OSError as error:
+        output.problem("run", f"cannot write the report: {error}")
+        sys.exit(2)
+
+
+def _report(
+    output: Output, results: list[Result], registry: dict[str, Case], target: Target
+) -> None:
+    from rcmlconf.specs import requirements
+
+    texts = requirements()
+    for result in results:
+        if result.verdict not in (Verdict.FAIL, Verdict.ERROR):
+            continue
+        label = f"{result.verdict.value.upper()}{' (known)' if result.known else ''}"
+        output.out.line([(label, _STYLE[result.verdict]), (f" {result.case}", "bold")])
+        for name, text in explain(result, registry[result.case], texts):
+            output.out.line([(f"  {name:>11}  ", "dim"), (text, "")])
+    _table(output, results, registry)
+    found = counts(results)
+    fresh = new_failures(results)
+    line = ", ".join(f"{n} {v.value}" for v, n in found.items() if n)
+    output.summary(f"{target.name}: {len(results)} results: {line}", not fresh)
+
+
+def _table(output: Output, results: list[Result], registry: dict[str, Case]) -> None:
+    """Verdicts by area: one row an area, one column a verdict."""
+    areas: dict[str, list[Result]] = {}
+    for result in results:
+        areas.setdefault(registry[result.case].area, []).append(result)
+    header = "".join(f"{v.value:>15}" for v in Verdict)
+    output.err.line([(f"{'area':<16}{header}", "bold")])
+    for area, members in sorted(areas.items()):
+        found = counts(members)
+        cells = [(f"{found[v] or '':>15}", _STYLE[v] if found[v] else "") for v in Verdict]
+        output.err.line([(f"{area:<16}", ""), *cells])
+
+
+def _exit_status(results: list[Result]) -> int:
+    fresh = new_failures(results)
+    if any(r.verdict is Verdict.FAIL for r in fresh):
+        return 1
+    return 2 if fresh else 0

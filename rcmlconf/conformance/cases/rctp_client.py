@@ -1,0 +1,203 @@
+"""rctp/client: an RCTP/2.0 client under test, the harness playing its server (`--role client`):
+how it answers the server's WRITE, STOP and BYE and what it does with broken answers
+(specs/rctp-2.0.md D-RCTP-5, D-RCTP-12, D-RCTP-26; R-RCTP-1 to R-RCTP-24)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.control import ControlProbe
+from rcmlconf.conformance.registry import CaseFunction, Role, case
+from rcmlconf.rcml.model import AccessType
+from rcmlconf.rctp.messages import Response
+from rcmlconf.rctp.targets import format_target
+
+
+def client_case(
+    id: str, purpose: str, requirements: list[str]
+) -> Callable[[CaseFunction], CaseFunction]:
+    """A client case: one connection at a time, so never two at once."""
+    return case(id, purpose, requirements, role=Role.CLIENT, serial=True)
+
+
+async def answer_to(ctx: Context, probe: ControlProbe, data: bytes) -> Response:
+    """Send one of the server's requests as `data`; the client's answer."""
+    await probe.send(data)
+    found = await probe.message()
+    ctx.expect(found is not None, "an answer", "the client closed the connection", "R-RCTP-24")
+    ctx.expect(isinstance(found, Response), "a response", f"{found}", "R-RCTP-24")
+    assert isinstance(found, Response)
+    return found
+
+
+def event_path(ctx: Context) -> str:
+    return format_target(ctx.access(AccessType.EVENT).path)
+
+
+@client_case(
+    "rctp/client/connect-first",
+    "The client's first request is CONNECT of the site path, RCTP/2.0, CSeq 1",
+    ["R-RCTP-2", "R-RCTP-4"],
+)
+async def connect_first(ctx: Context) -> None:
+    probe = await ctx.client()
+    request = await probe.next_request(requirement="R-RCTP-4")
+    ctx.expect(request.method == "CONNECT", "CONNECT", request.method, "R-RCTP-4")
+    ctx.expect(request.version == "RCTP/2.0", "RCTP/2.0", request.version, "R-RCTP-2")
+    cseq = request.headers.get("CSeq")
+    ctx.expect(cseq == "1", "CSeq: 1", f"CSeq: {cseq}", "R-RCTP-4")
+
+
+@client_case(
+    "rctp/client/answers-bye",
+    "The client answers the server's BYE with 200, its CSeq and the session",
+    ["R-RCTP-23", "R-RCTP-3", "R-RCTP-19"],
+)
+async def answers_bye(ctx: Context) -> None:
+    probe, _ = await ctx.client_session()
+    answer = await answer_to(ctx, probe, probe.request_bytes("BYE", "*", [("Reason", "shutdown")]))
+    ctx.expect_status(answer, 200, "R-RCTP-23")
+    cseq = answer.headers.get("CSeq")
+    ctx.expect(cseq == "1", "CSeq: 1 (the server's first request)", f"CSeq: {cseq}", "R-RCTP-3")
+    session = answer.headers.get("Session")
+    ctx.expect(session == probe.session, f"Session: {probe.session}", f"{session}", "R-RCTP-19")
+
+
+@client_case(
+    "rctp/client/stop-not-set-up",
+    "The client answers a server STOP of an access it never set up with 455",
+    ["R-RCTP-24"],
+)
+async def stop_not_set_up(ctx: Context) -> None:
+    path = event_path(ctx)
+    probe, _ = await ctx.client_session()
+    answer = await answer_to(ctx, probe, probe.request_bytes("STOP", path, [("Reason", "test")]))
+    ctx.expect_status(answer, 455)
+
+
+@client_case(
+    "rctp/client/write-not-playing",
+    "The client answers a server WRITE of an event access not playing on its side with 455",
+    ["R-RCTP-24"],
+)
+async def write_not_playing(ctx: Context) -> None:
+    path = event_path(ctx)
+    probe, _ = await ctx.client_session()
+    answer = await answer_to(ctx, probe, probe.request_bytes("WRITE", path, body=b"\x00"))
+    ctx.expect_status(answer, 455)
+
+
+@client_case(
+    "rctp/client/wrong-session",
+    "The client answers a server request naming another session with 454",
+    ["R-RCTP-19"],
+)
+async def wrong_session(ctx: Context) -> None:
+    probe, _ = await ctx.client_session()
+    request = probe.request_bytes("BYE", "*", [("Session", "not-this-session-0")])
+    ctx.expect_status(await answer_to(ctx, probe, request), 454)
+
+
+@client_case(
+    "rctp/client/unknown-method",
+    "The client answers a server request with an unknown method with 501",
+    ["R-RCTP-9"],
+)
+async def unknown_method(ctx: Context) -> None:
+    probe, _ = await ctx.client_session()
+    ctx.expect_status(await answer_to(ctx, probe, probe.request_bytes("FROBNICATE", "*")), 501)
+
+
+@client_case(
+    "rctp/client/wrong-version",
+    "The client answers a server request of another version with 505",
+    ["R-RCTP-10"],
+)
+async def wrong_version(ctx: Context) -> None:
+    probe, _ = await ctx.client_session()
+    request = probe.request_bytes("BYE", "*").replace(b"RCTP/2.0", b"RCTP/3.0", 1)
+    ctx.expect_status(await answer_to(ctx, probe, request), 505)
+
+
+@client_case(
+    "rctp/client/missing-cseq",
+    "The client answers a server request without CSeq with 400",
+    ["R-RCTP-11"],
+)
+async def missing_cseq(ctx: Context) -> None:
+    probe, _ = await ctx.client_session()
+    request = f"BYE * RCTP/2.0\r\nSession: {probe.session}\r\n\r\n".encode()
+    ctx.expect_status(await answer_to(ctx, probe, request), 400)
+
+
+@client_case(
+    "rctp/client/pipelined",
+    "Two server requests in one segment are answered in order, each with its CSeq",
+    ["R-RCTP-13", "R-RCTP-5"],
+)
+async def pipelined(ctx: Context) -> None:
+    path = event_path(ctx)
+    probe, _ = await ctx.client_session()
+    stop = probe.request_bytes("STOP", path, [("Reason", "test")])
+    bye = probe.request_bytes("BYE", "*", [("Reason", "shutdown")])
+    first = await answer_to(ctx, probe, stop + bye)
+    second = await probe.response()
+    for answer, cseq, status in ((first, "1", 455), (second, "2", 200)):
+        found = answer.headers.get("CSeq")
+        ctx.expect(found == cseq, f"CSeq: {cseq}", f"CSeq: {found}", "R-RCTP-5")
+        ctx.expect_status(answer, status, "R-RCTP-13")
+
+
+@client_case(
+    "rctp/client/split-answer",
+    "The client takes a CONNECT answer written one byte a segment, and goes on",
+    ["R-RCTP-13"],
+)
+async def split_answer(ctx: Context) -> None:
+    probe = await ctx.client()
+    connect = await probe.next_request()
+    probe.session = "split0123456789"
+    for byte in probe.response_bytes(connect, fields=[("Session", f"{probe.session};timeout=60")]):
+        await probe.send(bytes([byte]))
+    answer = await answer_to(ctx, probe, probe.request_bytes("BYE", "*", [("Reason", "shutdown")]))
+    ctx.expect_status(answer, 200)
+
+
+@client_case(
+    "rctp/client/unknown-field",
+    "The client ignores a header field it does not know in the CONNECT answer",
+    ["R-RCTP-14"],
+)
+async def unknown_field(ctx: Context) -> None:
+    probe = await ctx.client()
+    connect = await probe.next_request()
+    probe.session = "fields0123456789"
+    fields = [("Session", f"{probe.session};timeout=60"), ("X-Rcmlconf-Probe", "ignore me")]
+    await probe.answer(connect, fields=fields)
+    answer = await answer_to(ctx, probe, probe.request_bytes("BYE", "*", [("Reason", "shutdown")]))
+    ctx.expect_status(answer, 200)
+
+
+@client_case(
+    "rctp/client/unframeable-answer",
+    "The client closes the connection on an answer that cannot be framed",
+    ["R-RCTP-12"],
+)
+async def unframeable_answer(ctx: Context) -> None:
+    probe = await ctx.client()
+    await probe.next_request()
+    await probe.send(b"RCTP/2.0 two hundred OK\r\nCSeq: 1\r\n\r\n")
+    ctx.expect(await probe.closes(), "the connection closed", "it stayed open")
+
+
+@client_case(
+    "rctp/client/answer-of-another-request",
+    "The client closes the connection on an answer whose CSeq is not its request's",
+    ["R-RCTP-12"],
+)
+async def answer_of_another_request(ctx: Context) -> None:
+    probe = await ctx.client()
+    await probe.next_request()
+    await probe.send(b"RCTP/2.0 200 OK\r\nCSeq: 7\r\nSession: other0123456789;timeout=60\r\n\r\n")
+    ctx.expect(await probe.closes(), "the connection closed", "it stayed open")

@@ -1,0 +1,114 @@
+"""rctp/msg: the message grammar and what a server does with bad messages (specs/rctp-2.0.md
+§2, D-RCTP-4 to D-RCTP-10, R-RCTP-1 to R-RCTP-16)."""
+
+from __future__ import annotations
+
+from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.registry import case
+from rcmlconf.rctp.messages import VERSION
+
+
+@case(
+    "rctp/msg/connect",
+    "CONNECT to the site path is answered 200 with CRLF lines, RCTP/2.0 and the request's CSeq",
+    ["R-RCTP-2", "R-RCTP-3"],
+)
+async def connect(ctx: Context) -> None:
+    probe = await ctx.control()
+    answer = await probe.connect(ctx.target.site_path)
+    ctx.expect_status(answer, 200)
+    ctx.expect(answer.version == VERSION, VERSION, answer.version, "R-RCTP-2")
+    ctx.expect(
+        answer.headers.get("CSeq") == "1", "CSeq: 1", str(answer.headers.get("CSeq")), "R-RCTP-3"
+    )
+
+
+@case(
+    "rctp/msg/unknown-method",
+    "A well-framed request with an unknown method is answered 501 and the connection stays open",
+    ["R-RCTP-9"],
+)
+async def unknown_method(ctx: Context) -> None:
+    probe = await ctx.session()
+    answer = await probe.request("FROBNICATE", "/")
+    ctx.expect_status(answer, 501)
+    again = await probe.request("CONNECT", ctx.target.site_path)
+    ctx.expect_status(again, 200, "R-RCTP-9")
+
+
+@case(
+    "rctp/msg/wrong-version",
+    "A request with another version than RCTP/2.0 is answered 505 and the connection stays open",
+    ["R-RCTP-10"],
+)
+async def wrong_version(ctx: Context) -> None:
+    probe = await ctx.session()
+    await probe.send(f"CONNECT {ctx.target.site_path} RCTP/1.0\r\nCSeq: 2\r\n\r\n".encode())
+    answer = await probe.response()
+    ctx.expect_status(answer, 505)
+    probe.cseq = 2
+    again = await probe.request("CONNECT", ctx.target.site_path)
+    ctx.expect_status(again, 200)
+
+
+@case(
+    "rctp/msg/missing-cseq",
+    "A request without CSeq is answered 400",
+    ["R-RCTP-11"],
+)
+async def missing_cseq(ctx: Context) -> None:
+    probe = await ctx.control()
+    await probe.send(f"CONNECT {ctx.target.site_path} RCTP/2.0\r\n\r\n".encode())
+    ctx.expect_status(await probe.response(), 400)
+
+
+@case(
+    "rctp/msg/split-segments",
+    "A request written one byte a segment is answered as if written whole",
+    ["R-RCTP-13"],
+)
+async def split_segments(ctx: Context) -> None:
+    probe = await ctx.control()
+    for byte in probe.request_bytes("CONNECT", ctx.target.site_path):
+        await probe.send(bytes([byte]))
+    ctx.expect_status(await probe.response(), 200)
+
+
+@case(
+    "rctp/msg/pipelined",
+    "Three requests in one segment are answered in order, each with its CSeq",
+    ["R-RCTP-13", "R-RCTP-5"],
+)
+async def pipelined(ctx: Context) -> None:
+    probe = await ctx.session()
+    path = ctx.target.site_path
+    await probe.send(b"".join(probe.request_bytes("CONNECT", path) for _ in range(3)))
+    for expected in (2, 3, 4):
+        answer = await probe.response()
+        ctx.expect_status(answer, 200)
+        cseq = answer.headers.get("CSeq")
+        ctx.expect(cseq == str(expected), f"CSeq: {expected}", f"CSeq: {cseq}", "R-RCTP-5")
+
+
+@case(
+    "rctp/msg/unknown-field",
+    "A request with a header field the server does not know is answered as without it",
+    ["R-RCTP-14"],
+)
+async def unknown_field(ctx: Context) -> None:
+    probe = await ctx.control()
+    answer = await probe.connect(ctx.target.site_path, [("X-Rcmlconf-Probe", "ignore me")])
+    ctx.expect_status(answer, 200)
+
+
+@case(
+    "rctp/msg/bad-request-line",
+    "A request line that does not parse is answered 400 and the connection closed",
+    ["R-RCTP-8"],
+)
+async def bad_request_line(ctx: Context) -> None:
+    probe = await ctx.control()
+    await probe.send(b"CONNECT\r\nCSeq: 1\r\n\r\n")
+    ctx.expect_status(await probe.response(), 400)
+    closed = await probe.closes()
+    ctx.expect(closed, "the connection closed", "it stayed open")

@@ -1,0 +1,426 @@
+"""rctp/session: CONNECT and the session it opens, the Session field, BYE, the session timeout and
+what the end of a session releases (specs/rctp-2.0.md D-RCTP-11, D-RCTP-13, R-RCTP-17 to
+R-RCTP-23, R-RCTP-36)."""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import re
+
+from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.control import ControlProbe, Fields
+from rcmlconf.conformance.registry import case
+from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
+from rcmlconf.rcml.model import AccessType, Permission
+from rcmlconf.rctp.messages import VERSION, Message, Request, Response
+from rcmlconf.rctp.targets import format_target
+
+#: §2.1: session-id = 8*64( ALPHA / DIGIT / "$" / "-" / "_" / "." / "+" ), then the timeout.
+SESSION = re.compile(r"([A-Za-z0-9$\-_.+]{8,64})(?:;[ \t]*timeout=([0-9]{1,5}))?")
+#: The longest session timeout the timeout cases wait for (the embedded reference's is 2 s).
+LONGEST_TIMEOUT = 5
+#: R-RCTP-23: how long the sender of BYE waits for its answer.
+BYE_WAIT = 5.0
+#: A session ID no server hands out, of the right form.
+STRANGER = "rcmlconf-not-a-session"
+
+
+@case(
+    "rctp/session/connect-session-field",
+    "CONNECT is answered 200 with Session: an ID of 8 to 64 characters and a timeout",
+    ["R-RCTP-18"],
+)
+async def connect_session_field(ctx: Context) -> None:
+    probe = await ctx.control()
+    answer = await probe.connect(ctx.target.site_path)
+    ctx.expect_status(answer, 200)
+    _session_field(ctx, answer)
+
+
+@case(
+    "rctp/session/ids-differ",
+    "Sessions of different connections get different IDs that do not look sequential",
+    ["R-RCTP-18", "R-RCTP-19"],
+)
+async def ids_differ(ctx: Context) -> None:
+    ids: list[str] = []
+    for _ in range(4):
+        probe = await ctx.control()
+        answer = await probe.connect(ctx.target.site_path)
+        ctx.expect_status(answer, 200)
+        ids.append(_session_field(ctx, answer)[0])
+    ctx.expect(len(set(ids)) == len(ids), "four different session IDs", ", ".join(ids), "R-RCTP-19")
+    for one, other in itertools.combinations(ids, 2):
+        differing = _differing(one, other)
+        ctx.expect(
+            differing >= max(len(one), len(other)) // 4,
+            "unguessable session IDs (D-RCTP-11): any two differ in a quarter of their characters",
+            f"{one} and {other} differ in {differing}",
+            "R-RCTP-18",
+        )
+
+
+@case(
+    "rctp/session/session-before-connect",
+    "A request before CONNECT is answered 454 even with a Session field, another connection's "
+    "session's included",
+    ["R-RCTP-17"],
+)
+async def session_before_connect(ctx: Context) -> None:
+    other = await ctx.session()
+    assert other.session is not None
+    probe = await ctx.control()
+    normal = _readable(ctx)
+    for session in (STRANGER, other.session):
+        answer = await probe.request("READ", normal, [("Session", session)])
+        _expect_status(ctx, answer, 454, f"READ before CONNECT, with Session: {session}")
+    _expect_status(ctx, await probe.connect(ctx.target.site_path), 200, "CONNECT afterwards")
+
+
+@case(
+    "rctp/session/wrong-session",
+    "A request naming another session, unknown or another connection's, is answered 454 and the "
+    "connection goes on",
+    ["R-RCTP-19"],
+)
+async def wrong_session(ctx: Context) -> None:
+    other = await ctx.session()
+    assert other.session is not None
+    probe = await ctx.session()
+    normal = _readable(ctx)
+    for session in (STRANGER, other.session):
+        answer = await probe.request("READ", normal, [("Session", session)])
+        _expect_status(ctx, answer, 454, f"READ with Session: {session}")
+    _expect_status(ctx, await probe.request("READ", normal), 200, "READ with the session")
+
+
+@case(
+    "rctp/session/missing-session",
+    "A request without Session after CONNECT is answered 454 and the connection goes on",
+    ["R-RCTP-19"],
+)
+async def missing_session(ctx: Context) -> None:
+    probe = await ctx.session()
+    normal = _readable(ctx)
+    await probe.send(_sessionless(probe, "READ", normal))
+    _expect_status(ctx, await probe.response(), 454, "READ without Session")
+    _expect_status(ctx, await probe.request("READ", normal), 200, "READ with the session")
+
+
+@case(
+    "rctp/session/connect-refresh",
+    "CONNECT with the current Session is answered 200, naming the same session",
+    ["R-RCTP-22"],
+)
+async def connect_refresh(ctx: Context) -> None:
+    probe = await ctx.session()
+    session = probe.session
+    answer = await probe.connect(ctx.target.site_path)
+    ctx.expect_status(answer, 200)
+    given = (answer.headers.get("Session") or "").split(";")[0].strip()
+    ctx.expect(given == session, f"Session: {session}", f"Session: {given}")
+
+
+@case(
+    "rctp/session/second-connect",
+    "CONNECT without Session on a connection that has a session is answered 455; the session stays",
+    ["R-RCTP-20"],
+)
+async def second_connect(ctx: Context) -> None:
+    probe = await ctx.session()
+    site = ctx.target.site_path
+    await probe.send(_sessionless(probe, "CONNECT", site))
+    _expect_status(ctx, await probe.response(), 455, "a second CONNECT without Session")
+    normal = _readable(ctx)
+    _expect_status(ctx, await probe.request("READ", normal), 200, "READ with the first session")
+
+
+@case(
+    "rctp/session/connect-unknown-site",
+    "CONNECT to a site path that names no robot is answered 404 and opens no session",
+    ["R-RCTP-26", "R-RCTP-17"],
+)
+async def connect_unknown_site(ctx: Context) -> None:
+    probe = await ctx.control()
+    site = ctx.target.site_path
+    nowhere = site.rstrip("/") + "/rcmlconf-no-robot"
+    _expect_status(ctx, await probe.connect(nowhere), 404, f"CONNECT {nowhere}", "R-RCTP-26")
+    normal = _readable(ctx)
+    answer = await probe.request("READ", normal, [("Session", STRANGER)])
+    _expect_status(ctx, answer, 454, "READ after the refused CONNECT", "R-RCTP-17")
+    _expect_status(ctx, await probe.connect(site), 200, f"CONNECT {site}")
+
+
+@case(
+    "rctp/session/bye-by-client",
+    "The client's BYE of * is answered 200 with its CSeq, and nothing else is sent",
+    ["R-RCTP-23", "R-RCTP-3"],
+)
+async def bye_by_client(ctx: Context) -> None:
+    probe = await ctx.session()
+    answer = await probe.request("BYE", "*")
+    ctx.expect_status(answer, 200)
+    given = answer.headers.get("CSeq")
+    ctx.expect(given == str(probe.cseq), f"CSeq: {probe.cseq}", f"CSeq: {given}", "R-RCTP-3")
+    outcome = await _outcome(probe, 0.5 * ctx.scale)
+    ctx.expect(outcome in ("closed", "silent"), "nothing after the answer to BYE", outcome)
+
+
+@case(
+    "rctp/session/bye-releases",
+    "The privileges of a session that ends with the client's BYE are free for another session",
+    ["R-RCTP-36"],
+    serial=True,
+)
+async def bye_releases(ctx: Context) -> None:
+    holder, other, path = await _held_elsewhere(ctx)
+    answer = await holder.request("BYE", "*")
+    if answer.status != 200:  # rctp/session/bye-by-client fails such a server
+        raise Inconclusive(f"BYE was answered {answer.status} {answer.reason}")
+    await _acquired_soon(ctx, other, path, "after the holder's BYE")
+
+
+@case(
+    "rctp/session/close-releases",
+    "The privileges of a session whose connection closes are free for another session",
+    ["R-RCTP-36"],
+    serial=True,
+)
+async def close_releases(ctx: Context) -> None:
+    holder, other, path = await _held_elsewhere(ctx)
+    holder.close()
+    await _acquired_soon(ctx, other, path, "after the holder's connection closed")
+
+
+@case(
+    "rctp/session/timeout-bye",
+    "A session without requests for its timeout gets the server's BYE * (Reason: timeout, CSeq "
+    "1); answered, the server closes",
+    ["R-RCTP-21", "R-RCTP-4", "R-RCTP-19", "R-RCTP-23"],
+    timeout=10.0,
+)
+async def timeout_bye(ctx: Context) -> None:
+    probe, timeout, started = await _timed_session(ctx)
+    bye = await _server_bye(ctx, probe, timeout, started)
+    given = bye.headers.get("Reason")
+    ctx.expect(given == "timeout", "Reason: timeout", f"Reason: {given}", "R-RCTP-21")
+    given = bye.headers.get("CSeq")
+    ctx.expect(given == "1", "CSeq: 1, the server's first request", f"CSeq: {given}", "R-RCTP-4")
+    given = bye.headers.get("Session")
+    ctx.expect(
+        given == probe.session, f"Session: {probe.session}", f"Session: {given}", "R-RCTP-19"
+    )
+    await probe.answer(bye)
+    outcome = await _outcome(probe, ctx.wait)
+    ctx.expect(
+        outcome == "closed", "the connection closed once BYE was answered", outcome, "R-RCTP-23"
+    )
+
+
+@case(
+    "rctp/session/keepalive",
+    "A READ and a CONNECT refresh, each before the timeout passes, keep the session open past it",
+    ["R-RCTP-21", "R-RCTP-22"],
+    timeout=15.0,
+)
+async def keepalive(ctx: Context) -> None:
+    probe, timeout, _ = await _timed_session(ctx)
+    normal = _readable(ctx)
+    for method, target in (("READ", normal), ("CONNECT", ctx.target.site_path)):
+        outcome = await _outcome(probe, 0.6 * timeout)
+        ctx.expect(outcome == "silent", "nothing before the timeout", outcome, "R-RCTP-21")
+        await probe.send(probe.request_bytes(method, target))
+        found = await probe.message()
+        ctx.expect(
+            isinstance(found, Response) and found.status == 200,
+            f"the answer 200 to {method}",
+            _describe(found),
+            "R-RCTP-21" if method == "READ" else "R-RCTP-22",
+        )
+    outcome = await _outcome(probe, timeout - 0.5)
+    ctx.expect(
+        outcome == "silent",
+        f"no BYE within {timeout - 0.5:g} s of the last request",
+        outcome,
+        "R-RCTP-21",
+    )
+
+
+@case(
+    "rctp/session/bye-error-answer-closes",
+    "The server's BYE answered with an error status is answered all the same: the server closes",
+    ["R-RCTP-23"],
+    timeout=10.0,
+)
+async def bye_error_answer_closes(ctx: Context) -> None:
+    probe, timeout, started = await _timed_session(ctx)
+    bye = await _server_bye(ctx, probe, timeout, started)
+    await probe.answer(bye, 454, "Session Not Found")
+    outcome = await _outcome(probe, ctx.wait)
+    ctx.expect(outcome == "closed", "the connection closed once BYE was answered", outcome)
+
+
+@case(
+    "rctp/session/bye-unanswered-closes",
+    "The server's BYE left unanswered: the server closes the connection 5 seconds later",
+    ["R-RCTP-23"],
+    timeout=15.0,
+)
+async def bye_unanswered_closes(ctx: Context) -> None:
+    probe, timeout, started = await _timed_session(ctx)
+    await _server_bye(ctx, probe, timeout, started)
+    loop = asyncio.get_running_loop()
+    asked = loop.time()
+    outcome = await _outcome(probe, BYE_WAIT + 1.5 * ctx.scale)
+    waited = loop.time() - asked
+    ctx.expect(
+        outcome == "closed" and waited >= BYE_WAIT - 0.5,
+        f"the connection closed {BYE_WAIT:g} s after the unanswered BYE",
+        f"{outcome} after {waited:.2f} s",
+    )
+
+
+# -- helpers -----------------------------------------------------------------------------------
+
+
+def _differing(one: str, other: str) -> int:
+    """In how many places two IDs differ, compared from the start."""
+    return sum(a != b for a, b in zip(one, other, strict=False)) + abs(len(one) - len(other))
+
+
+def _session_field(ctx: Context, answer: Response) -> tuple[str, int]:
+    """The session ID and timeout of CONNECT's answer (R-RCTP-18)."""
+    given = answer.headers.get("Session")
+    found = SESSION.fullmatch(given or "")
+    ctx.expect(
+        found is not None and found.group(2) is not None and int(found.group(2)) > 0,
+        "Session: id;timeout=seconds, the ID 8 to 64 of A-Z a-z 0-9 $ - _ . +",
+        f"Session: {given}",
+        "R-RCTP-18",
+    )
+    assert found is not None
+    return found.group(1), int(found.group(2))
+
+
+async def _timed_session(ctx: Context) -> tuple[ControlProbe, int, float]:
+    """A session, its timeout, and when CONNECT was sent; inconclusive when the timeout is longer
+    than the case can wait."""
+    probe = await ctx.control()
+    started = asyncio.get_running_loop().time()
+    answer = await probe.connect(ctx.target.site_path)
+    if answer.status != 200 or probe.session is None:
+        raise Inconclusive(f"CONNECT was answered {answer.status} {answer.reason}")
+    _, timeout = _session_field(ctx, answer)
+    if timeout > LONGEST_TIMEOUT:
+        raise Inconclusive(f"the session timeout is {timeout} s; this case waits {LONGEST_TIMEOUT}")
+    return probe, timeout, started
+
+
+async def _server_bye(ctx: Context, probe: ControlProbe, timeout: int, started: float) -> Request:
+    """The server's BYE of a session left alone: not before its timeout, and soon after it."""
+    loop = asyncio.get_running_loop()
+    try:
+        found = await probe.message(timeout + 1.5 * ctx.scale - (loop.time() - started))
+    except Failed as failed:
+        if failed.requirement != "R-RCTP-5":
+            raise
+        expected = f"BYE * once the timeout of {timeout} s passed"
+        raise Failed(
+            "R-RCTP-21", expected, f"nothing after {loop.time() - started:.2f} s"
+        ) from None
+    waited = loop.time() - started
+    ctx.expect(
+        isinstance(found, Request) and found.method == "BYE" and found.target == "*",
+        f"BYE * once the timeout of {timeout} s passed",
+        _describe(found),
+        "R-RCTP-21",
+    )
+    ctx.expect(
+        waited >= timeout - 0.2,
+        f"BYE once the timeout of {timeout} s passed",
+        f"BYE after {waited:.2f} s",
+        "R-RCTP-21",
+    )
+    assert isinstance(found, Request)
+    return found
+
+
+async def _held_elsewhere(ctx: Context) -> tuple[ControlProbe, ControlProbe, str]:
+    """A session holding a path, and another session refused it (471)."""
+    access = ctx.access(permission=Permission.WRITE)
+    path = format_target(access.path)
+    holder = await ctx.session()
+    answer = await holder.request("ACQUIRE", path)
+    if answer.status != 200:
+        raise Inconclusive(f"ACQUIRE {access.path} was answered {answer.status} {answer.reason}")
+    other = await ctx.session()
+    answer = await other.request("ACQUIRE", path)
+    if answer.status != 471:
+        raise Inconclusive(
+            f"ACQUIRE {access.path} held by another session was answered {answer.status}"
+        )
+    return holder, other, path
+
+
+async def _acquired_soon(ctx: Context, probe: ControlProbe, path: str, when: str) -> None:
+    """ACQUIRE succeeds within a second (the server may take a moment to see the session end);
+    then it is released again."""
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + ctx.scale
+    while True:
+        answer = await probe.request("ACQUIRE", path)
+        if answer.status == 200 or loop.time() > deadline:
+            break
+        await asyncio.sleep(0.05)
+    _expect_status(ctx, answer, 200, f"ACQUIRE {path} {when}")
+    await probe.request("RELEASE", path)
+
+
+def _readable(ctx: Context) -> str:
+    """A READ target: a readable data node of a normal access, else a readable event access."""
+    try:
+        path = ctx.data(AccessType.NORMAL, Permission.READ).path
+    except NotApplicable:
+        path = ctx.access(AccessType.EVENT, where=lambda access: bool(access.readable())).path
+    return format_target(path)
+
+
+def _sessionless(probe: ControlProbe, method: str, target: str, fields: Fields = ()) -> bytes:
+    """A request with the next CSeq and without Session."""
+    probe.cseq += 1
+    lines = [f"{method} {target} {VERSION}", f"CSeq: {probe.cseq}"]
+    lines += [f"{name}: {value}" for name, value in fields]
+    return ("\r\n".join(lines) + "\r\n\r\n").encode()
+
+
+async def _outcome(probe: ControlProbe, wait: float) -> str:
+    """What the target does within `wait`: "closed" (nothing sent first), "silent", or what it
+    sent."""
+    try:
+        found = await probe.message(max(wait, 0.0))
+    except Failed as failed:
+        if failed.requirement != "R-RCTP-5":
+            raise
+        return "silent"
+    return "closed" if found is None else f"it sent {_describe(found)}"
+
+
+def _describe(message: Message | None) -> str:
+    if message is None:
+        return "nothing (the connection closed)"
+    if isinstance(message, Request):
+        return f"{message.method} {message.target}"
+    return f"{message.status} {message.reason}"
+
+
+def _expect_status(
+    ctx: Context, answer: Response, status: int, what: str, requirement: str | None = None
+) -> None:
+    """`ctx.expect_status`, saying which request the answer was to."""
+    ctx.expect(
+        answer.status == status,
+        f"{what}: {status}",
+        f"{answer.status} {answer.reason}",
+        requirement,
+    )

@@ -1,0 +1,655 @@
+"""rsp/header, rsp/map, rsp/payload: the robot's packets (the header of D-RSP-10, the Device Map
+and payloads of D-RSP-14) and what it does with the local system's, well-formed or not
+(D-RSP-15, R-RSP-13 to R-RSP-19, R-RSP-23, R-RSP-34). The harness plays the local system."""
+
+from __future__ import annotations
+
+import itertools
+import random
+from collections.abc import Callable
+
+from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.rsp import (
+    ENCRYPTION_AT,
+    MODEL_AT,
+    SESSION_AT,
+    TYPE_AT,
+    VERSION_AT,
+    Datagram,
+    ack_of,
+    close_to,
+    dropped_then_taken,
+    first,
+    flags,
+    flip,
+    fresh_uplink,
+    modules_of,
+    monitored,
+    newer,
+    occurrence,
+    of_kind,
+    open_probe,
+    patch,
+    raw_session,
+    reported,
+    sequence_of,
+    value_item,
+    values_of,
+    visible,
+)
+from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
+from rcmlconf.impair import derive_seed
+from rcmlconf.rsp.codec import Encryption, Item, MapBody, PacketType, Welcome
+from rcmlconf.rsp.model import DeviceKind
+
+# -- the header ---------------------------------------------------------------------------------
+
+
+@case(
+    "rsp/header/layout",
+    "The robot's UPLINKs carry version 1, the model ID, encryption 0 and the session's ID",
+    ["R-RSP-13"],
+    role=Role.ROBOT,
+)
+async def layout(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    model = probe.model
+    sent = raw.downlink(flags(model, *reported(model, 2)))
+    if await fresh_uplink(probe, sequence_of(sent)) is None:
+        raise Inconclusive("no UPLINK after the request")
+    start = probe.mark()
+    await probe.listen(6 * raw.period)
+    uplinks = probe.packets(PacketType.UPLINK, after=start)
+    ctx.expect(bool(uplinks), "UPLINKs every period", "none")
+    for found in uplinks:
+        header = found.header
+        ctx.expect(
+            header.version == 1
+            and header.model_id == model.model_id
+            and header.encryption is Encryption.NONE
+            and header.session_id == raw.session_id,
+            f"version 1, model {model.model_id}, encryption 0, session {raw.session_id:#x}",
+            f"version {header.version}, model {header.model_id},"
+            f" encryption {int(header.encryption)}, session {header.session_id:#x}",
+        )
+
+
+@case(
+    "rsp/header/sequence",
+    "The robot numbers its packets of a session 0, 1, 2, ... WELCOME, UPLINKs and ACKs alike",
+    ["R-RSP-14"],
+    role=Role.ROBOT,
+)
+async def sequence(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    model = probe.model
+    command = first(model, DeviceKind.COMMAND)
+    raw.downlink(flags(model, reported(model, 1)[0]))
+    await probe.listen(3 * raw.period)
+    raw.downlink([occurrence(command, 0)])  # an ACK among the UPLINKs
+    await probe.listen(3 * raw.period)
+    numbers = [d.header.sequence for d in probe.received if d.header.session_id == raw.session_id]
+    expected = list(range(len(numbers)))
+    ctx.expect(
+        numbers == expected and len(numbers) >= 4,
+        "0, 1, 2, ... without a gap (loopback loses nothing)",
+        ", ".join(map(str, numbers)),
+    )
+
+
+@case(
+    "rsp/header/timestamp",
+    "The robot's timestamps start at 0 with WELCOME and count its milliseconds",
+    ["R-RSP-14"],
+    role=Role.ROBOT,
+)
+async def timestamp(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    welcome = raw.welcome
+    assert welcome is not None
+    ctx.expect(welcome.header.timestamp == 0, "WELCOME at 0 ms", f"{welcome.header.timestamp} ms")
+    raw.downlink(flags(probe.model, reported(probe.model, 1)[0]))
+    await probe.listen(max(0.4, 15 * raw.period))
+    stamped = [d for d in probe.received if d.header.session_id == raw.session_id]
+    stamps = [d.header.timestamp for d in stamped]
+    ctx.expect(
+        all(b >= a for a, b in itertools.pairwise(stamps)),
+        "timestamps that never go back",
+        ", ".join(map(str, stamps)),
+    )
+    clock = (stamped[-1].at - welcome.at) * 1000
+    told = stamps[-1] - welcome.header.timestamp
+    ctx.expect(
+        abs(told - clock) <= 30 + 0.05 * clock,
+        f"about {clock:.0f} ms between WELCOME and the last UPLINK",
+        f"{told} ms",
+    )
+
+
+@case(
+    "rsp/header/last-received",
+    "The robot's last received sequence number is the newest of ours, not the latest to arrive",
+    ["R-RSP-15"],
+    role=Role.ROBOT,
+)
+async def last_received(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    request = flags(probe.model, reported(probe.model, 1)[0])
+    for _ in range(3):
+        sent = raw.downlink(request)
+    newest = sequence_of(sent)
+    found = await fresh_uplink(probe, newest, wait=probe.quiet)
+    ctx.expect(
+        found is not None and found.header.last_received == newest,
+        f"UPLINKs saying {newest}",
+        "none" if found is None else str(found.header.last_received),
+    )
+    raw.skip(10)
+    jumped = sequence_of(raw.downlink(request))
+    raw.rewind(jumped - 4)
+    raw.downlink(request)  # late: not newer
+    start = probe.mark()
+    await probe.listen(4 * raw.period)
+    said = [d.header.last_received for d in probe.packets(PacketType.UPLINK, after=start)]
+    ctx.expect(
+        bool(said) and all(s == jumped for s in said[1:]) and said[-1] == jumped,
+        f"UPLINKs saying {jumped} (the newest), not {jumped - 4} (the latest)",
+        ", ".join(map(str, said)) or "no UPLINK",
+    )
+
+
+@case(
+    "rsp/header/other-version",
+    "A DOWNLINK of version 2 is dropped unanswered (its command not taken), the session goes on",
+    ["R-RSP-18"],
+    role=Role.ROBOT,
+)
+async def other_version(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    await dropped_then_taken(
+        ctx, probe, raw, lambda d: patch(d, VERSION_AT, b"\x02"), "R-RSP-18", "version 2"
+    )
+
+
+@case(
+    "rsp/header/other-model",
+    "A DOWNLINK of another model ID is dropped unanswered, the session goes on",
+    ["R-RSP-18"],
+    role=Role.ROBOT,
+)
+async def other_model(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    other = (probe.model.model_id % 65535 + 1).to_bytes(2)
+    await dropped_then_taken(
+        ctx, probe, raw, lambda d: patch(d, MODEL_AT, other), "R-RSP-18", "another model ID"
+    )
+
+
+@case(
+    "rsp/header/other-session",
+    "A DOWNLINK naming another session ID is dropped unanswered, the session goes on",
+    ["R-RSP-18"],
+    role=Role.ROBOT,
+)
+async def other_session(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    await dropped_then_taken(
+        ctx, probe, raw, lambda d: flip(d, SESSION_AT + 5), "R-RSP-18", "a spoofed session ID"
+    )
+
+
+@case(
+    "rsp/header/other-address",
+    "A DOWNLINK of the session from another address is dropped unanswered",
+    ["R-RSP-18"],
+    role=Role.ROBOT,
+)
+async def other_address(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    spoofer = await open_probe(ctx, robot=probe.robot, name="other port")
+    await dropped_then_taken(
+        ctx, probe, raw, lambda d: d, "R-RSP-18", "from another port", sender=spoofer
+    )
+
+
+@case(
+    "rsp/header/unknown-type",
+    "Packets of types 0, 9 and 255 with a DOWNLINK's body are dropped unanswered",
+    ["R-RSP-18"],
+    role=Role.ROBOT,
+)
+async def unknown_type(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    for kind in (0, 9, 255):
+        await dropped_then_taken(
+            ctx,
+            probe,
+            raw,
+            _typed(kind),
+            "R-RSP-18",
+            f"type {kind}",
+        )
+
+
+def _typed(kind: int) -> Callable[[bytes], bytes]:
+    return lambda data: patch(data, TYPE_AT, bytes([kind]))
+
+
+@case(
+    "rsp/header/encryption-mismatch",
+    "In a session without encryption, a DOWNLINK saying AES-256-GCM is dropped unanswered",
+    ["R-RSP-18"],
+    role=Role.ROBOT,
+)
+async def encryption_mismatch(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    await dropped_then_taken(
+        ctx,
+        probe,
+        raw,
+        lambda d: patch(d, ENCRYPTION_AT, bytes([Encryption.AES_256_GCM])),
+        "R-RSP-18",
+        "encryption byte 1",
+    )
+
+
+@case(
+    "rsp/header/replayed",
+    "A DOWNLINK received again byte for byte is dropped: its command is not acknowledged twice",
+    ["R-RSP-18"],
+    role=Role.ROBOT,
+)
+async def replayed(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    command = first(probe.model, DeviceKind.COMMAND)
+    start = probe.mark()
+    original = raw.downlink([occurrence(command, 3)])
+    if await ack_of(probe, command, 3, after=start) is None:
+        raise Inconclusive(f"no ACK of {command.name} #3 in the first place")
+    await dropped_then_taken(ctx, probe, raw, lambda _: original, "R-RSP-18", "the replay")
+
+
+@case(
+    "rsp/header/outside-window",
+    "A packet 70 behind the newest is dropped; one 50 behind, never seen, is handled",
+    ["R-RSP-18", "R-RSP-26"],
+    role=Role.ROBOT,
+)
+async def outside_window(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    command = first(probe.model, DeviceKind.COMMAND)
+    raw.skip(100)
+    newest = sequence_of(raw.downlink())
+    raw.rewind(newest - 70)
+    start = probe.mark()
+    raw.downlink([occurrence(command, 0)])
+    await probe.listen(probe.quiet)
+    stale = [d for d in probe.packets(PacketType.ACK, after=start) if d.acks(command.position)]
+    ctx.expect(not stale, "a packet 70 behind dropped unread (no ACK)", "an ACK", "R-RSP-18")
+    raw.rewind(newest - 50)
+    start = probe.mark()
+    raw.downlink([occurrence(command, 0)])
+    ack = await ack_of(probe, command, 0, after=start)
+    ctx.expect(
+        ack is not None,
+        "the command of a late packet 50 behind acknowledged (D-RSP-15)",
+        "no ACK",
+        "R-RSP-26",
+    )
+    raw.rewind(newest + 1)
+
+
+@case(
+    "rsp/header/local-sequence-wraps",
+    "The robot follows the local system's sequence numbers across 65,535 to 0 (serial arithmetic)",
+    ["R-RSP-19", "R-RSP-18"],
+    role=Role.ROBOT,
+)
+async def local_sequence_wraps(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    model = probe.model
+    before, after = reported(model, 2)
+    for target in (20000, 40000, 60000, 65535):
+        raw.rewind(target)
+        raw.downlink(flags(model, before))
+    wrapped = raw.downlink(flags(model, after))  # sequence 0: newer than 65,535
+    ctx.expect(sequence_of(wrapped) == 0, "sequence 0", str(sequence_of(wrapped)))
+    found = await fresh_uplink(probe, 0, where=lambda d: d.header.last_received == 0)
+    ctx.expect(
+        found is not None and found.devices(model) == {after.name},
+        f"UPLINKs reporting {after.name} only, as DOWNLINK 0 asked after 65,535",
+        "no UPLINK that took it" if found is None else str(sorted(found.devices(model))),
+    )
+
+
+@case(
+    "rsp/header/garbage",
+    "Garbage, empty and cut-short datagrams are dropped unanswered and the session goes on",
+    ["R-RSP-18"],
+    role=Role.ROBOT,
+)
+async def garbage(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    model = probe.model
+    draw = random.Random(derive_seed(ctx.seed, ctx.case.id))
+    noise = bytearray(draw.randbytes(37))
+    noise[0] = 0xFF  # no version 1: it cannot be a HELLO by chance
+    header = raw.build(PacketType.DOWNLINK, MapBody(()))[:20]
+    welcome = raw.welcome
+    assert welcome is not None
+    assert isinstance(welcome.body, Welcome)
+    start = probe.mark()
+    for junk in (
+        bytes(noise),
+        b"",
+        b"\x01",
+        header[:19],
+        header,  # a DOWNLINK without its Device Map
+        header + bytes(model.map_size - 1),  # a Device Map cut short
+        welcome.data,  # the robot's own WELCOME sent back
+    ):
+        probe.send(junk, f"garbage {junk[:20].hex()} ({len(junk)} bytes)")
+    await probe.listen(probe.quiet)
+    answers = [d for d in probe.packets(after=start) if d.type is not PacketType.UPLINK]
+    ctx.expect(not answers, "no answer", ", ".join(d.type.name for d in answers))
+    await dropped_then_taken(ctx, probe, raw, lambda d: d[:20], "R-RSP-18", "a header alone")
+
+
+# -- the Device Map -----------------------------------------------------------------------------
+
+
+@case(
+    "rsp/map/only-requested",
+    "UPLINKs report only the sensors the newest DOWNLINK requested, and nothing once none are",
+    ["R-RSP-23"],
+    role=Role.ROBOT,
+)
+async def only_requested(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    model = probe.model
+    one, two = reported(model, 2)
+    for wanted in ([one], [two], [one, two], []):
+        sent = sequence_of(raw.downlink(flags(model, *wanted)))
+        names = {d.name for d in wanted}
+        found = await fresh_uplink(probe, sent, wait=max(probe.quiet, 6 * raw.period))
+        if found is None:
+            raise Inconclusive(f"no UPLINK after DOWNLINK {sent}")
+        await probe.listen(2 * raw.period)
+        for later in probe.packets(PacketType.UPLINK):
+            if newer(later.header.last_received, sent):
+                ctx.expect(
+                    later.devices(model) == names,
+                    str(sorted(names)) if names else "an empty Device Map",
+                    f"{sorted(later.devices(model))} in UPLINK #{later.header.sequence}",
+                )
+
+
+@case(
+    "rsp/map/module-gates-reports",
+    "A requested sensor or monitor of an inactive module is not reported until it is activated",
+    ["R-RSP-23"],
+    role=Role.ROBOT,
+)
+async def module_gates_reports(ctx: Context) -> None:
+    model = ctx.target.rsp_model
+    held = (
+        [d for d in of_kind(model, DeviceKind.SENSOR, DeviceKind.MONITOR) if d.module is not None]
+        if model is not None
+        else []
+    )
+    if not held:
+        raise NotApplicable("no sensor or monitor in a module")
+    probe, raw = await raw_session(ctx)
+    device = held[0]
+    module = modules_of(probe.model, device)[0]
+    sent = sequence_of(raw.downlink([Item(device.position)]))
+    found = await fresh_uplink(probe, sent)
+    ctx.expect(
+        found is not None and not found.items,
+        f"nothing of {device.name} while {module.name} is inactive",
+        "no UPLINK" if found is None else str(sorted(found.devices(probe.model))),
+    )
+    sent = sequence_of(raw.downlink(flags(probe.model, device)))
+    found = await fresh_uplink(probe, sent)
+    ctx.expect(
+        found is not None and found.devices(probe.model) == {device.name},
+        f"{device.name} once {module.name} is active",
+        "no UPLINK" if found is None else str(sorted(found.devices(probe.model))),
+    )
+
+
+@case(
+    "rsp/map/bit-past-last-device",
+    "A DOWNLINK with a Device Map bit set past the last device is dropped unanswered",
+    ["R-RSP-17", "R-RSP-18"],
+    role=Role.ROBOT,
+)
+async def bit_past_last_device(ctx: Context) -> None:
+    model = ctx.target.rsp_model
+    if model is None or len(model.devices) % 8 == 0:
+        raise NotApplicable("the Device Map has no bit past the last device")
+    probe, raw = await raw_session(ctx)
+    spare = len(model.devices)
+    at = 20 + spare // 8
+    await dropped_then_taken(
+        ctx, probe, raw, lambda d: flip(d, at, 0x80 >> spare % 8), "R-RSP-17", f"bit {spare} set"
+    )
+
+
+# -- the payloads -------------------------------------------------------------------------------
+
+
+@case(
+    "rsp/payload/trailing-byte",
+    "A DOWNLINK with a byte after its last payload is dropped unanswered",
+    ["R-RSP-16", "R-RSP-18"],
+    role=Role.ROBOT,
+)
+async def trailing_byte(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    await dropped_then_taken(ctx, probe, raw, lambda d: d + b"\x00", "R-RSP-16", "a trailing byte")
+
+
+@case(
+    "rsp/payload/cut-short",
+    "A DOWNLINK whose last payload is a byte short is dropped unanswered",
+    ["R-RSP-16", "R-RSP-18"],
+    role=Role.ROBOT,
+)
+async def cut_short(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    await dropped_then_taken(ctx, probe, raw, lambda d: d[:-1], "R-RSP-16", "a payload cut short")
+
+
+@case(
+    "rsp/payload/every-state",
+    "With every sensor and monitor requested, each UPLINK reports all of them, laid out by field",
+    ["R-RSP-23", "R-RSP-16"],
+    role=Role.ROBOT,
+)
+async def every_state(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    model = probe.model
+    states = of_kind(model, DeviceKind.SENSOR, DeviceKind.MONITOR)
+    if not states:
+        raise NotApplicable("no sensor or monitor")
+    sent = sequence_of(raw.downlink(flags(model, *states)))
+    if await fresh_uplink(probe, sent) is None:
+        raise Inconclusive("no UPLINK after the request")
+    start = probe.mark()
+    await probe.listen(4 * raw.period)
+    names = {d.name for d in states}
+    uplinks = probe.packets(PacketType.UPLINK, after=start)
+    ctx.expect(bool(uplinks), "UPLINKs", "none")
+    for found in uplinks:
+        ctx.expect(
+            found.devices(model) == names,
+            f"all {len(names)} sensors and monitors",
+            f"{sorted(found.devices(model) ^ names)} missing or extra",
+            "R-RSP-23",
+        )
+
+
+@case(
+    "rsp/payload/effector-applied",
+    "An effector value in DOWNLINKs is applied: its monitor reports it",
+    ["R-RSP-34"],
+    role=Role.ROBOT,
+)
+async def effector_applied(ctx: Context) -> None:
+    probe = await open_probe(ctx)
+    model = probe.model
+    effector, monitor = monitored(model)
+    await probe.open_session()
+    wanted = {f.name: visible(f) for f in effector.fields}
+    for module in modules_of(model, effector, monitor):
+        probe.session.set_active(module.name, True)
+    probe.session.write(effector.name, wanted)
+    probe.session.set_active(monitor.name, True)
+    field = effector.fields[0]
+    found = await probe.state(
+        monitor.name, lambda v: close_to(field, v.get(field.name), wanted[field.name])
+    )
+    latest = probe.states.get(monitor.name)
+    ctx.expect(
+        found is not None,
+        f"{monitor.name} reporting {wanted}",
+        "nothing" if latest is None else dict(latest[1]).__repr__(),
+    )
+
+
+@case(
+    "rsp/payload/effector-held",
+    "An effector keeps its value when the DOWNLINKs stop carrying it (hold, D-RSP-20)",
+    ["R-RSP-34"],
+    role=Role.ROBOT,
+)
+async def effector_held(ctx: Context) -> None:
+    probe = await open_probe(ctx)
+    model = probe.model
+    effector, monitor = monitored(model)
+    await probe.open_session()
+    wanted = {f.name: visible(f) for f in effector.fields}
+    field = effector.fields[0]
+    for module in modules_of(model, effector, monitor):
+        probe.session.set_active(module.name, True)
+    probe.session.write(effector.name, wanted)
+    probe.session.set_active(monitor.name, True)
+    reached = await probe.state(
+        monitor.name, lambda v: close_to(field, v.get(field.name), wanted[field.name])
+    )
+    if reached is None:
+        raise Inconclusive(f"{monitor.name} never reported {wanted}")
+    probe.session.set_active(effector.name, False)
+    since = probe.now + 2 * probe.session.period
+    await probe.listen(12 * probe.session.period)
+    moved = await probe.state(
+        monitor.name,
+        lambda v: not close_to(field, v.get(field.name), wanted[field.name]),
+        since=since,
+        wait=0,
+    )
+    ctx.expect(moved is None, f"{monitor.name} holding {wanted}", str(moved))
+
+
+@case(
+    "rsp/payload/late-state-ignored",
+    "An effector value in a late DOWNLINK (not newer) is not applied over the newer one",
+    ["R-RSP-19"],
+    role=Role.ROBOT,
+)
+async def late_state_ignored(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    model = probe.model
+    effector, monitor = monitored(model)
+    field = effector.fields[0]
+    newest = {f.name: visible(f) for f in effector.fields}
+    older = {f.name: f.zero() for f in effector.fields}
+    request = flags(model, effector, monitor)
+    raw.skip(5)
+    top = sequence_of(raw.downlink([*request, value_item(effector, newest)]))
+    raw.rewind(top - 3)
+    raw.downlink([*request, value_item(effector, older)])
+    raw.rewind(top + 1)
+
+    def reports(found: Datagram) -> bool:
+        values = values_of(found, monitor)
+        return values is not None and close_to(field, values.get(field.name), newest[field.name])
+
+    found = await fresh_uplink(probe, top, where=reports, wait=min(probe.wait, 0.45))
+    last = next(
+        (values_of(d, monitor) for d in reversed(probe.received) if values_of(d, monitor)), None
+    )
+    ctx.expect(
+        found is not None,
+        f"{monitor.name} reaching {newest} (the newer packet's)",
+        f"{monitor.name} at {last}",
+    )
+    raw.downlink(request)  # the link kept alive
+    start = probe.mark()
+    await probe.listen(4 * raw.period)
+    for later in probe.packets(PacketType.UPLINK, after=start):
+        if not reports(later):
+            ctx.expect(False, f"{monitor.name} staying at {newest}", str(values_of(later, monitor)))
+
+
+@case(
+    "rsp/payload/late-occurrence-taken",
+    "A command in a late DOWNLINK (not newer, never seen) is taken and acknowledged",
+    ["R-RSP-26"],
+    role=Role.ROBOT,
+)
+async def late_occurrence_taken(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    command = first(probe.model, DeviceKind.COMMAND)
+    raw.skip(5)
+    top = sequence_of(raw.downlink())
+    raw.rewind(top - 2)
+    start = probe.mark()
+    raw.downlink([occurrence(command, 0)])
+    raw.rewind(top + 1)
+    ack = await ack_of(probe, command, 0, after=start)
+    ctx.expect(ack is not None, f"ACK of {command.name} #0", "no ACK")
+
+
+@case(
+    "rsp/payload/inactive-module",
+    "An effector value sent while its module is inactive is not applied",
+    ["R-RSP-23"],
+    role=Role.ROBOT,
+)
+async def inactive_module(ctx: Context) -> None:
+    model = ctx.target.rsp_model
+    if model is None:
+        raise NotApplicable("no RSP model")
+    effector, monitor = monitored(model, lambda e: e.module is not None)
+    probe, raw = await raw_session(ctx)
+    field = effector.fields[0]
+    wanted = {f.name: visible(f) for f in effector.fields}
+    monitor_only = flags(model, monitor)
+    gated = [i for i in monitor_only if model.devices[i.device].name != effector.module]
+    for _ in range(3):
+        raw.downlink([*gated, value_item(effector, wanted)])
+        await probe.listen(raw.period)
+    sent = sequence_of(raw.downlink(monitor_only))
+    start = probe.mark()
+    await probe.listen(max(0.3, 10 * raw.period))
+    ctx.expect(
+        any(
+            newer(d.header.last_received, sent)
+            for d in probe.packets(PacketType.UPLINK, after=start)
+        ),
+        f"{monitor.name} reported once {effector.module} is active",
+        "no UPLINK",
+    )
+    target = wanted[field.name]
+    assert isinstance(target, int | float)
+    for found in probe.packets(PacketType.UPLINK, after=start)[-3:]:
+        values = values_of(found, monitor)
+        actual = values.get(field.name) if values is not None else None
+        ctx.expect(
+            isinstance(actual, int | float) and abs(actual) < abs(target) / 2,
+            f"{monitor.name} near its zero (the value of an inactive module not applied)",
+            str(values),
+        )

@@ -1,0 +1,642 @@
+"""rsp/reliable, rsp/security, rsp/motion: selective retransmission and the memory-command buffer
+(D-RSP-16, D-RSP-17, D-RSP-19; R-RSP-25, R-RSP-26, R-RSP-31, R-RSP-33), the security processor
+(D-RSP-21; R-RSP-18, R-RSP-37, R-RSP-38) and the motion filter (D-RSP-20; R-RSP-34, R-RSP-36).
+The harness plays the local system.
+
+Memory commands show whether they were taken by the robot's free-buffer count (the header's buffer
+byte): the cases first send one whose `duration` field (if the model has one) keeps the robot
+busy, so that those after it wait in the buffer. D-RSP-19 says CUBO's keyframes take their
+duration, so a CUBO whose buffer does not fill fails R-RSP-31; another robot may execute memory
+commands at once, never fill its buffer, and leave the cases that count on it inconclusive.
+"""
+
+from __future__ import annotations
+
+import os
+import statistics
+from collections.abc import Awaitable, Callable
+
+from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.rsp import (
+    ENCRYPTION_AT,
+    TIMESTAMP_AT,
+    Datagram,
+    RawSession,
+    RspProbe,
+    ack_of,
+    close_to,
+    dropped_then_taken,
+    first,
+    flags,
+    flip,
+    fresh_uplink,
+    hello_packet,
+    modules_of,
+    monitored,
+    occurrence,
+    open_probe,
+    patch,
+    raw_session,
+    reported,
+    sequence_of,
+    visible,
+    zero_values,
+)
+from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.verdicts import CaseStop, Failed, Inconclusive
+from rcmlconf.rsp.codec import (
+    CLEAR_BUFFER,
+    Encryption,
+    MapBody,
+    PacketType,
+    Refused,
+    RefusedReason,
+    pull_header,
+)
+from rcmlconf.rsp.layout import MAC_SIZE, NONCE_SIZE
+from rcmlconf.rsp.model import Device, DeviceKind, OnLoss
+from rcmlconf.rsp.security import mac
+from rcmlconf.rsp.session import events
+from rcmlconf.values import Value
+
+#: How long the first memory command of a buffer case keeps the robot busy (ms, D-RSP-19).
+BUSY_MS = 30_000
+
+
+def keyframe(found: Device) -> dict[str, Value]:
+    """A memory command's fields at their safe values, a duration field (if any) long."""
+    values = zero_values(found)
+    for field in found.fields:
+        if "duration" in field.name.lower() and field.type.base.numeric:
+            high = field.maximum if field.maximum is not None else BUSY_MS
+            values[field.name] = int(min(high, BUSY_MS))
+    return values
+
+
+def _not_held(probe: RspProbe, memory: Device, what: str) -> CaseStop:
+    """The robot's free buffers did not drop for a memory command sent while one executes.
+    D-RSP-19 says CUBO's motion keyframes take their `duration`: a CUBO with a 30 s keyframe
+    running must hold the next ones (R-RSP-31: its free count says so). Any other robot may
+    execute memory commands at once, and the case cannot tell."""
+    durable = probe.model.name == "CUBO" and any(
+        "duration" in f.name.lower() for f in memory.fields
+    )
+    if durable:
+        return Failed(
+            "R-RSP-31",
+            f"fewer free buffers while {memory.name} keyframes of {BUSY_MS} ms wait (D-RSP-19)",
+            what,
+        )
+    return Inconclusive(f"the robot executes memory commands at once: {what}")
+
+
+async def _take(
+    ctx: Context, probe: RspProbe, raw: RawSession, found: Device, ident: int, *, buffer: int = 0
+) -> Datagram:
+    """Send memory command or command `ident` and return the robot's ACK of it (R-RSP-26)."""
+    start = probe.mark()
+    values = keyframe(found) if found.kind is DeviceKind.MEMORY_COMMAND else None
+    raw.downlink([occurrence(found, ident, values)], buffer=buffer)
+    ack = await ack_of(probe, found, ident, after=start)
+    if ack is None:
+        raise Failed("R-RSP-26", f"ACK of {found.name} #{ident}", f"none within {probe.wait:.2g} s")
+    return ack
+
+
+async def _busy(ctx: Context) -> tuple[RspProbe, RawSession, Device, int]:
+    """A session whose robot is busy executing a long memory command; the free buffers then."""
+    probe, raw = await raw_session(ctx)
+    memory = first(probe.model, DeviceKind.MEMORY_COMMAND)
+    raw.standing = flags(probe.model, reported(probe.model, 1)[0])  # an UPLINK every T
+    await _take(ctx, probe, raw, memory, 0)
+    await probe.listen(4 * raw.period)
+    return probe, raw, memory, probe.received[-1].header.buffer
+
+
+async def _free(probe: RspProbe, sent: bytes) -> int:
+    """The free buffers of the first UPLINK sent after the robot took `sent`."""
+    found = await fresh_uplink(probe, sequence_of(sent))
+    if found is None:
+        raise Inconclusive("no UPLINK to read the free buffers from")
+    return found.header.buffer
+
+
+# -- acknowledgements ---------------------------------------------------------------------------
+
+
+@case(
+    "rsp/reliable/command-acked",
+    "Each command is acknowledged at once by an ACK naming its device and ID, and nothing else",
+    ["R-RSP-26", "R-RSP-15"],
+    role=Role.ROBOT,
+)
+async def command_acked(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    command = first(probe.model, DeviceKind.COMMAND)
+    raw.standing = flags(probe.model, reported(probe.model, 1)[0])  # the beat: an UPLINK every T
+    acks = []
+    delays = []
+    for ident in range(7):
+        ack = await _take(ctx, probe, raw, command, ident)
+        ctx.expect(
+            [(i.device, i.id) for i in ack.items] == [(command.position, ident)],
+            f"ACK [{command.name}#{ident}]",
+            str([(probe.model.devices[i.device].name, i.id) for i in ack.items]),
+        )
+        acks.append(ack)
+        sent_at, sent = probe.sent[-1]
+        ctx.expect(
+            ack.header.last_received == sequence_of(sent),
+            f"the ACK saying it received DOWNLINK {sequence_of(sent)}",
+            f"last received {ack.header.last_received}",
+            "R-RSP-15",
+        )
+        delays.append(ack.at - sent_at)
+        await probe.listen(raw.period * (0.3 + 0.1 * ident))  # each at another phase of T
+    if statistics.median(delays) < raw.period / 4:
+        return  # at once, plainly
+    # A loaded harness delays what it reads: the robot's own clock tells whether it sent each
+    # ACK when the DOWNLINK came, or on the beat of its UPLINKs (D-RSP-17: at once).
+    beats = [d.header.timestamp for d in probe.packets(PacketType.UPLINK)]
+    on_beat = [
+        a.header.timestamp
+        for a in acks
+        if any(abs(a.header.timestamp - beat) <= 1 for beat in beats)
+    ]
+    ctx.expect(
+        len(on_beat) < len(acks) - 1,
+        "ACKs sent at once, not with the beat of the UPLINKs",
+        f"{len(on_beat)} of {len(acks)} ACKs stamped with an UPLINK's time"
+        f" (a median of {statistics.median(delays) * 1000:.1f} ms)",
+    )
+
+
+@case(
+    "rsp/reliable/command-reacked",
+    "A command repeated with its ID, or an older ID, is acknowledged again each time",
+    ["R-RSP-26"],
+    role=Role.ROBOT,
+)
+async def command_reacked(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    command = first(probe.model, DeviceKind.COMMAND)
+    for ident in (0, 0, 0, 1, 0):
+        await _take(ctx, probe, raw, command, ident)
+
+
+@case(
+    "rsp/reliable/memory-command-acked",
+    "A memory command is acknowledged by an ACK naming its device and ID",
+    ["R-RSP-26"],
+    role=Role.ROBOT,
+)
+async def memory_command_acked(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    memory = first(probe.model, DeviceKind.MEMORY_COMMAND)
+    ack = await _take(ctx, probe, raw, memory, 0)
+    ctx.expect(
+        [(i.device, i.id) for i in ack.items] == [(memory.position, 0)],
+        f"ACK [{memory.name}#0]",
+        str(ack.items),
+    )
+
+
+@case(
+    "rsp/reliable/two-reliable-at-once",
+    "A DOWNLINK carrying a command and a memory command gets both acknowledged",
+    ["R-RSP-26"],
+    role=Role.ROBOT,
+)
+async def two_reliable_at_once(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    command = first(probe.model, DeviceKind.COMMAND)
+    memory = first(probe.model, DeviceKind.MEMORY_COMMAND)
+    start = probe.mark()
+    raw.downlink([occurrence(command, 0), occurrence(memory, 0, keyframe(memory))])
+    for found in (command, memory):
+        ack = await ack_of(probe, found, 0, after=start)
+        ctx.expect(ack is not None, f"ACK of {found.name} #0", "none")
+
+
+# -- the memory-command buffer ------------------------------------------------------------------
+
+
+@case(
+    "rsp/reliable/memory-command-once",
+    "A memory command repeated with its ID is acknowledged again but takes one buffer only",
+    ["R-RSP-25", "R-RSP-26"],
+    role=Role.ROBOT,
+)
+async def memory_command_once(ctx: Context) -> None:
+    probe, raw, memory, free = await _busy(ctx)
+    first_take = (await _take(ctx, probe, raw, memory, 1)).header.buffer
+    if first_take >= free:
+        raise _not_held(probe, memory, f"#1 taken, free {free}, then {first_take}")
+    again = (await _take(ctx, probe, raw, memory, 1)).header.buffer
+    ctx.expect(
+        again == first_take,
+        f"{first_take} free buffers still ({memory.name} #1 taken once)",
+        f"{again} free",
+        "R-RSP-25",
+    )
+    then = (await _take(ctx, probe, raw, memory, 2)).header.buffer
+    ctx.expect(then == first_take - 1, f"{first_take - 1} free after #2", f"{then}", "R-RSP-25")
+
+
+@case(
+    "rsp/reliable/full-buffer",
+    "With no free buffer a memory command is neither taken nor acknowledged; Clear Buffer frees",
+    ["R-RSP-31", "R-RSP-33"],
+    role=Role.ROBOT,
+)
+async def full_buffer(ctx: Context) -> None:
+    probe, raw, memory, free = await _busy(ctx)
+    ident = 1
+    left = free
+    while left > 0:
+        if ident > probe.model.command_buffers + 1:
+            raise Inconclusive(f"{ident} memory commands and still {left} free buffers")
+        now = (await _take(ctx, probe, raw, memory, ident)).header.buffer
+        if now >= left:
+            raise _not_held(probe, memory, f"#{ident} taken, still {now} free")
+        left, ident = now, ident + 1
+    start = probe.mark()
+    raw.downlink([occurrence(memory, ident, keyframe(memory))])
+    await probe.listen(probe.quiet)
+    acks = [d for d in probe.packets(PacketType.ACK, after=start) if d.acks(memory.position)]
+    ctx.expect(not acks, f"no ACK of {memory.name} #{ident} (no free buffer)", "an ACK", "R-RSP-31")
+    cleared = await _free(probe, raw.downlink(buffer=CLEAR_BUFFER))
+    ctx.expect(
+        cleared >= free,
+        f"{free} or more free buffers after Clear Buffer",
+        f"{cleared}",
+        "R-RSP-33",
+    )
+    await _take(ctx, probe, raw, memory, ident)
+
+
+@case(
+    "rsp/reliable/clear-buffer",
+    "Clear Buffer empties the buffer before the packet's own memory command is taken",
+    ["R-RSP-33"],
+    role=Role.ROBOT,
+)
+async def clear_buffer(ctx: Context) -> None:
+    probe, raw, memory, _ = await _busy(ctx)
+    empty = await _free(probe, raw.downlink(buffer=CLEAR_BUFFER))
+    for ident in (1, 2, 3):
+        held = (await _take(ctx, probe, raw, memory, ident)).header.buffer
+    if held != empty - 3:
+        raise _not_held(probe, memory, f"three taken, {empty} free, then {held}")
+    ack = await _take(ctx, probe, raw, memory, 4, buffer=CLEAR_BUFFER)
+    ctx.expect(
+        ack.header.buffer == empty - 1,
+        f"{empty - 1} free in the ACK: the three dropped, then #4 taken",
+        str(ack.header.buffer),
+    )
+    kept = await _free(probe, raw.downlink())
+    ctx.expect(kept == empty - 1, f"{empty - 1} free: #4 kept", str(kept))
+    after = await _free(probe, raw.downlink(buffer=CLEAR_BUFFER))
+    ctx.expect(after == empty, f"{empty} free once #4 is cleared too", str(after))
+
+
+# -- under impairment ---------------------------------------------------------------------------
+
+
+async def _issued_once(ctx: Context, count: int) -> None:
+    """`count` memory commands through the impaired path, each taken once (R-RSP-25): the free
+    buffers drop by exactly `count`."""
+    probe = await open_probe(ctx)
+    model = probe.model
+    memory = first(model, DeviceKind.MEMORY_COMMAND)
+    await probe.open_session()
+    probe.session.set_active(reported(model, 1)[0].name, True)
+    issued = [probe.session.issue(memory.name, keyframe(memory))]
+    probe.poke()
+    await _acknowledged(ctx, probe, memory, issued)
+    await probe.listen(6 * probe.session.period)
+    free = _newest(probe).header.buffer
+    issued = [probe.session.issue(memory.name, keyframe(memory)) for _ in range(count)]
+    await _acknowledged(ctx, probe, memory, issued)
+    await probe.listen(6 * probe.session.period)
+    after = _newest(probe).header.buffer
+    if after == free:
+        raise _not_held(probe, memory, f"{count} taken, {free} free throughout")
+    ctx.expect(
+        after == free - count,
+        f"{free - count} free buffers: {count} memory commands taken once each",
+        f"{after}",
+        "R-RSP-25",
+    )
+
+
+def _newest(probe: RspProbe) -> Datagram:
+    """The robot's newest packet by sequence number (a reordered path delivers older ones late)."""
+    session = [
+        d for d in probe.received if d.header.session_id and d.type is not PacketType.WELCOME
+    ]
+    if not session:
+        raise Inconclusive("no packet of the session")
+    top = session[-1].header.sequence
+    for found in session:
+        if (found.header.sequence - top) % 65536 < 32768:
+            top = found.header.sequence
+    return next(d for d in session if d.header.sequence == top)
+
+
+async def _acknowledged(ctx: Context, probe: RspProbe, found: Device, ids: list[int]) -> None:
+    for ident in ids:
+
+        def acked(event: events.Event, ident: int = ident) -> bool:
+            return isinstance(event, events.Acknowledged) and (
+                event.device == found.name and event.id == ident
+            )
+
+        if await probe.event(acked) is None:
+            raise Failed(
+                "R-RSP-26",
+                f"ACK of {found.name} #{ident} (sent again after each timeout)",
+                f"none within {probe.wait:.2g} s",
+            )
+
+
+@case(
+    "rsp/reliable/commands-under-loss",
+    "Under 20 % loss each way, every command gets through and is acknowledged with its ID",
+    ["R-RSP-26"],
+    role=Role.ROBOT,
+    timeout=9.0,
+    impairment="loss=20%",
+)
+async def commands_under_loss(ctx: Context) -> None:
+    probe = await open_probe(ctx)
+    command = first(probe.model, DeviceKind.COMMAND)
+    await probe.open_session()
+    issued = [probe.session.issue(command.name, {**zero_values(command)}) for _ in range(6)]
+    await _acknowledged(ctx, probe, command, issued)
+    named = {i for d in probe.packets(PacketType.ACK) for i in d.acks(command.position)}
+    ctx.expect(named <= set(issued), f"ACKs of IDs {issued} only", str(sorted(named)))
+
+
+@case(
+    "rsp/reliable/memory-commands-under-loss",
+    "Under 20 % loss each way, each memory command is taken exactly once",
+    ["R-RSP-25", "R-RSP-26"],
+    role=Role.ROBOT,
+    timeout=9.0,
+    impairment="loss=20%",
+)
+async def memory_commands_under_loss(ctx: Context) -> None:
+    await _issued_once(ctx, 4)
+
+
+@case(
+    "rsp/reliable/memory-commands-under-duplication",
+    "Duplicated and reordered datagrams still have each memory command taken exactly once",
+    ["R-RSP-25", "R-RSP-18"],
+    role=Role.ROBOT,
+    timeout=9.0,
+    impairment="loss=10%,duplicate=40%,reorder=30%,gap=30ms",
+)
+async def memory_commands_under_duplication(ctx: Context) -> None:
+    await _issued_once(ctx, 4)
+
+
+# -- security -----------------------------------------------------------------------------------
+
+_AEADS = (
+    (Encryption.AES_256_GCM, "rsp-aes-256-gcm", "aes-256-gcm"),
+    (Encryption.CHACHA20_POLY1305, "rsp-chacha20-poly1305", "chacha20-poly1305"),
+)
+
+
+async def _sealed(ctx: Context, encryption: Encryption) -> tuple[RspProbe, RawSession]:
+    """A sealed session by hand; its WELCOME's MAC checked (R-RSP-38)."""
+    probe = await open_probe(ctx)
+    raw = probe.raw(encryption)
+    start = probe.mark()
+    raw.hello()
+    answer = await probe.expect(
+        (PacketType.WELCOME, PacketType.REFUSED), "R-RSP-37", after=start, expected="WELCOME"
+    )
+    if isinstance(answer.body, Refused):
+        raise Failed(
+            "R-RSP-37",
+            f"WELCOME ({encryption.name} declared)",
+            f"REFUSED {answer.body.reason.name}",
+        )
+    assert probe.psk is not None
+    data = answer.data
+    ctx.expect(
+        mac(probe.psk, data[:-MAC_SIZE]) == data[-MAC_SIZE:],
+        "WELCOME's MAC: HMAC-SHA256 of its header and body with the pre-shared key",
+        data[-MAC_SIZE:].hex(),
+        "R-RSP-38",
+    )
+    if raw.welcome is None:
+        raw.accept(answer)
+    return probe, raw
+
+
+def _session_case(encryption: Encryption) -> Callable[[Context], Awaitable[None]]:
+    async def run(ctx: Context) -> None:
+        probe, raw = await _sealed(ctx, encryption)
+        model = probe.model
+        command = first(model, DeviceKind.COMMAND)
+        sensor = reported(model, 1)[0]
+        start = probe.mark()
+        sent = raw.downlink([*flags(model, sensor), occurrence(command, 0)])
+        ack = await ack_of(probe, command, 0, after=start)
+        ctx.expect(ack is not None, f"a sealed ACK of {command.name} #0", "none", "R-RSP-37")
+        uplink = await fresh_uplink(probe, sequence_of(sent))
+        ctx.expect(
+            uplink is not None and sensor.name in uplink.devices(model),
+            f"sealed UPLINKs reporting {sensor.name}",
+            "none" if uplink is None else str(sorted(uplink.devices(model))),
+            "R-RSP-37",
+        )
+
+    return run
+
+
+def _tampered_case(encryption: Encryption) -> Callable[[Context], Awaitable[None]]:
+    async def run(ctx: Context) -> None:
+        probe, raw = await _sealed(ctx, encryption)
+        for what, mutate in (
+            ("the tag's last byte flipped", lambda d: flip(d, len(d) - 1)),
+            ("the timestamp flipped (associated data)", lambda d: flip(d, TIMESTAMP_AT + 3)),
+            ("the ciphertext flipped", lambda d: flip(d, 20)),
+        ):
+            await dropped_then_taken(ctx, probe, raw, mutate, "R-RSP-18", what)
+
+    return run
+
+
+for _encryption, _feature, _slug in _AEADS:
+    case(
+        f"rsp/security/{_slug}-session",
+        f"A {_encryption.name} session: WELCOME's MAC right, DOWNLINKs opened, UPLINKs sealed",
+        ["R-RSP-37", "R-RSP-38"],
+        role=Role.ROBOT,
+        features=[_feature],
+    )(_session_case(_encryption))
+    case(
+        f"rsp/security/{_slug}-tampered",
+        f"A {_encryption.name} DOWNLINK with a flipped bit is dropped; the session goes on",
+        ["R-RSP-18", "R-RSP-37"],
+        role=Role.ROBOT,
+        features=[_feature],
+    )(_tampered_case(_encryption))
+
+
+@case(
+    "rsp/security/wrong-key",
+    "A HELLO signed with another key is refused (4) and opens no session",
+    ["R-RSP-38"],
+    role=Role.ROBOT,
+    features=["rsp-aes-256-gcm"],
+)
+async def wrong_key(ctx: Context) -> None:
+    probe = await open_probe(ctx)
+    raw = probe.raw(Encryption.AES_256_GCM)
+    start = probe.mark()
+    raw.hello(psk=os.urandom(32))
+    answer = await probe.expect(
+        (PacketType.WELCOME, PacketType.REFUSED), "R-RSP-38", after=start, expected="REFUSED"
+    )
+    body = answer.body
+    ctx.expect(
+        isinstance(body, Refused) and body.reason is RefusedReason.NOT_AUTHENTICATED,
+        "REFUSED NOT_AUTHENTICATED",
+        f"REFUSED {body.reason.name}" if isinstance(body, Refused) else answer.type.name,
+    )
+    await _no_session_left(ctx, probe)
+
+
+async def _no_session_left(ctx: Context, probe: RspProbe) -> None:
+    """Another local system gets a session: the refused HELLO opened none."""
+    other = await open_probe(ctx, robot=probe.robot, name="second")
+    second = other.raw()
+    start = other.mark()
+    second.hello()
+    answer = await other.expect((PacketType.WELCOME, PacketType.REFUSED), "R-RSP-38", after=start)
+    ctx.expect(
+        answer.type is PacketType.WELCOME,
+        "WELCOME to another local system (no session was opened)",
+        f"REFUSED {getattr(answer.body, 'reason', '')}",
+    )
+
+
+@case(
+    "rsp/security/unsigned-hello",
+    "An AES-256-GCM HELLO without its MAC opens no session",
+    ["R-RSP-38"],
+    role=Role.ROBOT,
+    features=["rsp-aes-256-gcm"],
+)
+async def unsigned_hello(ctx: Context) -> None:
+    probe = await open_probe(ctx)
+    model = probe.model
+    start = probe.mark()
+    period = round(model.period * 1000)
+    nonce = os.urandom(NONCE_SIZE)
+    probe.send(hello_packet(model.model_id, Encryption.AES_256_GCM, nonce, period, signed=False))
+    await probe.listen(probe.quiet)
+    welcomes = probe.packets(PacketType.WELCOME, after=start)
+    ctx.expect(not welcomes, "no WELCOME (dropped, or REFUSED NOT_AUTHENTICATED)", "WELCOME")
+    await _no_session_left(ctx, probe)
+
+
+@case(
+    "rsp/security/replayed-sealed",
+    "A sealed DOWNLINK received again byte for byte is dropped: no second ACK",
+    ["R-RSP-18"],
+    role=Role.ROBOT,
+    features=["rsp-aes-256-gcm"],
+)
+async def replayed_sealed(ctx: Context) -> None:
+    probe, raw = await _sealed(ctx, Encryption.AES_256_GCM)
+    command = first(probe.model, DeviceKind.COMMAND)
+    start = probe.mark()
+    original = raw.downlink([occurrence(command, 5)])
+    if await ack_of(probe, command, 5, after=start) is None:
+        raise Inconclusive(f"no ACK of {command.name} #5 in the first place")
+    await dropped_then_taken(ctx, probe, raw, lambda _: original, "R-RSP-18", "the replay")
+
+
+@case(
+    "rsp/security/plaintext-downgrade",
+    "In an AES-256-GCM session, a DOWNLINK in the clear (encryption 0) is dropped",
+    ["R-RSP-18"],
+    role=Role.ROBOT,
+    features=["rsp-aes-256-gcm"],
+)
+async def plaintext_downgrade(ctx: Context) -> None:
+    probe, raw = await _sealed(ctx, Encryption.AES_256_GCM)
+    command = first(probe.model, DeviceKind.COMMAND)
+    body = MapBody((occurrence(command, 7),))
+
+    def in_the_clear(sealed: bytes) -> bytes:
+        plain = probe.codec.push_body(pull_header(sealed), body)
+        return patch(sealed[:20], ENCRYPTION_AT, b"\x00") + plain
+
+    await dropped_then_taken(ctx, probe, raw, in_the_clear, "R-RSP-18", "a DOWNLINK in the clear")
+
+
+# -- the motion filter --------------------------------------------------------------------------
+
+
+@case(
+    "rsp/motion/link-loss-stops",
+    "An onLoss=zero effector holds while the link lives and stops once 25 periods are silent",
+    ["R-RSP-36", "R-RSP-34"],
+    role=Role.ROBOT,
+)
+async def link_loss_stops(ctx: Context) -> None:
+    probe = await open_probe(ctx)
+    model = probe.model
+    effector, monitor = monitored(model, lambda e: e.on_loss is OnLoss.ZERO)
+    field = effector.fields[0]
+    wanted = {f.name: visible(f) for f in effector.fields}
+    zero = field.zero()
+    opened = await probe.open_session()
+    for module in modules_of(model, effector, monitor):
+        probe.session.set_active(module.name, True)
+    probe.session.write(effector.name, wanted)
+    probe.session.set_active(monitor.name, True)
+    if (
+        await probe.state(
+            monitor.name, lambda v: close_to(field, v.get(field.name), wanted[field.name])
+        )
+        is None
+    ):
+        raise Inconclusive(f"{monitor.name} never reported {wanted}")
+    probe.muted = True
+    silent = probe.now
+    lost = 25 * opened.period
+    await probe.listen(0.6 * lost)
+    early = await probe.state(
+        monitor.name,
+        lambda v: not close_to(field, v.get(field.name), wanted[field.name]),
+        since=silent,
+        wait=0,
+    )
+    ctx.expect(
+        early is None,
+        f"{monitor.name} holding {wanted} before the link is lost",
+        str(early),
+        "R-RSP-34",
+    )
+    stopped = await probe.state(
+        monitor.name,
+        lambda v: close_to(field, v.get(field.name), zero),
+        since=silent,
+        wait=lost + 0.5,
+    )
+    latest = probe.states.get(monitor.name)
+    ctx.expect(
+        stopped is not None,
+        f"{monitor.name} at {zero!r} within {lost + 0.5:.2g} s of silence",
+        "still " + (str(dict(latest[1])) if latest else "nothing"),
+        "R-RSP-36",
+    )

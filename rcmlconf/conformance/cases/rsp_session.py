@@ -1,0 +1,493 @@
+"""rsp/session: opening, keeping and ending an RSP session, the robot's side (specs/rsp.md
+D-RSP-12, D-RSP-13, R-RSP-20 to R-RSP-22). The harness plays the local system."""
+
+from __future__ import annotations
+
+import itertools
+import os
+import statistics
+
+from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.ics import FEATURES
+from rcmlconf.conformance.probes.rsp import (
+    Datagram,
+    flags,
+    fresh_uplink,
+    hello_packet,
+    newer,
+    open_probe,
+    raw_session,
+    reported,
+    sequence_of,
+)
+from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
+from rcmlconf.rsp.codec import (
+    Bye,
+    ByeReason,
+    Encryption,
+    PacketType,
+    Refused,
+    RefusedReason,
+    Welcome,
+)
+from rcmlconf.rsp.layout import NONCE_SIZE
+from rcmlconf.rsp.session.timing import KEEPALIVE_PERIODS, SESSION_TIMEOUT
+
+_ANSWERS = (PacketType.WELCOME, PacketType.REFUSED)
+#: The encryption bytes of the AEADs and the ICS features that declare them (D-RSP-21).
+_AEADS = {
+    Encryption.AES_256_GCM: "rsp-aes-256-gcm",
+    Encryption.CHACHA20_POLY1305: "rsp-chacha20-poly1305",
+}
+
+
+def _other_model(model_id: int) -> int:
+    return model_id % 65535 + 1
+
+
+def _refused(ctx: Context, answer: Datagram, reason: RefusedReason, requirement: str) -> None:
+    """A REFUSED with `reason` (D-RSP-11)."""
+    body = answer.body
+    got = f"REFUSED {body.reason.name}" if isinstance(body, Refused) else answer.type.name
+    ctx.expect(
+        isinstance(body, Refused) and body.reason is reason,
+        f"REFUSED {reason.name}",
+        got,
+        requirement,
+    )
+
+
+def _echoes(
+    ctx: Context, answer: Datagram, model_id: int, encryption: int, requirement: str = "R-RSP-20"
+) -> None:
+    """D-RSP-12: REFUSED echoes the HELLO's model ID and encryption byte."""
+    header = answer.header
+    ctx.expect(
+        header.model_id == model_id and int(header.encryption) == encryption,
+        f"model ID {model_id} and encryption {encryption} echoed",
+        f"model ID {header.model_id}, encryption {int(header.encryption)}",
+        requirement,
+    )
+    ctx.expect(
+        header.session_id == 0,
+        "session ID 0 in REFUSED",
+        f"{header.session_id:#x}",
+        "R-RSP-13",
+    )
+
+
+@case(
+    "rsp/session/welcome",
+    "HELLO is answered WELCOME: a new non-zero session ID, the nonce echoed, sequence 0, a period",
+    ["R-RSP-20", "R-RSP-13", "R-RSP-14", "R-RSP-15"],
+    role=Role.ROBOT,
+)
+async def welcome(ctx: Context) -> None:
+    probe = await open_probe(ctx)
+    model = probe.model
+    raw = probe.raw()
+    start = probe.mark()
+    raw.hello()
+    answer = await probe.expect(_ANSWERS, "R-RSP-20", after=start)
+    if isinstance(answer.body, Refused):
+        raise Failed("R-RSP-20", "WELCOME", f"REFUSED {answer.body.reason.name}")
+    raw.accept(answer)
+    header, body = answer.header, answer.body
+    assert isinstance(body, Welcome)
+    ctx.expect(header.session_id != 0, "a session ID that is not 0", "0", "R-RSP-20")
+    ctx.expect(
+        header.model_id == model.model_id and header.encryption is Encryption.NONE,
+        f"model ID {model.model_id}, encryption 0",
+        f"model ID {header.model_id}, encryption {int(header.encryption)}",
+        "R-RSP-13",
+    )
+    ctx.expect(
+        header.sequence == 0, "sequence 0 (its first packet)", str(header.sequence), "R-RSP-14"
+    )
+    ctx.expect(
+        header.last_received == 0,
+        "last received 0 (HELLO's)",
+        str(header.last_received),
+        "R-RSP-15",
+    )
+    ctx.expect(
+        body.client_nonce == raw.nonce,
+        f"the client nonce {raw.nonce.hex()} echoed",
+        body.client_nonce.hex(),
+        "R-RSP-20",
+    )
+    ctx.expect(
+        body.period_ms >= raw.period_ms,
+        f"a period of {raw.period_ms} ms or more (the robot may only raise it, D-RSP-13)",
+        f"{body.period_ms} ms",
+        "R-RSP-20",
+    )
+
+
+@case(
+    "rsp/session/fresh-session-ids",
+    "Three sessions one after another get three different random non-zero session IDs",
+    ["R-RSP-20"],
+    role=Role.ROBOT,
+)
+async def fresh_session_ids(ctx: Context) -> None:
+    probe = await open_probe(ctx)
+    seen: list[int] = []
+    for _ in range(3):
+        raw = probe.raw()
+        answer = await raw.open()
+        seen.append(answer.header.session_id)
+        raw.send(PacketType.BYE, Bye(ByeReason.CLOSED))
+        await probe.listen(0.02)
+    ctx.expect(
+        0 not in seen and len(set(seen)) == len(seen),
+        "three distinct non-zero session IDs",
+        ", ".join(f"{s:#x}" for s in seen),
+    )
+
+
+@case(
+    "rsp/session/unknown-model",
+    "A HELLO of another model ID is refused (1) with its model ID and encryption byte echoed",
+    ["R-RSP-21"],
+    role=Role.ROBOT,
+)
+async def unknown_model(ctx: Context) -> None:
+    probe = await open_probe(ctx)
+    other = _other_model(probe.model.model_id)
+    start = probe.mark()
+    probe.send(hello_packet(other, 0, os.urandom(NONCE_SIZE), round(probe.model.period * 1000)))
+    answer = await probe.expect(_ANSWERS, "R-RSP-21", after=start, expected="REFUSED")
+    _refused(ctx, answer, RefusedReason.UNKNOWN_MODEL, "R-RSP-21")
+    _echoes(ctx, answer, other, 0, "R-RSP-21")
+
+
+@case(
+    "rsp/session/unknown-model-encrypted",
+    "A signed, encrypted HELLO of another model is refused (1), its encryption byte echoed",
+    ["R-RSP-21"],
+    role=Role.ROBOT,
+)
+async def unknown_model_encrypted(ctx: Context) -> None:
+    probe = await open_probe(ctx)
+    other = _other_model(probe.model.model_id)
+    encryption = int(Encryption.CHACHA20_POLY1305)
+    period = round(probe.model.period * 1000)
+    start = probe.mark()
+    hello = hello_packet(other, encryption, os.urandom(NONCE_SIZE), period, psk=probe.psk)
+    probe.send(hello)
+    answer = await probe.expect(_ANSWERS, "R-RSP-21", after=start, expected="REFUSED")
+    _refused(ctx, answer, RefusedReason.UNKNOWN_MODEL, "R-RSP-21")
+    _echoes(ctx, answer, other, encryption, "R-RSP-21")
+
+
+@case(
+    "rsp/session/encryption-not-offered",
+    "A HELLO with an AEAD the ICS says the robot lacks is refused (2), echoing its encryption byte",
+    ["R-RSP-20"],
+    role=Role.ROBOT,
+)
+async def encryption_not_offered(ctx: Context) -> None:
+    lacking = [e for e, feature in _AEADS.items() if feature not in ctx.target.features]
+    if not lacking:
+        declared = ", ".join(f for f in FEATURES if f.startswith("rsp-"))
+        raise NotApplicable(f"the ICS declares every AEAD ({declared}): none to refuse")
+    probe = await open_probe(ctx)
+    encryption = lacking[0]
+    raw = probe.raw(encryption) if probe.psk is not None else None
+    start = probe.mark()
+    if raw is not None:
+        raw.hello()
+    else:  # no key to sign with: a MAC of zeros (the robot need not check it to refuse)
+        period = round(probe.model.period * 1000)
+        nonce = os.urandom(NONCE_SIZE)
+        probe.send(hello_packet(probe.model.model_id, encryption, nonce, period))
+    answer = await probe.expect(_ANSWERS, "R-RSP-20", after=start, expected="REFUSED")
+    if answer.type is PacketType.WELCOME:
+        if raw is not None:
+            raw.accept(answer)  # closed with BYE at the end
+        raise NotApplicable(f"the robot offers {encryption.name}, which the ICS does not declare")
+    _refused(ctx, answer, RefusedReason.ENCRYPTION_NOT_OFFERED, "R-RSP-20")
+    _echoes(ctx, answer, probe.model.model_id, int(encryption))
+
+
+@case(
+    "rsp/session/undefined-encryption",
+    "A HELLO with encryption byte 3 (no AEAD, D-RSP-10) opens no session: dropped or refused (2)",
+    ["R-RSP-18", "R-RSP-20"],
+    role=Role.ROBOT,
+)
+async def undefined_encryption(ctx: Context) -> None:
+    probe = await open_probe(ctx)
+    model = probe.model
+    start = probe.mark()
+    hello = hello_packet(model.model_id, 3, os.urandom(NONCE_SIZE), round(model.period * 1000))
+    probe.send(hello)
+    await probe.listen(probe.quiet)
+    for answer in probe.packets(after=start):
+        ctx.expect(
+            isinstance(answer.body, Refused)
+            and answer.body.reason is RefusedReason.ENCRYPTION_NOT_OFFERED,
+            ("no answer", "REFUSED ENCRYPTION_NOT_OFFERED"),
+            f"{answer.type.name} {getattr(answer.body, 'reason', '')}",
+        )
+    other = await open_probe(ctx, robot=probe.robot, name="second")
+    answer = await other.raw().open()
+    ctx.expect(
+        answer.type is PacketType.WELCOME, "WELCOME to another local system", answer.type.name
+    )
+
+
+@case(
+    "rsp/session/busy",
+    "While a session runs, another local system's HELLO is refused (3) and the session goes on",
+    ["R-RSP-20"],
+    role=Role.ROBOT,
+)
+async def busy(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    model = probe.model
+    sensor = reported(model, 1)[0]
+    other = await open_probe(ctx, robot=probe.robot, name="second")
+    second = other.raw()
+    start = other.mark()
+    second.hello()
+    answer = await other.expect(_ANSWERS, "R-RSP-20", after=start, expected="REFUSED BUSY")
+    if answer.type is PacketType.WELCOME:
+        second.accept(answer)  # a robot may serve two sessions: not with one ID
+        ctx.expect(
+            answer.header.session_id != raw.session_id,
+            "REFUSED BUSY, or a session ID of its own",
+            f"the first session's ID {raw.session_id:#x} again",
+        )
+    else:
+        _refused(ctx, answer, RefusedReason.BUSY, "R-RSP-20")
+        _echoes(ctx, answer, model.model_id, 0)
+    sent = raw.downlink(flags(model, sensor))
+    uplink = await fresh_uplink(probe, sequence_of(sent))
+    ctx.expect(
+        uplink is not None and uplink.header.session_id == raw.session_id,
+        "the first session's UPLINKs going on",
+        "none" if uplink is None else f"session {uplink.header.session_id:#x}",
+        "R-RSP-20",
+    )
+
+
+@case(
+    "rsp/session/repeated-hello",
+    "A HELLO repeated with the same nonce gets the same WELCOME and opens no second session",
+    ["R-RSP-20"],
+    role=Role.ROBOT,
+)
+async def repeated_hello(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    first = raw.welcome
+    assert first is not None
+    assert isinstance(first.body, Welcome)
+    start = probe.mark()
+    raw.hello()  # sequence 1, the same nonce (D-RSP-12)
+    again = await probe.expect(
+        PacketType.WELCOME, "R-RSP-20", after=start, expected="WELCOME again"
+    )
+    assert isinstance(again.body, Welcome)
+    same = (
+        again.header.session_id == first.header.session_id
+        and again.body.robot_nonce == first.body.robot_nonce
+        and again.body.period_ms == first.body.period_ms
+        and again.body.client_nonce == raw.nonce
+    )
+    ctx.expect(
+        same,
+        f"session {first.header.session_id:#x}, robot nonce {first.body.robot_nonce.hex()}",
+        f"session {again.header.session_id:#x}, robot nonce {again.body.robot_nonce.hex()}",
+    )
+    sensor = reported(probe.model, 1)[0]
+    sent = raw.downlink(flags(probe.model, sensor))
+    uplink = await fresh_uplink(probe, sequence_of(sent))
+    ctx.expect(
+        uplink is not None and sensor.name in uplink.devices(probe.model),
+        f"the session going on, reporting {sensor.name}",
+        "no such UPLINK" if uplink is None else str(sorted(uplink.devices(probe.model))),
+    )
+
+
+@case(
+    "rsp/session/bye",
+    "After BYE the robot sends nothing more of the session and takes another local system",
+    ["R-RSP-22"],
+    role=Role.ROBOT,
+)
+async def bye(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    sensor = reported(probe.model, 1)[0]
+    sent = raw.downlink(flags(probe.model, sensor))
+    if await fresh_uplink(probe, sequence_of(sent)) is None:
+        raise Inconclusive("the robot sent no UPLINK before BYE")
+    goodbye = raw.send(PacketType.BYE, Bye(ByeReason.CLOSED))
+    sequence = sequence_of(goodbye)
+    start = probe.mark()
+    await probe.listen(probe.quiet)
+    late = [
+        d
+        for d in probe.packets(PacketType.UPLINK, after=start)
+        if newer(d.header.last_received, sequence)
+    ]
+    ctx.expect(not late, "no UPLINK after the robot took BYE", f"{len(late)} UPLINKs")
+    other = await open_probe(ctx, robot=probe.robot, name="second")
+    second = other.raw()
+    mark = other.mark()
+    second.hello()
+    answer = await other.expect(_ANSWERS, "R-RSP-22", after=mark)
+    if answer.type is PacketType.WELCOME:
+        second.accept(answer)
+    ctx.expect(
+        answer.type is PacketType.WELCOME,
+        "WELCOME to another local system",
+        f"REFUSED {getattr(answer.body, 'reason', '')}",
+    )
+
+
+@case(
+    "rsp/session/uplink-pace",
+    "The robot sends an UPLINK every period T of WELCOME while a sensor is requested",
+    ["R-RSP-23"],
+    role=Role.ROBOT,
+)
+async def uplink_pace(ctx: Context) -> None:
+    probe = await open_probe(ctx)
+    model = probe.model
+    opened = await probe.open_session(period=2 * model.period)
+    sensor = reported(model, 1)[0]
+    probe.session.set_active(sensor.name, True)
+    await probe.listen(3 * opened.period)
+    start = probe.mark()
+    await probe.listen(12 * opened.period)
+    _paced(ctx, [d.at for d in probe.packets(PacketType.UPLINK, after=start)], opened.period)
+
+
+def _paced(ctx: Context, arrivals: list[float], period: float) -> None:
+    gaps = [b - a for a, b in itertools.pairwise(arrivals)]
+    ctx.expect(len(gaps) >= 4, "an UPLINK every period", f"{len(arrivals)} UPLINKs")
+    median = statistics.median(gaps)
+    ctx.expect(
+        0.7 * period <= median <= 1.4 * period,
+        f"UPLINKs {period * 1000:g} ms apart",
+        f"a median of {median * 1000:.1f} ms between {len(arrivals)} UPLINKs",
+    )
+
+
+@case(
+    "rsp/session/period",
+    "PERIOD changes the pace of the robot's UPLINKs while the session runs",
+    ["R-RSP-23"],
+    role=Role.ROBOT,
+)
+async def period(ctx: Context) -> None:
+    probe = await open_probe(ctx)
+    model = probe.model
+    opened = await probe.open_session()
+    sensor = reported(model, 1)[0]
+    probe.session.set_active(sensor.name, True)
+    slower = max(opened.period * 4, 0.08)
+    probe.session.set_period(slower, probe.now)
+    probe.poke()
+    await probe.listen(slower * 1.5)
+    start = probe.mark()
+    await probe.listen(slower * 6)
+    _paced(ctx, [d.at for d in probe.packets(PacketType.UPLINK, after=start)], slower)
+
+
+@case(
+    "rsp/session/keep-alive",
+    "With nothing requested the robot sends an empty-map UPLINK every 5 periods, no more",
+    ["R-RSP-22", "R-RSP-23"],
+    role=Role.ROBOT,
+)
+async def keep_alive(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    period = raw.period
+    raw.downlink()
+    start = probe.mark()
+    await probe.listen(min(4.5 * KEEPALIVE_PERIODS * period, 20 * period))
+    uplinks = probe.packets(PacketType.UPLINK, after=start)
+    carrying = [d for d in uplinks if d.items]
+    ctx.expect(
+        not carrying,
+        "empty Device Maps",
+        f"{sorted(carrying[0].devices(probe.model))}" if carrying else "",
+    )
+    gaps = [b.at - a.at for a, b in itertools.pairwise(uplinks)]
+    ctx.expect(
+        len(uplinks) >= 3, "an UPLINK every 5 periods", f"{len(uplinks)} UPLINKs", "R-RSP-22"
+    )
+    keep = KEEPALIVE_PERIODS * period
+    ctx.expect(
+        all(0.6 * keep <= gap <= 1.6 * keep for gap in gaps),
+        f"UPLINKs {keep * 1000:g} ms apart",
+        ", ".join(f"{gap * 1000:.0f}" for gap in gaps) + " ms",
+        "R-RSP-22",
+    )
+
+
+@case(
+    "rsp/session/silence-keeps-session",
+    "A second of silence from the local system (link lost) does not end the session",
+    ["R-RSP-22"],
+    role=Role.ROBOT,
+)
+async def silence_keeps_session(ctx: Context) -> None:
+    probe = await open_probe(ctx)
+    opened = await probe.open_session()
+    sensor = reported(probe.model, 1)[0]
+    probe.session.set_active(sensor.name, True)
+    if await probe.state(sensor.name) is None:
+        raise Inconclusive(f"no {sensor.name} before the silence")
+    probe.muted = True
+    silent = probe.now
+    start = probe.mark()
+    await probe.listen(max(1.0, 30 * opened.period))
+    byes = probe.packets(PacketType.BYE, after=start)
+    ctx.expect(
+        not byes,
+        "no BYE before 10 s of silence",
+        f"BYE after {byes[0].at - silent:.2f} s" if byes else "",
+    )
+    resumed = probe.session.packets_sent % 65536  # the next DOWNLINK's sequence number
+    probe.muted = False
+    found = await fresh_uplink(probe, resumed)
+    ctx.expect(
+        found is not None and found.header.session_id == opened.session_id,
+        f"an UPLINK of session {opened.session_id:#x} that took the DOWNLINKs again",
+        "none" if found is None else f"session {found.header.session_id:#x}",
+    )
+
+
+@case(
+    "rsp/session/timeout-bye",
+    "After 10 s without a packet from the local system the robot sends BYE (timeout)",
+    ["R-RSP-22"],
+    role=Role.ROBOT,
+    # The longest case: it starts with the others and ends about when they do (the suite's
+    # wall time is set by the slowest case, not the sum).
+    timeout=SESSION_TIMEOUT + 3,
+)
+async def timeout_bye(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    raw.downlink()
+    silent = probe.now
+    found = await probe.next(PacketType.BYE, wait=SESSION_TIMEOUT + 1.5)
+    if found is None:
+        raise Failed("R-RSP-22", "BYE (timeout) after 10 s", "no BYE within 11.5 s")
+    raw.ended = True
+    after = found.at - silent
+    ctx.expect(
+        isinstance(found.body, Bye) and found.body.reason is ByeReason.TIMEOUT,
+        "BYE TIMEOUT",
+        f"BYE {getattr(found.body, 'reason', '')}",
+    )
+    ctx.expect(
+        SESSION_TIMEOUT - 0.5 <= after <= SESSION_TIMEOUT + 1.0,
+        f"BYE {SESSION_TIMEOUT:g} s after the last packet",
+        f"after {after:.2f} s",
+    )

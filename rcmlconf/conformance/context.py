@@ -1,0 +1,171 @@
+"""What a case gets: the target, its transcript, probes that clean up after themselves, and the
+checks that turn an answer into a verdict."""
+
+from __future__ import annotations
+
+import asyncio
+import secrets
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import TypeVar
+
+from rcmlconf.conformance.probes.control import ControlProbe
+from rcmlconf.conformance.registry import Case
+from rcmlconf.conformance.targets import Target
+from rcmlconf.conformance.transcript import Address, Transcript
+from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
+from rcmlconf.impair.channel import derive_seed
+from rcmlconf.impair.spec import Impairment, parse_impairment
+from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, Permission, RcmlDocument
+from rcmlconf.rctp.messages import Request, Response
+
+T = TypeVar("T")
+_ANY = Permission(0)
+
+
+@dataclass
+class Context:
+    case: Case
+    target: Target
+    #: Multiplies every wait (--timeout-scale).
+    scale: float = 1.0
+    #: --seed, for impairments and anything random a case does.
+    seed: int = 0
+    #: The run's free RSP robots (`Target.rsp`), shared by its cases.
+    robots: asyncio.Queue[Address] | None = None
+    #: --impair: the impairment of every UDP flow of the run, over the case's own.
+    impair: Impairment | None = None
+    transcript: Transcript = field(default_factory=Transcript)
+    _closers: list[Callable[[], None]] = field(default_factory=list)
+
+    @property
+    def wait(self) -> float:
+        """How long to wait for one answer: a third of the case's time, scaled."""
+        return self.case.timeout * self.scale / 3
+
+    @property
+    def impairment(self) -> Impairment:
+        """What the case's UDP flows go through: --impair's, else the case's, else nothing."""
+        if self.impair is not None:
+            return self.impair
+        return parse_impairment(self.case.impairment or "none")
+
+    def impairment_seed(self, *path: int | str) -> int:
+        """A seed of its own for each flow of the case, from --seed (same seed, same run)."""
+        return derive_seed(self.seed, self.case.id, *path)
+
+    # -- the target ----------------------------------------------------------------------------
+
+    @property
+    def robot(self) -> RcmlDocument:
+        """The RCTP target's robot; not applicable without one."""
+        if self.target.robot is None:
+            raise NotApplicable("the target's RCML is not known (give --rcml)")
+        return self.target.robot
+
+    def need(self, feature: str) -> None:
+        if feature not in self.target.features:
+            raise NotApplicable(f"the ICS does not declare {feature!r}")
+
+    def access(
+        self,
+        kind: AccessType | None = None,
+        permission: Permission = _ANY,
+        where: Callable[[AccessNode], bool] = lambda _: True,
+    ) -> AccessNode:
+        """The first access of the robot of `kind` with `permission` (and `where`); not
+        applicable when the robot has none."""
+        for access in self.robot.access_nodes():
+            of_kind = kind is None or access.type is kind
+            if of_kind and permission in access.permission and where(access):
+                return access
+        wanted = f"{kind.value if kind else 'any'} access with {permission.to_text() or '-'}"
+        raise NotApplicable(f"the robot has no {wanted}")
+
+    def data(self, kind: AccessType, permission: Permission) -> DataNode:
+        """A data node of an access of `kind` that has `permission` itself."""
+        access = self.access(kind, where=lambda a: any(permission in d.permission for d in a.data))
+        return next(d for d in access.data if permission in d.permission)
+
+    # -- probes --------------------------------------------------------------------------------
+
+    async def control(self) -> ControlProbe:
+        """A new control connection to the RCTP server under test."""
+        if self.target.server is None:
+            raise NotApplicable("no RCTP server under test (--target)")
+        probe = await ControlProbe.open(self.target.server, self.transcript, self.wait)
+        self._closers.append(probe.close)
+        return probe
+
+    async def session(self) -> ControlProbe:
+        """A control connection with a session open; inconclusive if CONNECT fails (the
+        rctp/session cases check CONNECT itself)."""
+        probe = await self.control()
+        answer = await probe.connect(self.target.site_path)
+        if answer.status != 200 or probe.session is None:
+            raise Inconclusive(f"CONNECT was answered {answer.status} {answer.reason}")
+        return probe
+
+    async def client(self) -> ControlProbe:
+        """The next connection of the RCTP client under test (the harness is its server)."""
+        listener = self.target.clients
+        if listener is None:
+            raise NotApplicable("no RCTP client under test (--role client)")
+        probe = await listener.accept(self.transcript, self.wait)
+        self._closers.append(probe.close)
+        return probe
+
+    async def client_session(self, timeout: int = 60) -> tuple[ControlProbe, Request]:
+        """A client's connection whose CONNECT was answered 200 with a new session (D-RCTP-11);
+        the CONNECT request too."""
+        probe = await self.client()
+        connect = await probe.next_request(requirement="R-RCTP-17")
+        if connect.method != "CONNECT":
+            raise Failed("R-RCTP-17", "CONNECT first", f"{connect.method} {connect.target}")
+        probe.session = secrets.token_hex(8)
+        await probe.answer(connect, fields=[("Session", f"{probe.session};timeout={timeout}")])
+        return probe, connect
+
+    async def rsp(self) -> Address:
+        """An RSP robot under test, this case's alone until it ends (a robot serves one session
+        at a time, D-RSP-12)."""
+        robots = self.robots
+        if robots is None or not self.target.rsp:
+            raise NotApplicable("no RSP robot under test (--rsp-target)")
+        address = await robots.get()
+        self._closers.append(lambda: robots.put_nowait(address))
+        return address
+
+    def on_close(self, closer: Callable[[], None]) -> None:
+        self._closers.append(closer)
+
+    def close(self) -> None:
+        while self._closers:
+            self._closers.pop()()
+
+    # -- checks --------------------------------------------------------------------------------
+
+    def requirement(self, requirement: str | None) -> str:
+        return requirement or self.case.requirements[0]
+
+    def expect(
+        self,
+        holds: bool,
+        expected: str | tuple[str, ...],
+        actual: str,
+        requirement: str | None = None,
+    ) -> None:
+        if not holds:
+            raise Failed(self.requirement(requirement), expected, actual)
+
+    def expect_status(
+        self, answer: Response, statuses: int | Iterable[int], requirement: str | None = None
+    ) -> None:
+        """The answer's status is one of `statuses`."""
+        allowed = (statuses,) if isinstance(statuses, int) else tuple(statuses)
+        self.expect(
+            answer.status in allowed,
+            tuple(str(s) for s in allowed),
+            f"{answer.status} {answer.reason}",
+            requirement,
+        )

@@ -1,0 +1,200 @@
+"""An RCTP/2.0 control connection as a case drives it: bytes sent exactly as given (a case may
+break the grammar on purpose), messages read back whole with the core's `MessageReader`."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from collections.abc import Sequence
+
+from rcmlconf.conformance.transcript import Address, Transcript
+from rcmlconf.conformance.verdicts import Failed, HarnessError
+from rcmlconf.rctp.errors import RemoteProtocolError
+from rcmlconf.rctp.messages import Message, Request, Response
+from rcmlconf.rctp.reader import MessageReader
+
+#: R-RCTP-1: a reply the core's parser rejects without naming a rule breaks the grammar.
+GRAMMAR = "R-RCTP-1"
+Fields = Sequence[tuple[str, str]]
+
+
+class ControlProbe:
+    def __init__(
+        self,
+        reader: asyncio.StreamReader,
+        writer: asyncio.StreamWriter,
+        transcript: Transcript,
+        wait: float,
+    ) -> None:
+        self._reader, self._writer = reader, writer
+        self.transcript = transcript
+        #: Seconds to wait for an answer (the case's timeout scale applied).
+        self.wait = wait
+        self._messages = MessageReader()
+        self._eof = False
+        self.cseq = 0
+        #: The session ID once a CONNECT opened one (`Session` is then sent on every request).
+        self.session: str | None = None
+        self.local: Address = writer.get_extra_info("sockname")[:2]
+        self.peer: Address = writer.get_extra_info("peername")[:2]
+
+    @classmethod
+    async def open(cls, address: Address, transcript: Transcript, wait: float) -> ControlProbe:
+        try:
+            reader, writer = await asyncio.wait_for(asyncio.open_connection(*address), wait)
+        except (OSError, TimeoutError) as error:
+            raise HarnessError(f"cannot connect to {address[0]}:{address[1]}: {error}") from None
+        transcript.note(f"connected to {address[0]}:{address[1]}")
+        return cls(reader, writer, transcript, wait)
+
+    # -- sending -------------------------------------------------------------------------------
+
+    async def send(self, data: bytes, what: str = "") -> None:
+        """`data` exactly as given (one write, one TCP segment as far as the kernel lets it)."""
+        self.transcript.sent(what, data)
+        self.transcript.packet("tcp", self.local, self.peer, data)
+        try:
+            self._writer.write(data)
+            await self._writer.drain()
+        except (ConnectionError, OSError) as error:
+            self.transcript.note(f"send failed: {error}")
+
+    def request_bytes(
+        self,
+        method: str,
+        target: str,
+        fields: Fields = (),
+        body: bytes = b"",
+        *,
+        cseq: int | None = None,
+    ) -> bytes:
+        """A well-formed request with the next CSeq (or `cseq`) and the session, if open."""
+        if cseq is None:
+            self.cseq += 1
+            cseq = self.cseq
+        lines = [f"{method} {target} RCTP/2.0", f"CSeq: {cseq}"]
+        names = {name.lower() for name, _ in fields}
+        if self.session is not None and "session" not in names:
+            lines.append(f"Session: {self.session}")
+        lines += [f"{name}: {value}" for name, value in fields]
+        if body:
+            if "content-type" not in names:
+                lines.append("Content-Type: application/rctp-values")
+            lines.append(f"Content-Length: {len(body)}")
+        return ("\r\n".join(lines) + "\r\n\r\n").encode() + body
+
+    async def request(
+        self, method: str, target: str, fields: Fields = (), body: bytes = b""
+    ) -> Response:
+        """Send a well-formed request and return its answer (R-RCTP-5: the next response)."""
+        await self.send(self.request_bytes(method, target, fields, body))
+        return await self.response()
+
+    async def answer(
+        self, request: Request, status: int = 200, reason: str = "OK", fields: Fields = ()
+    ) -> None:
+        """Answer one of the target's requests (R-RCTP-24), with its CSeq and the session."""
+        await self.send(self.response_bytes(request, status, reason, fields))
+
+    def response_bytes(
+        self, request: Request, status: int = 200, reason: str = "OK", fields: Fields = ()
+    ) -> bytes:
+        lines = [f"RCTP/2.0 {status} {reason}", f"CSeq: {request.headers.get('CSeq')}"]
+        names = {name.lower() for name, _ in fields}
+        if self.session is not None and "session" not in names:
+            lines.append(f"Session: {self.session}")
+        lines += [f"{name}: {value}" for name, value in fields]
+        return ("\r\n".join(lines) + "\r\n\r\n").encode()
+
+    # -- receiving -----------------------------------------------------------------------------
+
+    async def message(self, wait: float | None = None) -> Message | None:
+        """The next whole message; None if the target closed the connection first. Waiting
+        longer than `wait` (the probe's by default) is a failure of R-RCTP-5."""
+        deadline = asyncio.get_running_loop().time() + (self.wait if wait is None else wait)
+        while True:
+            try:
+                found = self._messages.next_message()
+            except RemoteProtocolError as error:
+                raise Failed(
+                    error.rule or GRAMMAR,
+                    "a message of RCTP/2.0's grammar",
+                    f"{error.reason} at byte {error.offset} of the target's stream",
+                ) from None
+            if found is not None:
+                self._record(found)
+                return found
+            if self._eof:
+                return None
+            remaining = deadline - asyncio.get_running_loop().time()
+            try:
+                data = await asyncio.wait_for(self._reader.read(65536), max(remaining, 0))
+            except TimeoutError:
+                raise Failed(
+                    "R-RCTP-5",
+                    "an answer",
+                    f"nothing within {self.wait if wait is None else wait:g} s",
+                ) from None
+            except (ConnectionError, OSError) as error:
+                self.transcript.note(f"connection failed: {error}")
+                data = b""
+            if not data:
+                self._eof = True
+                self.transcript.note("<- the target closed the connection")
+                continue
+            self.transcript.packet("tcp", self.peer, self.local, data)
+            self._messages.feed(data)
+
+    async def response(self, wait: float | None = None) -> Response:
+        """The next message, which must be a response (the target's own WRITE, STOP or BYE in
+        between are answered 200 and skipped, as a client must, R-RCTP-24)."""
+        for _ in range(64):
+            found = await self.message(wait)
+            if found is None:
+                raise Failed("R-RCTP-5", "an answer", "the connection closed without one")
+            if isinstance(found, Response):
+                return found
+            await self.answer(found)
+        raise Failed("R-RCTP-5", "an answer", "64 requests of the target's and no answer")
+
+    async def next_request(
+        self, wait: float | None = None, requirement: str = "R-RCTP-24"
+    ) -> Request:
+        """The peer's next message, which must be a request (a client under test speaks
+        first)."""
+        found = await self.message(wait)
+        if found is None:
+            raise Failed(requirement, "a request", "the connection closed")
+        if not isinstance(found, Request):
+            raise Failed(requirement, "a request", f"a response, {found.status} {found.reason}")
+        return found
+
+    async def closes(self, wait: float | None = None) -> bool:
+        """Whether the target closes the connection within `wait` (messages before are read)."""
+        with contextlib.suppress(Failed):
+            for _ in range(64):
+                if await self.message(wait) is None:
+                    return True
+        return self._eof
+
+    async def connect(self, target: str = "/", fields: Fields = ()) -> Response:
+        """CONNECT; on 200 the session is kept for the requests that follow."""
+        answer = await self.request("CONNECT", target, fields)
+        if answer.status == 200:
+            self.session = (answer.headers.get("Session") or "").split(";")[0].strip() or None
+        return answer
+
+    def close(self) -> None:
+        with contextlib.suppress(Exception):
+            self._writer.close()
+
+    def _record(self, message: Message) -> None:
+        if isinstance(message, Request):
+            self.transcript.note(f"<- {message.method} {message.target} {_fields(message)}")
+        else:
+            self.transcript.note(f"<- {message.status} {message.reason} {_fields(message)}")
+
+
+def _fields(message: Message) -> str:
+    shown = ", ".join(f"{name}: {value}" for name, value in message.headers)
+    return f"[{shown}]" + (f" +{len(message.body)} bytes" if message.body else "")

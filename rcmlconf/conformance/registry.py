@@ -1,0 +1,110 @@
+"""The registry of cases. Each case is an async function registered with `@case`, in a module of
+`rcmlconf.conformance.cases` named after its area; its ID is stable (`rctp/msg/unknown-method`),
+never a number that shifts when a case is added.
+"""
+
+from __future__ import annotations
+
+import enum
+import fnmatch
+import importlib
+import pkgutil
+import re
+from collections.abc import Awaitable, Callable, Iterable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rcmlconf.conformance.context import Context
+
+_ID = re.compile(r"^(rctp|rsp)/[a-z0-9-]+/[a-z0-9-]+$")
+
+
+class Role(enum.Enum):
+    """What the implementation under test is."""
+
+    #: An RCTP/2.0 server (`--target`).
+    SERVER = "server"
+    #: An RCTP/2.0 client; the harness plays the server (`--role client --listen`).
+    CLIENT = "client"
+    #: An RSP robot; the harness plays the local system (`--rsp-target`).
+    ROBOT = "robot"
+
+
+CaseFunction = Callable[["Context"], Awaitable[None]]
+
+
+@dataclass(frozen=True, slots=True)
+class Case:
+    id: str
+    #: One line: what the target must do.
+    purpose: str
+    #: The requirement IDs of specs/ it checks; a failure names one of them.
+    requirements: tuple[str, ...]
+    role: Role
+    #: Seconds, before --timeout-scale.
+    timeout: float
+    #: An impairment spec (rcmlconf.impair) its UDP flows run under, or None.
+    impairment: str | None
+    #: Optional features (ICS keys) it needs; a target without one: not applicable.
+    features: tuple[str, ...]
+    #: Shares state with other cases (the access privilege, the one RSP session): runs alone.
+    serial: bool
+    run: CaseFunction
+
+    @property
+    def area(self) -> str:
+        """`rctp/msg` of `rctp/msg/unknown-method`: the JUnit classname."""
+        return self.id.rsplit("/", 1)[0]
+
+
+_CASES: dict[str, Case] = {}
+
+
+def case(
+    id: str,
+    purpose: str,
+    requirements: Iterable[str],
+    *,
+    role: Role = Role.SERVER,
+    timeout: float = 5.0,
+    impairment: str | None = None,
+    features: Iterable[str] = (),
+    serial: bool = False,
+) -> Callable[[CaseFunction], CaseFunction]:
+    """Register the decorated coroutine function as a case."""
+
+    def register(run: CaseFunction) -> CaseFunction:
+        if not _ID.match(id):
+            raise ValueError(f"case ID {id!r} is not protocol/area/name in lower-case")
+        if id in _CASES:
+            raise ValueError(f"case {id} is registered twice")
+        found = tuple(requirements)
+        if not found:
+            raise ValueError(f"case {id} names no requirement")
+        _CASES[id] = Case(
+            id, purpose, found, role, timeout, impairment, tuple(features), serial, run
+        )
+        return run
+
+    return register
+
+
+def all_cases() -> dict[str, Case]:
+    """Every case, by ID, in ID order (the case modules imported on first call)."""
+    from rcmlconf.conformance import cases
+
+    for module in pkgutil.iter_modules(cases.__path__):
+        importlib.import_module(f"{cases.__name__}.{module.name}")
+    return dict(sorted(_CASES.items()))
+
+
+def select(found: Iterable[Case], only: Iterable[str] = (), skip: Iterable[str] = ()) -> list[Case]:
+    """The cases whose ID matches one of `only` (all when empty) and none of `skip` (globs)."""
+    only, skip = list(only), list(skip)
+    return [
+        c
+        for c in found
+        if (not only or any(fnmatch.fnmatchcase(c.id, g) for g in only))
+        and not any(fnmatch.fnmatchcase(c.id, g) for g in skip)
+    ]

@@ -1,0 +1,161 @@
+"""Running cases: each bounded by its timeout (scaled), concurrently where they share no state
+(`Case.serial` ones run alone, after the rest), every exception turned into a verdict."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.registry import Case, Role
+from rcmlconf.conformance.targets import Target
+from rcmlconf.conformance.transcript import Address
+from rcmlconf.conformance.verdicts import CaseStop, Failed, Result, Verdict
+from rcmlconf.impair.spec import Impairment
+from rcmlconf.pcap.writer import write_pcap
+
+#: Lines of the exchange kept with a result.
+EXCHANGE_LINES = 40
+
+
+@dataclass(frozen=True, slots=True)
+class RunOptions:
+    timeout_scale: float = 1.0
+    seed: int = 0
+    #: Cases in flight at once.
+    concurrency: int = 16
+    repeat: int = 1
+    #: --impair: applied to every UDP flow of every case.
+    impair: Impairment | None = None
+    #: --capture: a pcap of each case's traffic is written here.
+    capture: Path | None = None
+
+
+def under_test(case: Case, target: Target) -> bool:
+    """Whether the target has the role the case tests."""
+    if case.role is Role.ROBOT:
+        return bool(target.rsp)
+    if case.role is Role.CLIENT:
+        return target.clients is not None
+    return target.server is not None
+
+
+def robot_pool(target: Target) -> asyncio.Queue[Address]:
+    """The target's RSP robots, free for the taking (`Context.rsp`)."""
+    pool: asyncio.Queue[Address] = asyncio.Queue()
+    for address in target.rsp:
+        pool.put_nowait(address)
+    return pool
+
+
+async def run_case(
+    case: Case,
+    target: Target,
+    options: RunOptions,
+    run: int = 1,
+    robots: asyncio.Queue[Address] | None = None,
+) -> Result:
+    pool = robots or robot_pool(target)
+    ctx = Context(case, target, options.timeout_scale, options.seed, pool, options.impair)
+    started = time.monotonic()
+    try:
+        missing = [f for f in case.features if f not in target.features]
+        if missing:
+            return _result(case, ctx, started, run, Verdict.NOT_APPLICABLE, _lacks(missing))
+        await asyncio.wait_for(case.run(ctx), case.timeout * options.timeout_scale)
+    except Failed as failed:
+        return Result(
+            case.id,
+            Verdict.FAIL,
+            time.monotonic() - started,
+            failed.reason,
+            failed.requirement,
+            failed.expected,
+            failed.actual,
+            _exchange(ctx),
+            run,
+        )
+    except CaseStop as stop:
+        return _result(case, ctx, started, run, stop.verdict, stop.reason)
+    except TimeoutError:
+        seconds = case.timeout * options.timeout_scale
+        return Result(
+            case.id,
+            Verdict.FAIL,
+            time.monotonic() - started,
+            f"the case did not finish within {seconds:g} s",
+            case.requirements[0],
+            ("the exchange finished in time",),
+            "the target kept the case waiting",
+            _exchange(ctx),
+            run,
+        )
+    except OSError as error:
+        reason = f"network error: {error}"
+        return _result(case, ctx, started, run, Verdict.ERROR, reason)
+    except Exception as error:  # a harness bug: reported as an error, never a traceback
+        reason = f"harness fault: {type(error).__name__}: {error}"
+        return _result(case, ctx, started, run, Verdict.ERROR, reason)
+    finally:
+        ctx.close()
+        if options.capture is not None:
+            _capture(options.capture, case, run, ctx)
+    return _result(case, ctx, started, run, Verdict.PASS, "")
+
+
+def capture_path(directory: Path, case: Case, run: int) -> Path:
+    """`rctp_msg_unknown-method.pcap`, `-run2` before the suffix for --repeat's later runs."""
+    stem = case.id.replace("/", "_") + (f"-run{run}" if run > 1 else "")
+    return directory / f"{stem}.pcap"
+
+
+def _capture(directory: Path, case: Case, run: int, ctx: Context) -> None:
+    try:
+        with capture_path(directory, case, run).open("wb") as file:
+            write_pcap(file, ctx.transcript.packets)
+    except OSError as error:
+        ctx.transcript.note(f"capture not written: {error}")
+
+
+async def run_cases(
+    cases: Sequence[Case],
+    target: Target,
+    options: RunOptions,
+    done: Callable[[Result], None] = lambda _: None,
+) -> list[Result]:
+    """Every case, `options.repeat` times; `done` hears of each result as it comes."""
+    results: list[Result] = []
+    gate = asyncio.Semaphore(max(1, options.concurrency))
+    robots = robot_pool(target)
+
+    async def one(case: Case, run: int) -> None:
+        async with gate:
+            result = await run_case(case, target, options, run, robots)
+        results.append(result)
+        done(result)
+
+    for run in range(1, options.repeat + 1):
+        await asyncio.gather(*(one(c, run) for c in cases if not c.serial))
+        for case in cases:
+            if case.serial:
+                await one(case, run)
+    order = {c.id: i for i, c in enumerate(cases)}
+    return sorted(results, key=lambda r: (r.run, order[r.case]))
+
+
+def _result(
+    case: Case, ctx: Context, started: float, run: int, verdict: Verdict, reason: str
+) -> Result:
+    exchange = _exchange(ctx) if verdict is not Verdict.PASS else ()
+    return Result(case.id, verdict, time.monotonic() - started, reason, exchange=exchange, run=run)
+
+
+def _exchange(ctx: Context) -> tuple[str, ...]:
+    return tuple(ctx.transcript.lines[-EXCHANGE_LINES:])
+
+
+def _lacks(features: list[str]) -> str:
+    return "the ICS does not declare " + ", ".join(repr(f) for f in features)

@@ -1,0 +1,131 @@
+"""What is under test: the addresses and models a run's cases need, and the embedded reference
+implementation started when no target is named (the README's main job)."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import functools
+import os
+from collections.abc import AsyncIterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from rcmlconf.conformance.probes.clients import ClientListener
+from rcmlconf.rcml.model import RcmlDocument
+from rcmlconf.reference.faults import Fault
+from rcmlconf.rsp.codec import Encryption
+from rcmlconf.rsp.model import RobotModel
+from rcmlconf.rsp.security import KEY_SIZE
+
+Address = tuple[str, int]
+REFERENCE = Path(__file__).resolve().parent.parent / "reference" / "robots"
+#: The embedded reference's robots: the rover has every access type, CUBO is the paper's.
+REFERENCE_RCML = REFERENCE / "rover" / "rover.rcml"
+REFERENCE_RMODEL = REFERENCE / "cubo" / "cubo.rmodel"
+#: The embedded server's session timeout (D-RCTP-11), short so the timeout cases are quick.
+REFERENCE_SESSION_TIMEOUT = 2
+#: Embedded RSP robots, so that RSP cases need not wait for each other's sessions.
+REFERENCE_RSP_ROBOTS = 8
+
+
+@dataclass(frozen=True)
+class Target:
+    """The implementations under test. A role without its address is not under test."""
+
+    #: An RCTP/2.0 server, its robot and its site path (D-RCTP-3).
+    server: Address | None = None
+    robot: RcmlDocument | None = None
+    site_path: str = "/"
+    #: RSP robots of one model, interchangeable: a case takes one for itself (`Context.rsp`), as
+    #: a robot serves one session at a time (D-RSP-12). An external target is one robot.
+    rsp: tuple[Address, ...] = ()
+    rsp_model: RobotModel | None = None
+    #: The RSP robots' pre-shared key (D-RSP-21), for the encrypted cases.
+    rsp_psk: bytes | None = None
+    #: Where RCTP/2.0 clients under test connect (the harness plays the server of `robot`).
+    clients: ClientListener | None = None
+    #: The optional features the ICS declares (`ics.FEATURES`); every one by default.
+    features: frozenset[str] = field(default_factory=frozenset)
+    #: What the target is, for the report ("the embedded reference", "127.0.0.1:7330").
+    name: str = "the target"
+
+
+@contextlib.asynccontextmanager
+async def embedded_reference(
+    features: frozenset[str], faults: frozenset[Fault] = frozenset()
+) -> AsyncIterator[Target]:
+    """The reference RCTP server (the rover) and RSP robot (CUBO) on free loopback ports;
+    `faults` (`reference.faults`) make them misbehave, to test the harness itself."""
+    from rcmlconf.reference.drivers import choose_driver
+    from rcmlconf.reference.faults import ROBOT_FAULTS, SERVER_FAULTS
+    from rcmlconf.reference.rsp.robot import ReferenceRobot, RobotSettings
+    from rcmlconf.reference.server.adapter import ReferenceServer, ServerSettings
+    from rcmlconf.validate.validator import load_robot, load_robot_model
+
+    robot = load_robot(REFERENCE_RCML)
+    model = load_robot_model(REFERENCE_RMODEL)
+    settings = ServerSettings(
+        port=0,
+        http_port=0,
+        session_timeout=REFERENCE_SESSION_TIMEOUT,
+        faults=faults & SERVER_FAULTS,
+    )
+    server = ReferenceServer(REFERENCE_RCML, robot, choose_driver("auto", robot), settings)
+    psk = os.urandom(KEY_SIZE)
+    robots = [
+        ReferenceRobot(
+            model,
+            RobotSettings(
+                port=0, encryptions=frozenset(Encryption), psk=psk, faults=faults & ROBOT_FAULTS
+            ),
+        )
+        for _ in range(REFERENCE_RSP_ROBOTS)
+    ]
+    started: list[ReferenceRobot] = []
+    clients = ClientListener(summon=functools.partial(reference_client, robot))
+    await server.start()
+    try:
+        await clients.start("127.0.0.1", 0)
+        for rsp in robots:
+            await rsp.start()
+            started.append(rsp)
+        yield Target(
+            server=("127.0.0.1", server.port),
+            robot=robot,
+            site_path=robot.site.path,
+            rsp=tuple(rsp.address for rsp in robots),
+            rsp_model=model,
+            rsp_psk=psk,
+            clients=clients,
+            features=features,
+            name="the embedded reference",
+        )
+    finally:
+        for rsp in started:
+            rsp.stop()
+        await clients.close()
+        await server.stop()
+
+
+#: How long a summoned reference client stays connected at most.
+CLIENT_LIFETIME = 30.0
+
+
+async def reference_client(robot: RcmlDocument, address: Address) -> None:
+    """One reference client's session with the harness: CONNECT, answer what the server sends,
+    until the harness ends it (or CLIENT_LIFETIME)."""
+    from rcmlconf.rctp.url import RctpUrl
+    from rcmlconf.reference.client.adapter import Client, RctpError
+
+    url = RctpUrl(address[0], address[1], robot.site.path)
+    try:
+        client = await Client.connect(url, robot, timeout=CLIENT_LIFETIME)
+    except RctpError:
+        return  # the case answered CONNECT with something a client must refuse
+    try:
+        deadline = asyncio.get_running_loop().time() + CLIENT_LIFETIME
+        while client.closed is None and asyncio.get_running_loop().time() < deadline:
+            await client.next_event(timeout=deadline - asyncio.get_running_loop().time())
+    finally:
+        await client.close(timeout=1.0)

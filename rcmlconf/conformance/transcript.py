@@ -1,0 +1,42 @@
+"""What a case exchanged with the target, for the report of a failure (one line a message or
+event, timed from the case's start) and for --capture (every payload with its endpoints)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+from rcmlconf.pcap.writer import Payload
+
+Address = tuple[str, int]
+#: Characters of a message shown in a line; the rest is elided (the capture has it all).
+SHOWN = 160
+
+
+@dataclass
+class Transcript:
+    start: float = field(default_factory=time.monotonic)
+    lines: list[str] = field(default_factory=list)
+    #: Every TCP payload and UDP datagram sent and received, for --capture.
+    packets: list[Payload] = field(default_factory=list)
+    wall_start: float = field(default_factory=time.time)
+
+    def note(self, text: str) -> None:
+        self.lines.append(f"{time.monotonic() - self.start:7.3f}  {text}")
+
+    def sent(self, what: str, data: bytes) -> None:
+        self.note(f"-> {what} {show(data)}")
+
+    def received(self, what: str, data: bytes) -> None:
+        self.note(f"<- {what} {show(data)}")
+
+    def packet(self, transport: str, source: Address, destination: Address, data: bytes) -> None:
+        at = self.wall_start + time.monotonic() - self.start
+        self.packets.append(Payload(at, transport, source, destination, data))
+
+
+def show(data: bytes) -> str:
+    """Bytes as a readable one-liner: CRLF as ⏎, other controls escaped, elided past SHOWN."""
+    text = data[:SHOWN].decode("latin-1").replace("\r\n", "⏎")
+    text = "".join(c if c.isprintable() or c == "⏎" else f"\\x{ord(c):02x}" for c in text)
+    return text + (f"… ({len(data)} bytes)" if len(data) > SHOWN else "")

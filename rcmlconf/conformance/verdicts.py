@@ -1,0 +1,82 @@
+"""The verdicts of a case (issue "The conformance harness": pass, fail, inconclusive, not
+applicable, error) and the exceptions a case stops with to give one.
+
+A case that returns passes. `Failed` is the target's fault and carries the requirement broken,
+every outcome the requirement accepts and what happened. `Inconclusive` means the case could not
+tell (a precondition another case checks did not hold, the impairment hid the answer).
+`NotApplicable` means the target lacks an optional feature the case needs (ICS or model). An
+`error` is the harness's fault or the network's (a refused connection, a bug): never the
+target's failure.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+
+
+class Verdict(enum.Enum):
+    PASS = "pass"
+    FAIL = "fail"
+    INCONCLUSIVE = "inconclusive"
+    NOT_APPLICABLE = "not applicable"
+    ERROR = "error"
+
+
+class CaseStop(Exception):
+    """How a case ends with another verdict than pass."""
+
+    verdict: Verdict
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(reason)
+        self.reason = reason
+
+
+class Failed(CaseStop):
+    verdict = Verdict.FAIL
+
+    def __init__(
+        self, requirement: str, expected: tuple[str, ...] | str, actual: str, reason: str = ""
+    ) -> None:
+        expected = (expected,) if isinstance(expected, str) else expected
+        super().__init__(reason or f"expected {' or '.join(expected)}; got {actual}")
+        self.requirement = requirement
+        self.expected = expected
+        self.actual = actual
+
+
+class Inconclusive(CaseStop):
+    verdict = Verdict.INCONCLUSIVE
+
+
+class NotApplicable(CaseStop):
+    verdict = Verdict.NOT_APPLICABLE
+
+
+class HarnessError(CaseStop):
+    """The harness or the network failed; the target is not to blame."""
+
+    verdict = Verdict.ERROR
+
+
+@dataclass(frozen=True, slots=True)
+class Result:
+    """One case's run."""
+
+    case: str
+    verdict: Verdict
+    #: Seconds.
+    duration: float
+    #: Why, in a sentence; empty for a pass.
+    reason: str = ""
+    #: For a failure: the requirement broken, what it accepts, what happened.
+    requirement: str | None = None
+    expected: tuple[str, ...] = ()
+    actual: str | None = None
+    #: The exchange that led there, one line a message or event.
+    exchange: tuple[str, ...] = ()
+    #: Which of --repeat's runs, from 1.
+    run: int = 1
+    #: A failure the baseline lists (known): it does not fail the run.
+    known: bool = False

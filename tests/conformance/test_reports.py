@@ -1,0 +1,119 @@
+"""The run's reports: JUnit XML valid against the schema CI reporters read, the JSON report, the
+baseline of known failures, the pcap of a case's traffic."""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+
+import pytest
+from lxml import etree
+from scapy.layers.inet import IP, TCP, UDP
+from scapy.utils import rdpcap
+
+from rcmlconf.conformance.registry import all_cases
+from rcmlconf.conformance.reports.baseline import BaselineError, load_baseline, mark_known
+from rcmlconf.conformance.reports.json_report import to_json
+from rcmlconf.conformance.reports.junit import to_junit
+from rcmlconf.conformance.verdicts import Result, Verdict
+from rcmlconf.pcap.writer import MSS, Payload, write_pcap
+
+SCHEMA = etree.XMLSchema(etree.parse(str(Path(__file__).parents[1] / "support" / "junit.xsd")))
+
+
+def results() -> list[Result]:
+    ids = list(all_cases())
+    return [
+        Result(ids[0], Verdict.PASS, 0.01),
+        Result(
+            ids[1],
+            Verdict.FAIL,
+            0.2,
+            "expected 501; got 200 OK",
+            "R-RCTP-9",
+            ("501",),
+            "200 OK",
+            ("  0.001  -> FROB / RCTP/2.0\x01⏎",),
+        ),
+        Result(ids[2], Verdict.ERROR, 0.0, "network error: refused"),
+        Result(ids[3], Verdict.NOT_APPLICABLE, 0.0, "the robot has no stream access"),
+        Result(ids[4], Verdict.INCONCLUSIVE, 0.1, "CONNECT was answered 503"),
+        Result(ids[1], Verdict.FAIL, 0.2, "again", "R-RCTP-9", ("501",), "200 OK", (), run=2),
+    ]
+
+
+def test_junit_is_schema_valid_and_counts_every_verdict() -> None:
+    cases = all_cases()
+    document = etree.fromstring(to_junit(results(), cases, 0.0))
+    SCHEMA.assertValid(document)
+    assert document.get("tests") == "6"
+    assert (document.get("failures"), document.get("errors"), document.get("skipped")) == (
+        "2",
+        "1",
+        "2",
+    )
+    failure = document.find(".//testcase/failure")
+    assert failure is not None
+    assert failure.get("type") == "R-RCTP-9"
+    assert "\\x01" in (failure.text or "")  # a control character of the transcript, escaped
+    names = [c.get("name") for c in document.iter("testcase")]
+    assert f"{results()[1].case} (run 2)" in names
+    classnames = {c.get("classname") for c in document.iter("testcase")}
+    assert classnames == {cases[r.case].area for r in results()}
+
+
+def test_json_report_holds_every_result_with_its_case() -> None:
+    report = to_json(results(), all_cases(), "the target", {"seed": 3})
+    assert report["counts"]["fail"] == 2
+    assert report["settings"] == {"seed": 3}
+    failed = report["results"][1]
+    assert failed["verdict"] == "fail"
+    assert failed["requirement"] == "R-RCTP-9"
+    assert failed["expected"] == ["501"]
+    json.dumps(report)
+
+
+def test_a_baseline_of_ids_or_of_a_report_marks_those_failures_known(tmp_path: Path) -> None:
+    found = results()
+    listed = tmp_path / "known.txt"
+    listed.write_text(f"# known\n{found[1].case}  # flaky\n\n")
+    assert load_baseline(listed) == {found[1].case}
+    report = tmp_path / "report.json"
+    report.write_text(json.dumps(to_json(found, all_cases(), "t", {})))
+    assert load_baseline(report) == {found[1].case, found[2].case}
+    marked = mark_known(found, frozenset({found[1].case, found[0].case}))
+    assert [r.known for r in marked] == [False, True, False, False, False, True]
+    broken = tmp_path / "broken.json"
+    broken.write_text('{"results": 3}')
+    with pytest.raises(BaselineError, match="not a report"):
+        load_baseline(broken)
+
+
+def test_a_capture_reads_back_as_the_connection_and_datagrams_it_was() -> None:
+    client, server = ("127.0.0.1", 40000), ("127.0.0.1", 7330)
+    big = bytes(range(256)) * 12  # more than one segment
+    payloads = [
+        Payload(1.5, "tcp", client, server, b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\n\r\n"),
+        Payload(1.6, "tcp", server, client, big),
+        Payload(1.7, "udp", client, ("127.0.0.1", 7331), b"\x02\x00datagram"),
+    ]
+    file = io.BytesIO()
+    write_pcap(file, payloads)
+    file.seek(0)
+    packets = list(rdpcap(file))
+    flags = [str(p[TCP].flags) for p in packets if TCP in p]
+    assert flags[:3] == ["S", "SA", "A"]
+    data = [bytes(p[TCP].payload) for p in packets if TCP in p and p[TCP].payload]
+    assert data[0] == payloads[0].data
+    assert b"".join(data[1:]) == big
+    assert max(len(d) for d in data) == MSS
+    replies = [p for p in packets if TCP in p and p[TCP].sport == server[1] and p[TCP].payload]
+    assert replies[1][TCP].seq == replies[0][TCP].seq + MSS
+    assert bytes(packets[-1][UDP].payload) == payloads[2].data
+    for packet in packets:  # every checksum as the kernel would have computed it
+        raw = bytes(packet)
+        again = IP(raw)
+        del again.chksum
+        del again[TCP if TCP in again else UDP].chksum
+        assert bytes(again) == raw

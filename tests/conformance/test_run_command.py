@@ -1,0 +1,106 @@
+"""`rcmlconf run` and `rcmlconf cases` as a user runs them: real processes, exit statuses, files."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import socket
+import subprocess
+from pathlib import Path
+
+from lxml import etree
+from support.processes import COMMAND, run_command
+
+from rcmlconf.conformance.targets import REFERENCE_RCML, reference_client
+from rcmlconf.validate.validator import load_robot
+
+SCHEMA = etree.XMLSchema(etree.parse(str(Path(__file__).parents[1] / "support" / "junit.xsd")))
+
+
+def test_run_on_the_embedded_reference_writes_junit_json_and_captures(tmp_path: Path) -> None:
+    junit, report, captures = tmp_path / "r.xml", tmp_path / "r.json", tmp_path / "pcaps"
+    done = run_command(
+        "run",
+        "--only",
+        "rctp/msg/*",
+        "--junit",
+        str(junit),
+        "--json",
+        str(report),
+        "--capture",
+        str(captures),
+    )
+    assert done.returncode == 0, done.stderr
+    assert "the embedded reference" in done.stderr
+    SCHEMA.assertValid(etree.parse(str(junit)))
+    found = json.loads(report.read_text())
+    assert found["results"]
+    assert {r["verdict"] for r in found["results"]} == {"pass"}
+    assert {p.name for p in captures.iterdir()} >= {"rctp_msg_connect.pcap"}
+
+
+def test_a_target_that_is_not_there_is_an_error_not_a_failure(tmp_path: Path) -> None:
+    done = run_command("run", "--target", "127.0.0.1:9", "--only", "rctp/msg/connect")
+    assert done.returncode == 2, done.stderr
+    assert "error" in done.stdout
+    assert "cannot connect" in done.stdout
+    assert "Traceback" not in done.stderr + done.stdout
+
+
+def test_usage_errors_exit_2_with_a_reason(tmp_path: Path) -> None:
+    bad_ics = tmp_path / "ics.toml"
+    bad_ics.write_text("[features]\nteleport = true\n")
+    for args, reason in [
+        (["--only", "nothing/*"], "no case matches"),
+        (["--ics", str(bad_ics)], "unknown feature teleport"),
+        (["--impair", "loss=200%"], "loss"),
+        (["--rsp-target", "127.0.0.1"], "needs the robot's --model"),
+    ]:
+        done = run_command("run", *args)
+        assert done.returncode == 2, (args, done.stderr)
+        assert reason in done.stderr, (args, done.stderr)
+        assert "Traceback" not in done.stderr
+
+
+def test_cases_lists_and_the_matrix_covers(tmp_path: Path) -> None:
+    listed = run_command("cases", "--format", "json")
+    assert listed.returncode == 0, listed.stderr
+    assert any(c["id"] == "rctp/msg/unknown-method" for c in json.loads(listed.stdout))
+    rows = run_command("cases", "--matrix", "--format", "json")
+    assert rows.returncode == 0, rows.stderr
+    by_id = {r["requirement"]: r for r in json.loads(rows.stdout)}
+    assert "rctp/msg/unknown-method" in by_id["R-RCTP-9"]["cases"]
+    assert by_id["R-RCML-7"]["validate"]
+
+
+def test_role_client_tests_each_connection_of_the_client_under_test(tmp_path: Path) -> None:
+    """The harness listens; a reference client (standing in for the user's) reconnects after
+    every case, as the user's loop would."""
+    report = tmp_path / "r.json"
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    args = ["run", "--role", "client", "--listen", str(port), "--only", "rctp/client/*"]
+    process = subprocess.Popen(
+        [*COMMAND, *args, "--json", str(report)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    robot = load_robot(REFERENCE_RCML)
+
+    async def clients() -> None:
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + 60
+        while process.poll() is None and loop.time() < deadline:
+            with contextlib.suppress(OSError, TimeoutError):
+                await asyncio.wait_for(reference_client(robot, ("127.0.0.1", port)), 10)
+            await asyncio.sleep(0.02)  # not listening yet, or between cases
+
+    asyncio.run(clients())
+    out, err = process.communicate(timeout=30)
+    assert process.returncode == 0, out + err
+    verdicts = {r["case"]: r["verdict"] for r in json.loads(report.read_text())["results"]}
+    assert len(verdicts) >= 10
+    assert set(verdicts.values()) == {"pass"}
