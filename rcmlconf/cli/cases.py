@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Sequence
 
 import click
 
 from rcmlconf.cli.console import Output
 from rcmlconf.conformance.coverage import matrix, unknown_requirements
-from rcmlconf.conformance.registry import all_cases, select
+from rcmlconf.conformance.registry import Case, all_cases, select
 from rcmlconf.specs import requirements
+from rcmlconf.wording import plural
 
 
 @click.command()
@@ -67,16 +69,7 @@ def cases(show_matrix: bool, only: tuple[str, ...], output_format: str, strict: 
                 ]
             )
         else:
-            for c in chosen:
-                output.out.line(
-                    [
-                        (c.id, "bold"),
-                        (f"  [{', '.join(c.requirements)}]", "cyan"),
-                        (f" ({c.role.value}) ", "dim"),
-                        (c.purpose, ""),
-                    ]
-                )
-            output.summary(f"{len(chosen)} cases", True)
+            list_cases(output, chosen)
         sys.exit(1 if unknown else 0)
     rows = matrix(chosen, texts)
     uncovered = [r for r in rows if not r.covered]
@@ -111,3 +104,17 @@ def cases(show_matrix: bool, only: tuple[str, ...], output_format: str, strict: 
         not uncovered,
     )
     sys.exit(1 if unknown or (strict and must) else 0)
+
+
+def list_cases(output: Output, chosen: Sequence[Case]) -> None:
+    """A line a case: ID, requirements, role, purpose (`cases` and `run --list`)."""
+    for c in chosen:
+        output.out.line(
+            [
+                (c.id, "bold"),
+                (f"  [{', '.join(c.requirements)}]", "cyan"),
+                (f" ({c.role.value}) ", "dim"),
+                (c.purpose, ""),
+            ]
+        )
+    output.summary(plural(len(chosen), "case"), True)

@@ -9,16 +9,18 @@ import logging
 import sys
 import time
 from collections.abc import AsyncIterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import click
 
+from rcmlconf.cli.cases import list_cases
 from rcmlconf.cli.console import Output
 from rcmlconf.cli.rsp_options import parse_address
 from rcmlconf.conformance.ics import EVERYTHING, Ics, IcsError, load_ics
 from rcmlconf.conformance.probes.clients import ClientListener
+from rcmlconf.conformance.probes.locals import LocalListener
 from rcmlconf.conformance.registry import Case, all_cases, select
 from rcmlconf.conformance.reports.baseline import BaselineError, load_baseline, mark_known
 from rcmlconf.conformance.reports.json_report import to_json
@@ -30,6 +32,8 @@ from rcmlconf.conformance.verdicts import Result, Verdict
 from rcmlconf.impair.spec import ImpairmentError, parse_impairment
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rctp.url import DEFAULT_PORT as RCTP_PORT
+from rcmlconf.reference.faults import Fault, describe, faults_named
+from rcmlconf.rsp.model import RobotModel
 from rcmlconf.validate.validator import InvalidRobot, load_robot, load_robot_model
 
 #: D-RSP-9.
@@ -72,7 +76,8 @@ def _address(default_port: int) -> Any:
 @click.option(
     "--model",
     type=click.Path(exists=True, dir_okay=False, path_type=Path),
-    help="The robot model (.rmodel) of --rsp-target.",
+    help="The robot model (.rmodel) of --rsp-target, or of the robot the harness plays to the"
+    " local system under test (--role local).",
 )
 @click.option(
     "--ics",
@@ -81,16 +86,19 @@ def _address(default_port: int) -> Any:
 )
 @click.option(
     "--role",
-    type=click.Choice(["server", "client"]),
+    type=click.Choice(["server", "client", "local"]),
     default="server",
     show_default=True,
     help="client: the harness plays the server and tests the RCTP client that connects to"
-    " --listen, once per case (reconnect it after each).",
+    " --listen, once per case (reconnect it after each). local: the harness plays a robot of"
+    " --model and tests the RSP local system that sends to --listen, one run of the scenario of"
+    " specs/rsp.md D-RSP-24 per case (start it again after each).",
 )
 @click.option(
     "--listen",
     metavar="[HOST:]PORT",
-    help="With --role client: where the client under test connects (127.0.0.1 by default).",
+    help="With --role client or local: where the implementation under test connects or sends"
+    " (127.0.0.1 by default).",
 )
 @click.option("--list", "list_only", is_flag=True, help="List the cases that would run; run none.")
 @click.option("--only", multiple=True, metavar="GLOB", help="Run the cases whose ID matches.")
@@ -130,6 +138,15 @@ def _address(default_port: int) -> Any:
     type=click.Path(file_okay=False, path_type=Path),
     help="Write a pcap of each case's traffic into this directory (rcmlconf dissect reads it).",
 )
+@click.option(
+    "--fault",
+    "faults",
+    multiple=True,
+    type=click.Choice([f.value for f in Fault]),
+    metavar="NAME",
+    help="Without a target: make the embedded reference misbehave (see `rcmlconf serve --help`"
+    " and `rcmlconf robot --help` for the names), to watch the suite catch it.",
+)
 @click.option("-v", "--verbose", is_flag=True, help="A line for every case, passes too.")
 def run(
     target: tuple[str, int] | None,
@@ -152,6 +169,7 @@ def run(
     json_file: Path | None,
     baseline: Path | None,
     capture: Path | None,
+    faults: tuple[str, ...],
     verbose: bool,
 ) -> None:
     """Run the conformance cases against an implementation and give each a verdict.
@@ -173,6 +191,8 @@ def run(
       rcmlconf run --rsp-target 10.0.0.7 --model cubo.rmodel --only 'rsp/*'
       rcmlconf run --only 'rctp/msg/*' --repeat 20 --impair loss=5%,reorder=2% --seed 7
       rcmlconf run --role client --listen 7330 --timeout-scale 3   # then start your client
+      rcmlconf run --role local --listen 7340 --model cubo.rmodel  # then your local system
+      rcmlconf run --fault acquire-not-exclusive     # watch the suite catch a bug
       rcmlconf run --list
     """
     output = Output()
@@ -189,16 +209,23 @@ def run(
             raise click.UsageError("--role client needs --listen PORT for the client to connect")
         if target is not None or rsp_target is not None:
             raise click.UsageError("--role client tests a client: leave out --target/--rsp-target")
+    elif role == "local":
+        if listen is None or model is None:
+            raise click.UsageError("--role local needs --listen PORT and the --model to play")
+        if target is not None or rsp_target is not None:
+            raise click.UsageError("--role local tests a local system: leave out the targets")
     elif listen is not None:
-        raise click.UsageError("--listen is for --role client")
-    elif (rcml is not None or site is not None) and target is None:
+        raise click.UsageError("--listen is for --role client and --role local")
+    if faults and (target is not None or rsp_target is not None or listen is not None):
+        raise click.UsageError("--fault is for the embedded reference: leave out the targets")
+    if (rcml is not None or site is not None) and target is None:
         raise click.UsageError("--rcml and --site describe --target: give --target too")
     registry = all_cases()
     chosen = select(registry.values(), only, skip)
     if not chosen:
         raise click.UsageError("no case matches --only/--skip (rcmlconf run --list shows them)")
     if list_only:
-        _list(output, chosen)
+        list_cases(output, chosen)
         return
     options = RunOptions(timeout_scale, seed, concurrency, repeat, impairment, capture)
     if capture is not None:
@@ -206,9 +233,13 @@ def run(
             capture.mkdir(parents=True, exist_ok=True)
         except OSError as error:
             raise click.UsageError(f"--capture {capture}: {error}") from None
-    external: Target | ClientTarget | None = None
+    external: Target | ClientTarget | LocalTarget | None = None
     if target is not None or rsp_target is not None:
         external = _external(output, target, rcml, site, rsp_target, model, declared)
+    elif listen is not None and model is not None and role == "local":
+        address = listen if ":" in listen else f"127.0.0.1:{listen}"
+        played = _model(model)
+        external = LocalTarget(parse_address(address, RSP_PORT), played, declared)
     elif listen is not None:
         robot = _robot(rcml) if rcml is not None else load_robot(REFERENCE_RCML)
         address = listen if ":" in listen else f"127.0.0.1:{listen}"
@@ -217,7 +248,9 @@ def run(
         _quiet_reference()
     started = time.time()
     try:
-        tested, results = asyncio.run(_run(external, declared, chosen, options, output, verbose))
+        tested, results = asyncio.run(
+            _run(external, declared, faults_named(faults), chosen, options, output, verbose)
+        )
     except OSError as error:
         output.problem("run", f"cannot start the embedded reference: {error}")
         sys.exit(2)
@@ -229,14 +262,15 @@ def run(
 
 
 async def _run(
-    external: Target | ClientTarget | None,
+    external: Target | ClientTarget | LocalTarget | None,
     declared: Ics,
+    faults: frozenset[Fault],
     chosen: Sequence[Case],
     options: RunOptions,
     output: Output,
     verbose: bool,
 ) -> tuple[Target, list[Result]]:
-    async with _target(external, declared) as target:
+    async with _target(external, declared, faults) as target:
         cases = [c for c in chosen if under_test(c, target)]
         if len(cases) < len(chosen):
             output.notice(
@@ -269,7 +303,24 @@ def _quiet_reference() -> None:
 
 
 @contextlib.asynccontextmanager
-async def _target(external: Target | ClientTarget | None, declared: Ics) -> AsyncIterator[Target]:
+async def _target(
+    external: Target | ClientTarget | LocalTarget | None, declared: Ics, faults: frozenset[Fault]
+) -> AsyncIterator[Target]:
+    if isinstance(external, LocalTarget):
+        local = LocalListener(external.model, external.ics.psk)
+        await local.start(*external.listen)
+        try:
+            host, port = local.address
+            yield Target(
+                rsp_model=external.model,
+                rsp_psk=external.ics.psk,
+                locals=local,
+                features=external.ics.features,
+                name=f"the local system sending to {host}:{port}",
+            )
+        finally:
+            await local.close()
+        return
     if isinstance(external, ClientTarget):
         listener = ClientListener()
         await listener.start(*external.listen)
@@ -288,7 +339,9 @@ async def _target(external: Target | ClientTarget | None, declared: Ics) -> Asyn
     if external is not None:
         yield external
         return
-    async with embedded_reference(declared.features) as reference:
+    async with embedded_reference(declared.features, faults) as reference:
+        if faults:
+            reference = replace(reference, name=f"the embedded reference with {describe(faults)}")
         yield reference
 
 
@@ -333,24 +386,27 @@ class ClientTarget:
     features: frozenset[str]
 
 
+@dataclass(frozen=True)
+class LocalTarget:
+    """--role local: where to listen, and the model of the robot the harness plays."""
+
+    listen: tuple[str, int]
+    model: RobotModel
+    ics: Ics
+
+
+def _model(path: Path) -> RobotModel:
+    try:
+        return load_robot_model(path)
+    except InvalidRobot as error:
+        raise click.UsageError(str(error)) from None
+
+
 def _robot(rcml: Path) -> RcmlDocument:
     try:
         return load_robot(rcml)
     except InvalidRobot as error:
         raise click.UsageError(str(error)) from None
-
-
-def _list(output: Output, cases: Sequence[Case]) -> None:
-    for case in cases:
-        output.out.line(
-            [
-                (case.id, "bold"),
-                (f"  [{', '.join(case.requirements)}]", "cyan"),
-                (f" ({case.role.value}) ", "dim"),
-                (case.purpose, ""),
-            ]
-        )
-    output.summary(f"{len(cases)} cases", True)
 
 
 def _write_reports(

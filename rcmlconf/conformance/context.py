@@ -7,7 +7,7 @@ import asyncio
 import secrets
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.registry import Case
@@ -18,6 +18,9 @@ from rcmlconf.impair.channel import derive_seed
 from rcmlconf.impair.spec import Impairment, parse_impairment
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, Permission, RcmlDocument
 from rcmlconf.rctp.messages import Request, Response
+
+if TYPE_CHECKING:
+    from rcmlconf.conformance.probes.locals import LocalProbe
 
 T = TypeVar("T")
 _ANY = Permission(0)
@@ -125,6 +128,18 @@ class Context:
         probe.session = secrets.token_hex(8)
         await probe.answer(connect, fields=[("Session", f"{probe.session};timeout={timeout}")])
         return probe, connect
+
+    async def local(self, *, again: bool = False) -> LocalProbe:
+        """The next session of the RSP local system under test, the harness its robot: the next
+        HELLO of a new session (D-RSP-24). `again`: the one the local system opens itself after
+        a REFUSED of the case's (no other local system is summoned for it)."""
+        listener = self.target.locals
+        if listener is None:
+            raise NotApplicable("no RSP local system under test (--role local)")
+        probe = await listener.accept(self.transcript, self.wait, summon=not again)
+        probe.quiet *= self.scale
+        self._closers.append(probe.close)
+        return probe
 
     async def rsp(self) -> Address:
         """An RSP robot under test, this case's alone until it ends (a robot serves one session

@@ -29,6 +29,8 @@ class Role(enum.Enum):
     CLIENT = "client"
     #: An RSP robot; the harness plays the local system (`--rsp-target`).
     ROBOT = "robot"
+    #: An RSP local system; the harness plays the robot (`--role local --listen`).
+    LOCAL = "local"
 
 
 CaseFunction = Callable[["Context"], Awaitable[None]]
@@ -48,7 +50,8 @@ class Case:
     impairment: str | None
     #: Optional features (ICS keys) it needs; a target without one: not applicable.
     features: tuple[str, ...]
-    #: Shares state with other cases (the access privilege, the one RSP session): runs alone.
+    #: Shares state with the other serial cases of its role (the access privilege, the one
+    #: client connection): they run one after another, beside the rest.
     serial: bool
     run: CaseFunction
 

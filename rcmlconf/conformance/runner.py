@@ -40,6 +40,8 @@ def under_test(case: Case, target: Target) -> bool:
         return bool(target.rsp)
     if case.role is Role.CLIENT:
         return target.clients is not None
+    if case.role is Role.LOCAL:
+        return target.locals is not None
     return target.server is not None
 
 
@@ -137,11 +139,22 @@ async def run_cases(
         results.append(result)
         done(result)
 
+    async def lane(serial: list[Case], run: int) -> None:
+        for case in serial:
+            await one(case, run)
+
+    # Serial cases share state with each other (the access privilege, the one client
+    # connection), not with the rest: one lane a role, beside the concurrent cases.
+    lanes: dict[Role, list[Case]] = {}
+    for case in cases:
+        if case.serial:
+            lanes.setdefault(case.role, []).append(case)
     for run in range(1, options.repeat + 1):
-        await asyncio.gather(*(one(c, run) for c in cases if not c.serial))
-        for case in cases:
-            if case.serial:
-                await one(case, run)
+        # The longest first: a case that must wait out a protocol timer should not also wait
+        # for a free slot (the suite takes as long as its slowest case at best).
+        longest_first = sorted((c for c in cases if not c.serial), key=lambda c: -c.timeout)
+        concurrent = [one(c, run) for c in longest_first]
+        await asyncio.gather(*concurrent, *(lane(serial, run) for serial in lanes.values()))
     order = {c.id: i for i, c in enumerate(cases)}
     return sorted(results, key=lambda r: (r.run, order[r.case]))
 

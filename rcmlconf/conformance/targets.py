@@ -10,6 +10,7 @@ import os
 from collections.abc import AsyncIterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rcmlconf.conformance.probes.clients import ClientListener
 from rcmlconf.rcml.model import RcmlDocument
@@ -17,6 +18,9 @@ from rcmlconf.reference.faults import Fault
 from rcmlconf.rsp.codec import Encryption
 from rcmlconf.rsp.model import RobotModel
 from rcmlconf.rsp.security import KEY_SIZE
+
+if TYPE_CHECKING:
+    from rcmlconf.conformance.probes.locals import LocalListener
 
 Address = tuple[str, int]
 REFERENCE = Path(__file__).resolve().parent.parent / "reference" / "robots"
@@ -45,6 +49,8 @@ class Target:
     rsp_psk: bytes | None = None
     #: Where RCTP/2.0 clients under test connect (the harness plays the server of `robot`).
     clients: ClientListener | None = None
+    #: Where RSP local systems under test send (the harness plays a robot of `rsp_model`).
+    locals: LocalListener | None = None
     #: The optional features the ICS declares (`ics.FEATURES`); every one by default.
     features: frozenset[str] = field(default_factory=frozenset)
     #: What the target is, for the report ("the embedded reference", "127.0.0.1:7330").
@@ -57,6 +63,7 @@ async def embedded_reference(
 ) -> AsyncIterator[Target]:
     """The reference RCTP server (the rover) and RSP robot (CUBO) on free loopback ports;
     `faults` (`reference.faults`) make them misbehave, to test the harness itself."""
+    from rcmlconf.conformance.probes.locals import LocalListener, reference_local
     from rcmlconf.reference.drivers import choose_driver
     from rcmlconf.reference.faults import ROBOT_FAULTS, SERVER_FAULTS
     from rcmlconf.reference.rsp.robot import ReferenceRobot, RobotSettings
@@ -84,9 +91,11 @@ async def embedded_reference(
     ]
     started: list[ReferenceRobot] = []
     clients = ClientListener(summon=functools.partial(reference_client, robot))
+    local = LocalListener(model, psk, summon=functools.partial(reference_local, model, psk))
     await server.start()
     try:
         await clients.start("127.0.0.1", 0)
+        await local.start("127.0.0.1", 0)
         for rsp in robots:
             await rsp.start()
             started.append(rsp)
@@ -98,6 +107,7 @@ async def embedded_reference(
             rsp_model=model,
             rsp_psk=psk,
             clients=clients,
+            locals=local,
             features=features,
             name="the embedded reference",
         )
@@ -105,6 +115,7 @@ async def embedded_reference(
         for rsp in started:
             rsp.stop()
         await clients.close()
+        await local.close()
         await server.stop()
 
 

@@ -20,19 +20,30 @@ class Transcript:
     #: Every TCP payload and UDP datagram sent and received, for --capture.
     packets: list[Payload] = field(default_factory=list)
     wall_start: float = field(default_factory=time.time)
+    _labels: dict[str, int] = field(default_factory=dict)
+
+    def label(self, prefix: str) -> str:
+        """`c1`, `c2`, ...: a name for the next connection (or flow) of `prefix` in this case."""
+        self._labels[prefix] = self._labels.get(prefix, 0) + 1
+        return f"{prefix}{self._labels[prefix]}"
 
     def note(self, text: str) -> None:
         self.lines.append(f"{time.monotonic() - self.start:7.3f}  {text}")
 
     def sent(self, what: str, data: bytes) -> None:
-        self.note(f"-> {what} {show(data)}")
+        self.note(f"{_arrow(what, '->')} {show(data)}")
 
     def received(self, what: str, data: bytes) -> None:
-        self.note(f"<- {what} {show(data)}")
+        self.note(f"{_arrow(what, '<-')} {show(data)}")
 
     def packet(self, transport: str, source: Address, destination: Address, data: bytes) -> None:
         at = self.wall_start + time.monotonic() - self.start
         self.packets.append(Payload(at, transport, source, destination, data))
+
+
+def _arrow(what: str, arrow: str) -> str:
+    """`c1 ->`, or `->` alone: the name of the connection leads."""
+    return f"{what} {arrow}" if what else arrow
 
 
 def show(data: bytes) -> str:

@@ -1,15 +1,34 @@
-"""The simulated CUBO (rcmlconf.reference.rsp.cubo): kinematics, servos, sensors, determinism."""
+"""The simulated CUBO (rcmlconf.reference.rsp.cubo): kinematics, servos, sensors, events,
+determinism; and the speaker as the reference robot's audio processor plays it."""
 
 from __future__ import annotations
 
+import itertools
 import math
+import statistics
 
 import pytest
-from support.rsp_models import robot_model
+from support.rsp_models import EVERY_KIND, robot_model
 
 from rcmlconf.reference.drivers.room import WHEEL_BASE, Pose
-from rcmlconf.reference.rsp.cubo import RATES, WHEEL_ACCELERATION, CuboBody
+from rcmlconf.reference.rsp.bodies import GenericBody
+from rcmlconf.reference.rsp.cubo import (
+    BUTTONS,
+    CHARGE,
+    DIP_DEPTH,
+    DIP_GAP,
+    LOW_BATTERY,
+    LOW_CHARGE,
+    PRESS_GAP,
+    PRESS_HOLD,
+    PRESSED,
+    RATES,
+    WHEEL_ACCELERATION,
+    CuboBody,
+)
+from rcmlconf.reference.rsp.robot import ReferenceRobot, RobotSettings
 from rcmlconf.rsp.model import DeviceKind
+from rcmlconf.rsp.session import events
 from rcmlconf.rsp.session.robot import RobotEndpoint
 
 
@@ -117,3 +136,106 @@ def test_same_seed_same_readings_and_time_never_runs_backwards() -> None:
     pose = one.pose
     one.advance(1.0)  # earlier than the body's clock: nothing moves
     assert one.pose == pose
+
+
+def occurrences_over(body: CuboBody, start: float, seconds: float, tick: float = 0.02) -> list:
+    """(time, device, values) of every occurrence, asked once a tick."""
+    found = []
+    body.occurrences(start)  # the first call sets the clock
+    for k in range(1, round(seconds / tick) + 1):
+        now = start + k * tick
+        found += [(round(now, 6), name, dict(values)) for name, values in body.occurrences(now)]
+    return found
+
+
+def test_same_seed_same_occurrences_however_often_asked() -> None:
+    model = robot_model()
+    ticked = occurrences_over(CuboBody(model, seed=7), 5.0, 30.0)
+    assert ticked == occurrences_over(CuboBody(model, seed=7), 5.0, 30.0)
+    at_once = CuboBody(model, seed=7)
+    at_once.occurrences(5.0)
+    assert at_once.occurrences(35.0) == [(name, values) for _, name, values in ticked]
+    assert ticked != occurrences_over(CuboBody(model, seed=8), 5.0, 30.0)
+    # What is measured or driven, and when, changes nothing of them.
+    busy = CuboBody(model, seed=7)
+    busy.apply(wheels(300, -100), 5.0)
+    for t in (6.0, 7.5, 9.0):
+        busy.sensors(t)
+    assert occurrences_over(busy, 9.0, 26.0) == [o for o in ticked if o[0] > 9.0 + 1e-9]
+    later = occurrences_over(CuboBody(model, seed=7), 100.0, 30.0)  # timed from the first call
+    assert [(round(t - 95.0, 6), n, v) for t, n, v in later] == ticked
+
+
+def test_a_button_is_pressed_then_released_in_turn() -> None:
+    found = occurrences_over(CuboBody(robot_model(), seed=3), 0.0, 60.0)
+    for button in BUTTONS:
+        pressed = [values[PRESSED] for _, name, values in found if name == button]
+        assert len(pressed) > 20
+        assert pressed == [index % 2 == 0 for index in range(len(pressed))]
+
+
+def test_presses_and_dips_come_at_the_rates_given() -> None:
+    model = robot_model()
+    tick = 0.005  # occurrences are seen on the tick after they happen
+    found = occurrences_over(CuboBody(model, seed=11), 0.0, 200.0, tick=tick)
+    for button in BUTTONS:
+        times = [t for t, name, _ in found if name == button]
+        holds = [b - a for a, b in zip(times[0::2], times[1::2], strict=False)]
+        cycles = [b - a for a, b in itertools.pairwise(times[0::2])]
+        assert min(holds) >= PRESS_HOLD[0] - tick
+        assert max(holds) <= PRESS_HOLD[1] + tick
+        assert min(cycles) >= PRESS_GAP[0] + PRESS_HOLD[0] - tick
+        assert max(cycles) <= PRESS_GAP[1] + PRESS_HOLD[1] + tick
+        mean = sum(PRESS_GAP) / 2 + sum(PRESS_HOLD) / 2
+        assert statistics.mean(cycles) == pytest.approx(mean, rel=0.1)  # about once a second
+    dips = [(t, values) for t, name, values in found if name == LOW_BATTERY]
+    gaps = [b - a for (a, _), (b, _) in itertools.pairwise(dips)]
+    assert min(gaps) >= DIP_GAP[0] - tick
+    assert max(gaps) <= DIP_GAP[1] + tick
+    assert statistics.mean(gaps) == pytest.approx(sum(DIP_GAP) / 2, rel=0.1)
+    charges = {values[CHARGE] for _, values in dips}
+    assert min(charges) >= LOW_CHARGE - DIP_DEPTH
+    assert max(charges) < LOW_CHARGE
+    robot = RobotEndpoint(model)  # no session: nothing is reported, but the values are checked
+    for _, name, values in found[:50]:
+        assert robot.occur(name, values) is None
+
+
+def test_the_battery_warns_once_when_it_runs_low() -> None:
+    body = CuboBody(robot_model(), charge=LOW_CHARGE + 0.0001)
+    assert body.occurrences(0.0) == []
+    assert body.occurrences(0.02) == [(LOW_BATTERY, {CHARGE: LOW_CHARGE - 1})]  # no dip yet
+    assert body.occurrences(0.04) == []
+
+
+def test_a_generic_body_raises_nothing() -> None:
+    body = GenericBody(robot_model(EVERY_KIND))
+    assert body.occurrences(0.0) == []
+    assert body.occurrences(100.0) == []
+
+
+def test_the_speaker_plays_what_the_audio_processor_played_last() -> None:
+    """D-RSP-22, D-RSP-23: fragments in order, a late one dropped; the speaker's actual state is
+    the fragment played last, and a new session starts afresh."""
+    model = robot_model()
+    robot = ReferenceRobot(model, RobotSettings(port=0))
+    body = robot.body
+    assert isinstance(body, CuboBody)
+
+    def hear(fragment: int) -> None:
+        samples = f"fragment {fragment}".encode()
+        robot._hear(events.StateReceived("speaker", {"fragment": fragment, "samples": samples}, 0))
+
+    for step, (fragment, playing) in enumerate([(3, 3), (5, 5), (4, 5), (6, 6), (6, 6)]):
+        hear(fragment)
+        robot._control_tick(0.02 * step)
+        assert body.actual("speaker") == {
+            "fragment": playing,
+            "samples": f"fragment {playing}".encode(),
+        }
+    counts = robot.audio["speaker"].counts
+    assert (counts.played, counts.gaps, counts.late, counts.duplicates) == (3, 1, 1, 1)
+    robot._forget()  # a session ends
+    hear(0)
+    robot._control_tick(0.2)
+    assert body.actual("speaker") == {"fragment": 0, "samples": b"fragment 0"}

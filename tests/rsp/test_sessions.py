@@ -9,7 +9,7 @@ import pytest
 from support.rsp_models import robot_model
 from support.rsp_pair import LOCAL_ADDR, Pair, open_pair
 
-from rcmlconf.rsp.codec import ByeReason, Encryption, PacketType, RefusedReason
+from rcmlconf.rsp.codec import ByeReason, Encryption, MapBody, PacketType, RefusedReason
 from rcmlconf.rsp.session import events
 from rcmlconf.rsp.session.local import HELLO_RETRIES, LocalEndpoint
 from rcmlconf.rsp.session.robot import RobotEndpoint
@@ -307,3 +307,46 @@ def test_spoofed_and_replayed_packets_are_dropped() -> None:
     drops = of(events.PacketDropped, list(iter(pair.robot.next_event, None)))
     assert [d.rule for d in drops] == ["R-RSP-18"] * 3
     assert pair.robot.session is not None
+
+
+def exchange(local: LocalEndpoint, robot: RobotEndpoint, now: float) -> int:
+    """One period: the local system's due packets to the robot and the robot's back; how many
+    memory commands the local system sent."""
+    local.handle_timer(now)
+    sent = 0
+    for data in local.datagrams_to_send(now):
+        header, body = local.codec.pull_packet(data)
+        if header.type is PacketType.DOWNLINK and isinstance(body, MapBody):
+            sent += sum(1 for item in body.items if item.id is not None)
+        robot.receive_datagram(data, LOCAL_ADDR, now)
+    for data, _ in robot.datagrams_to_send(now):
+        local.receive_datagram(data, now)
+    return sent
+
+
+def test_welcome_and_ack_give_the_free_buffers_too() -> None:
+    """D-RSP-19: every robot packet gives its free buffers, WELCOME and ACK too (R-RSP-32): a
+    local system that read them from UPLINKs only would overfill the robot's buffer."""
+    model = robot_model()
+    local, robot = LocalEndpoint(model, nonce=b"n" * 16), RobotEndpoint(model)
+    local.connect(0.0)
+    for data in local.datagrams_to_send(0.0):
+        robot.receive_datagram(data, LOCAL_ADDR, 0.0)
+    ((welcome, _),) = robot.datagrams_to_send(0.0)
+    local.receive_datagram(welcome[:19] + b"\x00" + welcome[20:], 0.0)  # none free, it says
+    local.issue("motion", MOTION)
+    assert exchange(local, robot, 0.02) == 0
+    local.receive_datagram(welcome, 0.03)  # a repeated WELCOME is no newer: nothing changes
+    assert exchange(local, robot, 0.04) == 0
+    fresh = LocalEndpoint(model, nonce=b"m" * 16)
+    fresh.connect(1.0)
+    robot = RobotEndpoint(model)
+    for data in fresh.datagrams_to_send(1.0):
+        robot.receive_datagram(data, LOCAL_ADDR, 1.0)
+    for data, _ in robot.datagrams_to_send(1.0):
+        fresh.receive_datagram(data, 1.0)
+    for n in range(model.command_buffers + 1):
+        fresh.issue("motion", {**MOTION, "duration": n + 1})
+    sent = sum(exchange(fresh, robot, 1.0 + 0.02 * k) for k in range(1, 40))
+    assert sent == model.command_buffers  # the ACK of the last said none is free
+    assert robot.free_buffers == 0

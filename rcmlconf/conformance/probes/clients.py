@@ -47,9 +47,10 @@ class ClientListener:
         except TimeoutError:
             host, port = self.address
             raise Inconclusive(f"no client connected to {host}:{port} within {wait:g} s") from None
-        peer = writer.get_extra_info("peername")[:2]
-        transcript.note(f"a client connected from {peer[0]}:{peer[1]}")
-        return ControlProbe(reader, writer, transcript, wait)
+        probe = ControlProbe(reader, writer, transcript, wait)
+        peer = probe.peer
+        transcript.note(f"{probe.name} a client connected from {peer[0]}:{peer[1]}")
+        return probe
 
     async def close(self) -> None:
         for task in list(self._tasks):

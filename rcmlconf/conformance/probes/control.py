@@ -37,6 +37,8 @@ class ControlProbe:
         self.session: str | None = None
         self.local: Address = writer.get_extra_info("sockname")[:2]
         self.peer: Address = writer.get_extra_info("peername")[:2]
+        #: `c1`, `c2`, ...: which connection of the case a transcript line is about.
+        self.name = transcript.label("c")
 
     @classmethod
     async def open(cls, address: Address, transcript: Transcript, wait: float) -> ControlProbe:
@@ -44,20 +46,21 @@ class ControlProbe:
             reader, writer = await asyncio.wait_for(asyncio.open_connection(*address), wait)
         except (OSError, TimeoutError) as error:
             raise HarnessError(f"cannot connect to {address[0]}:{address[1]}: {error}") from None
-        transcript.note(f"connected to {address[0]}:{address[1]}")
-        return cls(reader, writer, transcript, wait)
+        probe = cls(reader, writer, transcript, wait)
+        transcript.note(f"{probe.name} connected to {address[0]}:{address[1]}")
+        return probe
 
     # -- sending -------------------------------------------------------------------------------
 
     async def send(self, data: bytes, what: str = "") -> None:
         """`data` exactly as given (one write, one TCP segment as far as the kernel lets it)."""
-        self.transcript.sent(what, data)
+        self.transcript.sent(f"{self.name} {what}".rstrip(), data)
         self.transcript.packet("tcp", self.local, self.peer, data)
         try:
             self._writer.write(data)
             await self._writer.drain()
         except (ConnectionError, OSError) as error:
-            self.transcript.note(f"send failed: {error}")
+            self.transcript.note(f"{self.name} send failed: {error}")
 
     def request_bytes(
         self,
@@ -136,11 +139,11 @@ class ControlProbe:
                     f"nothing within {self.wait if wait is None else wait:g} s",
                 ) from None
             except (ConnectionError, OSError) as error:
-                self.transcript.note(f"connection failed: {error}")
+                self.transcript.note(f"{self.name} connection failed: {error}")
                 data = b""
             if not data:
                 self._eof = True
-                self.transcript.note("<- the target closed the connection")
+                self.transcript.note(f"{self.name} <- the peer closed the connection")
                 continue
             self.transcript.packet("tcp", self.peer, self.local, data)
             self._messages.feed(data)
@@ -190,9 +193,13 @@ class ControlProbe:
 
     def _record(self, message: Message) -> None:
         if isinstance(message, Request):
-            self.transcript.note(f"<- {message.method} {message.target} {_fields(message)}")
+            self.transcript.note(
+                f"{self.name} <- {message.method} {message.target} {_fields(message)}"
+            )
         else:
-            self.transcript.note(f"<- {message.status} {message.reason} {_fields(message)}")
+            self.transcript.note(
+                f"{self.name} <- {message.status} {message.reason} {_fields(message)}"
+            )
 
 
 def _fields(message: Message) -> str:

@@ -1,6 +1,6 @@
-"""What the reference robot moves: a body that takes effector values and reports its sensors and
-monitors. CUBO (D-RSP-8) has a simulated body of its own (`cubo`); any other model gets a generic
-one. Bodies are pure: time comes in as `now`."""
+"""What the reference robot moves: a body that takes effector values, reports its sensors and
+monitors, and raises its events and memory events. CUBO (D-RSP-8) has a simulated body of its own
+(`cubo`); any other model gets a generic one. Bodies are pure: time comes in as `now`."""
 
 from __future__ import annotations
 
@@ -24,10 +24,14 @@ class Body(Protocol):
         """Each sensor's and monitor's value now, by device name: those named in `only`, or
         every one."""
 
+    def occurrences(self, now: float) -> list[tuple[str, Values]]:
+        """The events and memory events that happened since the last call, oldest first, as
+        (device name, values): what the robot raises (`RobotEndpoint.occur`)."""
+
 
 class GenericBody:
     """Any model: effectors do at once what they are told, monitors say so, sensors read their
-    fields' zero values (D-RSP-20's safe state)."""
+    fields' zero values (D-RSP-20's safe state), and nothing happens: no event is raised."""
 
     def __init__(self, model: RobotModel) -> None:
         self._monitors = {d.name: d.of for d in model.devices if d.kind is DeviceKind.MONITOR}
@@ -50,6 +54,9 @@ class GenericBody:
             if effector is not None and effector in self._effectors:
                 found[monitor] = self._effectors[effector]
         return found if only is None else {name: found[name] for name in only if name in found}
+
+    def occurrences(self, now: float) -> list[tuple[str, Values]]:
+        return []
 
 
 def body_for(model: RobotModel, seed: int) -> Body:

@@ -14,6 +14,12 @@ sensor and the 20 ms tick it is read in, so the same calls give the same reading
   faster while the wheels turn; the others read plausible indoor values with a little noise
   (nothing near: the proximity sensors read their range, the floor is there, 300 lx, 23.5 °C,
   a quiet microphone).
+- *Events* (`occurrences`): a person at the robot presses the service and message buttons, each
+  now and then (`PRESS_GAP`) and for a moment (`PRESS_HOLD`): a press is the button's event with
+  `pressed` true, the release one with `pressed` false. The battery raises `lowBattery` (a memory
+  event) when its charge falls under `LOW_CHARGE`, and at each of its load dips (`DIP_GAP`, see
+  there). Times are drawn from the seed, the device and the occurrence's number, counted from the
+  body's first `now`: the same seed and calls give the same occurrences.
 
 Any other model's devices are handled generically: an effector's actual state is what it was last
 told, a sensor reads its fields' zero values.
@@ -24,6 +30,7 @@ from __future__ import annotations
 import hashlib
 import math
 from collections.abc import Collection, Mapping
+from dataclasses import dataclass
 
 from rcmlconf.reference.drivers.room import Pose, drive
 from rcmlconf.rsp.model import Device, DeviceKind, Field, RobotModel
@@ -58,6 +65,26 @@ SILENCE = 128
 MIC_NOISE = 2
 #: The microphone's fragments: 8-bit samples at 8 kHz.
 MIC_RATE = 8000
+#: The buttons a person presses (D-RSP-8's events) and their field. Seconds from a release to the
+#: button's next press, and how long a press is held: each drawn uniformly between the bounds, so a
+#: button is pressed about once a second, often enough for a test to see several presses.
+BUTTONS = ("serviceButton", "messageButton")
+PRESSED = "pressed"
+PRESS_GAP = (0.3, 1.5)
+PRESS_HOLD = (0.08, 0.3)
+#: The battery's memory event and its field, and the charge (percent) under which it is low.
+LOW_BATTERY = "lowBattery"
+CHARGE = "charge"
+LOW_CHARGE = 20
+#: Seconds between two load dips of the battery (uniform). A real CUBO raises `lowBattery` once,
+#: when the draining charge crosses `LOW_CHARGE` (two hours from full, and the simulated battery
+#: does that too); a test cannot wait for it. A pack's voltage also sags under load peaks (the
+#: wheels starting, the speaker), and a gauge that reads the charge from the voltage then reads it
+#: low for a moment: each dip raises `lowBattery` with such a reading, `DIP_DEPTH` points or fewer
+#: under `LOW_CHARGE` (never above the actual charge). Seeded like the noise, so deterministic; as
+#: frequent as this so that a conformance case sees several in a few seconds.
+DIP_GAP = (0.3, 1.2)
+DIP_DEPTH = 10
 
 
 class CuboBody:
@@ -103,6 +130,12 @@ class CuboBody:
                 assert isinstance(zero, int | float)
                 self._positions[name] = float(zero)
         self._microphone: tuple[int, bytes] | None = None
+        #: The body's first `now`: occurrences are timed from it.
+        self._start: float | None = None
+        #: Each source of occurrences: what it raises next and when (None before the first call).
+        self._next: list[_Next] | None = None
+        #: The charge was under LOW_CHARGE at the last call of `occurrences`.
+        self._low = charge < LOW_CHARGE
 
     # -- the robot's calls ---------------------------------------------------------------------
 
@@ -125,7 +158,7 @@ class CuboBody:
         """Move on to `now`: the wheels accelerate and drive, the servos turn, the battery
         drains."""
         if self._time is None:
-            self._time = now
+            self._time = self._start = now
             return
         while self._time < now:
             step = min(STEP, now - self._time)
@@ -150,6 +183,29 @@ class CuboBody:
             else:
                 found[device.name] = self._sensor(device, tick, now)
         return found
+
+    def occurrences(self, now: float) -> list[tuple[str, Values]]:
+        """The button presses and releases and the low-battery warnings from the last call (the
+        first call: from the body's first `now`) to `now`, oldest first, by device name. Each is
+        a function of the seed and its number: what is asked when changes nothing of them."""
+        self.advance(now)
+        if self._next is None:
+            assert self._start is not None
+            self._next = self._sources(self._start)
+        found: list[tuple[float, str, Values]] = []
+        for source in self._next:
+            while source.at <= now:
+                found.append((source.at, source.device.name, self._raise(source)))
+                source.index += 1
+                source.at += self._gap(source)
+        low = self.charge < LOW_CHARGE
+        battery = self.model.device(LOW_BATTERY)
+        if low and not self._low and _raises(battery, DeviceKind.MEMORY_EVENT, CHARGE):
+            assert battery is not None
+            found.append((now, LOW_BATTERY, self._values(battery, math.floor(self.charge))))
+        self._low = low
+        found.sort(key=lambda item: item[0])
+        return [(name, values) for _, name, values in found]
 
     def actual(self, effector: str) -> dict[str, Value]:
         """An effector's actual state, as its fields hold it."""
@@ -190,6 +246,55 @@ class CuboBody:
             assert isinstance(target, int | float)
             move = RATES[name] * elapsed
             self._positions[name] = position + max(-move, min(move, float(target) - position))
+
+    # -- occurrences ---------------------------------------------------------------------------
+
+    def _sources(self, start: float) -> list[_Next]:
+        """The buttons and the battery's dips the model has, each due at its first time."""
+        sources = []
+        for name in BUTTONS:
+            button = self.model.device(name)
+            if _raises(button, DeviceKind.EVENT, PRESSED):
+                assert button is not None
+                sources.append(_Next(button, start))
+        battery = self.model.device(LOW_BATTERY)
+        if _raises(battery, DeviceKind.MEMORY_EVENT, CHARGE):
+            assert battery is not None
+            sources.append(_Next(battery, start))
+        for source in sources:
+            source.at += self._gap(source)
+        return sources
+
+    def _gap(self, source: _Next) -> float:
+        """Seconds from occurrence `source.index - 1` to occurrence `source.index` (from the start
+        to the first): a button's releases (odd numbers) come a hold after their press, its
+        presses a gap after the release before."""
+        if source.device.kind is DeviceKind.MEMORY_EVENT:
+            low, high = DIP_GAP
+        else:
+            low, high = PRESS_HOLD if source.index % 2 else PRESS_GAP
+        return low + (high - low) * self._draw(source.device.name, source.index)
+
+    def _raise(self, source: _Next) -> dict[str, Value]:
+        """The values of occurrence `source.index`: a press or a release, or a dip's reading."""
+        if source.device.kind is DeviceKind.EVENT:
+            return self._values(source.device, source.index % 2 == 0)
+        depth = 1 + math.floor(DIP_DEPTH * self._draw(source.device.name, source.index, "depth"))
+        return self._values(source.device, min(LOW_CHARGE - depth, math.floor(self.charge)))
+
+    @staticmethod
+    def _values(device: Device, value: Value) -> dict[str, Value]:
+        """The device's fields at their safe values, its first field `value`."""
+        values: dict[str, Value] = {f.name: f.zero() for f in device.fields}
+        values[device.fields[0].name] = _clamp(device.fields[0], value)
+        return values
+
+    def _draw(self, name: str, index: int, what: str = "gap") -> float:
+        """A number in [0, 1) fixed by the seed, the device, the occurrence and `what`."""
+        digest = hashlib.blake2b(
+            f"{self.seed}/{name}/{what}/{index}".encode(), digest_size=8
+        ).digest()
+        return int.from_bytes(digest) / 2**64
 
     # -- sensing -------------------------------------------------------------------------------
 
@@ -247,6 +352,25 @@ class CuboBody:
             f"{self.seed}/{name}/{index}/{tick}".encode(), digest_size=8
         ).digest()
         return int.from_bytes(digest) / 2**63 - 1.0
+
+
+@dataclass(slots=True)
+class _Next:
+    """A source of occurrences: a button or the battery, its next occurrence's number and time."""
+
+    device: Device
+    at: float
+    index: int = 0
+
+
+def _raises(device: Device | None, kind: DeviceKind, field: str) -> bool:
+    """`device` is of `kind` and its first field is `field` (CUBO's, not another model's)."""
+    return (
+        device is not None
+        and device.kind is kind
+        and bool(device.fields)
+        and device.fields[0].name == field
+    )
 
 
 def _numeric(field: Field) -> bool:

@@ -3,10 +3,17 @@
 Nothing here decides anything about RSP. Each datagram goes to the endpoint; after anything
 reaches it, what it has to send is sent and its timer moved (`LoopTimer`). Every control period
 the body (a simulated CUBO, or a generic body for any other model) gets the motion filter's
-output, moves, and the sensors and monitors the next UPLINK carries go back to the endpoint;
-memory commands are executed one after another (D-RSP-19), each taking its `duration` field in
-milliseconds if it has one. In a session the control tick falls on the UPLINK beat, just before
-it: the UPLINK carries what was measured that instant, and one wake-up of the loop serves both.
+output, moves, and the sensors and monitors the next UPLINK carries go back to the endpoint, with
+the events and memory events that happened (`Body.occurrences`: the endpoint reports those the
+local system requested); memory commands are executed one after another (D-RSP-19), each taking
+its `duration` field in milliseconds if it has one. In a session the control tick falls on the
+UPLINK beat, just before it: the UPLINK carries what was measured that instant, and one wake-up of
+the loop serves both.
+
+Audio effectors (D-RSP-22: a `uint16` fragment number and `bytes` of samples, CUBO's speaker) go
+through the audio processor (`rsp.audio.AudioReceiver`) rather than the motion filter: every
+fragment a newer DOWNLINK brings is played in order, a late one dropped, the missing ones counted
+(R-RSP-39), and the body gets the fragment played last, which its monitor reports (D-RSP-23).
 """
 
 from __future__ import annotations
@@ -20,11 +27,13 @@ from typing import cast
 from rcmlconf.reference.faults import Fault, describe
 from rcmlconf.reference.rsp.bodies import Body, body_for
 from rcmlconf.reference.timers import LoopTimer
+from rcmlconf.rsp.audio import AudioReceiver
 from rcmlconf.rsp.codec import Encryption
-from rcmlconf.rsp.model import RobotModel
-from rcmlconf.rsp.reliable import Occurrence
+from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
+from rcmlconf.rsp.reliable import Backlog, Occurrence
 from rcmlconf.rsp.session import events
 from rcmlconf.rsp.session.robot import RobotEndpoint
+from rcmlconf.values import Kind, Value
 
 log = logging.getLogger("rcmlconf.robot")
 
@@ -65,6 +74,9 @@ class ReferenceRobot(asyncio.DatagramProtocol):
         self._done_at = 0.0
         #: The endpoint's events but states, for tests and the command's log (bounded).
         self.history: deque[events.Event] = deque(maxlen=10_000)
+        #: D-RSP-22: each audio effector's audio processor, and the fragment it played last.
+        self.audio = {d.name: AudioReceiver() for d in model.devices if audio_effector(d)}
+        self._played: dict[str, dict[str, Value]] = {}
 
     # -- lifetime ------------------------------------------------------------------------------
 
@@ -131,6 +143,10 @@ class ReferenceRobot(asyncio.DatagramProtocol):
             for data, addr in self.endpoint.datagrams_to_send(now):
                 self.transport.sendto(data, addr)
         while (event := self.endpoint.next_event()) is not None:
+            if isinstance(event, events.StateReceived) and event.device in self.audio:
+                self._hear(event)
+            elif isinstance(event, events.SessionOpened | events.SessionClosed):
+                self._forget()
             self._log(event)
         if self._timer is not None:
             deadline = self.endpoint.get_timer()
@@ -149,15 +165,36 @@ class ReferenceRobot(asyncio.DatagramProtocol):
         else:
             log.info("%s", event)
 
+    def _forget(self) -> None:
+        """A session opens or ends, and what the one before asked for with it: the memory command
+        being executed (the endpoint drops those not started, D-RSP-19) and the sound, whose
+        next sender numbers its fragments afresh (D-RSP-22)."""
+        self._executing = None
+        for name in self.audio:
+            self.audio[name] = AudioReceiver()
+        self._played.clear()
+
     # -- the control loop ----------------------------------------------------------------------
 
     def _control_tick(self, now: float) -> None:
-        """One control period: effectors out, the body on, sensors and monitors back."""
+        """One control period: effectors out, the body on, sensors and monitors back, and what
+        happened raised."""
         endpoint = self.endpoint
-        self.body.apply(endpoint.effectors(now), now)
+        effectors = endpoint.effectors(now)
+        if self._played:
+            effectors = {**effectors, **self._played}
+        self.body.apply(effectors, now)
         self.body.advance(now)
         for name, values in self.body.sensors(now, endpoint.reporting()).items():
             endpoint.set_state(name, values)
+        for name, values in self.body.occurrences(now):
+            try:
+                ident = endpoint.occur(name, values)  # None: not requested, not reported
+            except Backlog:  # a local system that requests memory events and never acknowledges
+                log.debug("%s: too many occurrences waiting, one dropped", name)
+                continue
+            if ident is not None:
+                log.debug("%s #%d %s", name, ident, dict(values))
         self._execute(now)
 
     def _next_tick(self, now: float) -> float:
@@ -175,3 +212,27 @@ class ReferenceRobot(asyncio.DatagramProtocol):
             duration = self._executing.values.get("duration", 0)
             self._done_at = now + (duration / 1000 if isinstance(duration, int | float) else 0)
             log.info("executing %s #%d", self._executing.device.name, self._executing.id)
+
+    # -- the audio processor (D-RSP-22) --------------------------------------------------------
+
+    def _hear(self, event: events.StateReceived) -> None:
+        """A newer DOWNLINK's fragment: played if it comes after the one played last."""
+        number, sound = self.model.by_name[event.device].fields
+        fragment, samples = event.values[number.name], event.values[sound.name]
+        assert isinstance(fragment, int)
+        assert isinstance(samples, bytes)
+        if self.audio[event.device].receive(fragment, samples):
+            self._played[event.device] = dict(event.values)
+
+
+def audio_effector(found: Device) -> bool:
+    """D-RSP-22: an effector whose fields are a `uint16` fragment number and `bytes` of samples."""
+    fields = found.fields
+    return (
+        found.kind is DeviceKind.EFFECTOR
+        and len(fields) == 2
+        and fields[0].type.base.name == "uint16"
+        and not fields[0].type.is_array
+        and fields[1].type.base.kind is Kind.BYTES
+        and not fields[1].type.is_array
+    )

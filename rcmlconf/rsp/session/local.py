@@ -222,9 +222,11 @@ class LocalEndpoint:
             self._events.append(events.LinkRestored())
         header, body = packet
         kind = header.type
+        if arrival is Arrival.NEWER:  # D-RSP-19: every robot packet gives its free buffers
+            self.free_buffers = header.buffer
         if kind is PacketType.UPLINK:
             assert isinstance(body, MapBody)
-            self._uplink(body, header.timestamp, header.buffer, arrival, now)
+            self._uplink(body, header.timestamp, arrival, now)
         elif kind is PacketType.ACK:
             assert isinstance(body, MapBody)
             for item in body.items:
@@ -262,16 +264,15 @@ class LocalEndpoint:
             self._wire.session_id = 0
             raise
         self._wire.secure(self._psk or b"", self._nonce, welcome.robot_nonce)
+        self.free_buffers = header.buffer  # D-RSP-19: WELCOME gives the robot's free buffers
         self.period = welcome.period_ms / 1000
         self.state = "open"
         self._beat = Beat(self.period, now)
         self._live = Liveness(self.period, now)
         self._events.append(events.SessionOpened(header.session_id, self.period))
 
-    def _uplink(self, body: MapBody, stamp: int, buffer: int, arrival: Arrival, now: float) -> None:
+    def _uplink(self, body: MapBody, stamp: int, arrival: Arrival, now: float) -> None:
         newer = arrival is Arrival.NEWER
-        if newer:
-            self.free_buffers = buffer
         acks = []
         for item in body.items:
             found = self.model.devices[item.device]

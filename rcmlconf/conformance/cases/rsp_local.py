@@ -1,0 +1,750 @@
+"""rsp/local: an RSP local system under test, the harness playing its robot (`--role local`). The
+local system runs the conformance scenario of D-RSP-24 each time it is started; each case takes
+one run: its HELLO, numbering and stamps (D-RSP-10, D-RSP-12), its DOWNLINK every T (D-RSP-13),
+selective retransmission from the sender's side (D-RSP-17), the free buffers (D-RSP-19), taking
+occurrences once and acknowledging memory events (D-RSP-16), the WELCOME's MAC (D-RSP-21) and
+BYE (R-RSP-13 to R-RSP-16, R-RSP-22 to R-RSP-29, R-RSP-32, R-RSP-37, R-RSP-38)."""
+
+from __future__ import annotations
+
+import itertools
+import statistics
+from collections.abc import Callable, Iterable
+
+from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.locals import REQUESTED, LocalProbe, zeros
+from rcmlconf.conformance.probes.rsp import Datagram, first, newer, of_kind
+from rcmlconf.conformance.registry import CaseFunction, Role, case
+from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
+from rcmlconf.rsp.codec import ByeReason, Encryption, Hello, Item, PacketType, Period, RefusedReason
+from rcmlconf.rsp.codec.bodies import MAX_PERIOD_MS
+from rcmlconf.rsp.layout import MAC_SIZE
+from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
+from rcmlconf.rsp.reliable import MAX_RTO
+from rcmlconf.rsp.security import mac_matches
+from rcmlconf.rsp.session.local import HELLO_INTERVAL, HELLO_RETRIES
+from rcmlconf.rsp.session.timing import KEEPALIVE_PERIODS
+
+_SEQUENCE = 1 << 16
+#: Milliseconds a timestamp may be off the arrival times the harness sees (its clock and the
+#: local system's start at different moments, and a loaded machine delays what it reads).
+STAMP_SLACK = 60
+
+
+def local_case(
+    id: str, purpose: str, requirements: list[str], *, timeout: float = 5.0
+) -> Callable[[CaseFunction], CaseFunction]:
+    """A local-system case: one run of the scenario at a time, so never two at once."""
+    return case(id, purpose, requirements, role=Role.LOCAL, timeout=timeout, serial=True)
+
+
+# -- sessions as the scenario opens them -----------------------------------------------------------
+
+
+async def session(
+    ctx: Context,
+    *,
+    free: int | None = None,
+    slower: int = 1,
+    withheld: Iterable[Device] = (),
+    beating: bool = True,
+) -> LocalProbe:
+    """The next run's session, its HELLO answered with WELCOME (D-RSP-24 step 1); `free` buffers
+    announced from WELCOME on, the occurrences of `withheld` not acknowledged, T `slower` times
+    the HELLO's."""
+    probe = await ctx.local()
+    if probe.encryption is not Encryption.NONE and probe.psk is None:
+        probe.refuse(RefusedReason.ENCRYPTION_NOT_OFFERED)
+        raise Inconclusive(
+            "the local system's first HELLO is encrypted (D-RSP-24 begins without) and the"
+            " robot's pre-shared key is not known (ICS [rsp] psk-file)"
+        )
+    if free is not None:
+        probe.free = free
+    probe.withheld = {d.position for d in withheld}
+    probe.beating = beating
+    asked = probe.hello.body
+    assert isinstance(asked, Hello)
+    probe.welcome(min(slower * asked.period_ms, MAX_PERIOD_MS))
+    if free is not None:
+        # The free count in an UPLINK too, at once: a local system that reads it from UPLINKs
+        # alone (WELCOME's buffer byte overlooked) is not this helper's to catch.
+        probe.uplink()
+    return probe
+
+
+def requested(model: RobotModel) -> set[int]:
+    """What the scenario requests in every DOWNLINK (D-RSP-24 step 2)."""
+    return {d.position for d in model.devices if d.kind in REQUESTED}
+
+
+def names(model: RobotModel, positions: Iterable[int]) -> str:
+    return ", ".join(model.devices[p].name for p in sorted(positions))
+
+
+async def running(probe: LocalProbe) -> Datagram:
+    """The first DOWNLINK of the scenario's use of the robot: requesting all it requests."""
+    wanted = requested(probe.model)
+    found = await probe.next(
+        PacketType.DOWNLINK,
+        after=0,
+        where=lambda d: wanted <= {i.device for i in d.items},
+    )
+    if found is None:
+        raise Inconclusive(
+            f"no DOWNLINK requesting {names(probe.model, wanted) or 'anything'} within"
+            f" {probe.wait:.2g} s of WELCOME (D-RSP-24 step 2)"
+        )
+    return found
+
+
+def carries(device: Device, ident: int | None = None) -> Callable[[Datagram], bool]:
+    """Whether a DOWNLINK carries an occurrence of `device` (of ID `ident`)."""
+
+    def holds(found: Datagram) -> bool:
+        item = found.item(device.position)
+        return item is not None and item.id is not None and (ident is None or item.id == ident)
+
+    return holds
+
+
+def ids(downlinks: Iterable[Datagram], device: Device) -> list[int]:
+    """The IDs of `device`'s occurrences in the order they first appear."""
+    seen: list[int] = []
+    for found in downlinks:
+        item = found.item(device.position)
+        if item is not None and item.id is not None and item.id not in seen:
+            seen.append(item.id)
+    return seen
+
+
+def ms(seconds: Iterable[float]) -> str:
+    return ", ".join(f"{s * 1000:.0f}" for s in seconds) + " ms"
+
+
+def occurrence(device: Device, ident: int) -> Item:
+    return Item(device.position, ident, zeros(device))
+
+
+# -- HELLO --------------------------------------------------------------------------------------
+
+
+@local_case(
+    "rsp/local/hello",
+    "The local system's HELLO: the model's ID, sequence 0, stamp 0, session ID 0, MAC if encrypted",
+    ["R-RSP-13", "R-RSP-14", "R-RSP-15", "R-RSP-16"],
+)
+async def hello(ctx: Context) -> None:
+    probe = await ctx.local()
+    found = probe.hello
+    header = found.header
+    model = probe.model
+    ctx.expect(header.model_id == model.model_id, str(model.model_id), str(header.model_id))
+    ctx.expect(header.session_id == 0, "session ID 0", f"{header.session_id:#x}")
+    ctx.expect(
+        header.sequence == 0, "sequence 0 (its first packet)", str(header.sequence), "R-RSP-14"
+    )
+    ctx.expect(
+        header.timestamp <= 10, "timestamp 0 (its first packet)", str(header.timestamp), "R-RSP-14"
+    )
+    ctx.expect(
+        header.last_received == 0,
+        "last received 0 (nothing received)",
+        str(header.last_received),
+        "R-RSP-15",
+    )
+    body = found.body
+    assert isinstance(body, Hello)
+    ctx.expect(
+        (header.encryption is Encryption.NONE) == (body.mac == b""),
+        "a MAC exactly when the session is encrypted (D-RSP-11)",
+        f"encryption {int(header.encryption)}, {len(body.mac)}-byte MAC",
+        "R-RSP-16",
+    )
+
+
+@local_case(
+    "rsp/local/hello-retries",
+    "A HELLO without answer is repeated every 250 ms, at most 5 times, each a new packet",
+    ["R-RSP-14"],
+    timeout=6.0,
+)
+async def hello_retries(ctx: Context) -> None:
+    probe = await ctx.local()
+    start = probe.hello
+    await probe.listen(start.at + HELLO_INTERVAL * HELLO_RETRIES + probe.quiet * 1.2 - probe.now)
+    hellos = probe.hellos
+    others = [d for d in probe.received if d.type is not PacketType.HELLO]
+    ctx.expect(
+        not others, "nothing but HELLO before an answer", f"{others[0].type.name}" if others else ""
+    )
+    ctx.expect(
+        len(hellos) > 1,
+        "HELLO repeated 250 ms later with the same nonce (D-RSP-12)",
+        "one HELLO and no repeat",
+    )
+    numbers = [d.header.sequence for d in hellos]
+    ctx.expect(
+        numbers == list(range(len(numbers))),
+        "sequence numbers 0, 1, 2, ...: each repeat a new packet",
+        ", ".join(map(str, numbers)),
+    )
+    gaps = [b.at - a.at for a, b in itertools.pairwise(hellos)]
+    ctx.expect(
+        all(0.6 * HELLO_INTERVAL <= gap <= 1.6 * HELLO_INTERVAL for gap in gaps),
+        f"repeats {HELLO_INTERVAL * 1000:g} ms apart (D-RSP-12)",
+        ms(gaps),
+    )
+    ctx.expect(
+        len(hellos) <= HELLO_RETRIES + 1,
+        f"at most {HELLO_RETRIES} repeats (D-RSP-12)",
+        f"{len(hellos) - 1} repeats",
+    )
+    off = [d.header.timestamp - (d.at - start.at) * 1000 for d in hellos]
+    ctx.expect(
+        all(abs(o) <= STAMP_SLACK for o in off),
+        "timestamps: the milliseconds since the first HELLO",
+        ", ".join(str(d.header.timestamp) for d in hellos)
+        + f" for arrivals at {ms(d.at - start.at for d in hellos)}",
+    )
+
+
+# -- the DOWNLINK beat and its header ------------------------------------------------------------
+
+
+@local_case(
+    "rsp/local/downlink-header",
+    "DOWNLINKs carry the session, numbers after HELLO's, stamps, and the newest number received",
+    ["R-RSP-13", "R-RSP-14", "R-RSP-15"],
+)
+async def downlink_header(ctx: Context) -> None:
+    occurring = of_kind(_model(ctx), DeviceKind.COMMAND, DeviceKind.MEMORY_COMMAND)
+    # Nothing acknowledged and no keep-alive: the robot's numbers move only as the case says.
+    probe = await session(ctx, withheld=occurring, beating=False)
+    assert probe.wire is not None
+    period = probe.period
+    await running(probe)
+    probe.wire.sent += 9
+    high = probe.uplink()  # sequence 10
+    probe.wire.sent = 5
+    probe.uplink()  # sequence 5: late (D-RSP-15), not the newest
+    high_at = probe.now
+    await probe.listen(8 * period)
+    first_hello = probe.hellos[0]
+    numbers = [d.header.sequence for d in probe.received]
+    ctx.expect(
+        all((b - a) % _SEQUENCE == 1 for a, b in itertools.pairwise(numbers)),
+        "sequence numbers one more a packet, the HELLO's first",
+        ", ".join(map(str, numbers[:24])),
+        "R-RSP-14",
+    )
+    session_packets = [d for d in probe.received if d.type is not PacketType.HELLO]
+    for found in session_packets:
+        header = found.header
+        ctx.expect(
+            header.session_id == probe.session_id,
+            f"session ID {probe.session_id:#x} (WELCOME's)",
+            f"{header.session_id:#x} in {found.type.name} #{header.sequence}",
+            "R-RSP-13",
+        )
+        ctx.expect(
+            header.encryption is probe.encryption,
+            f"encryption {int(probe.encryption)} (the HELLO's)",
+            f"{int(header.encryption)} in {found.type.name} #{header.sequence}",
+            "R-RSP-13",
+        )
+        expected = (found.at - first_hello.at) * 1000 + first_hello.header.timestamp
+        ctx.expect(
+            abs(header.timestamp - expected) <= STAMP_SLACK,
+            f"timestamp about {expected:.0f} (ms since the first HELLO)",
+            f"{header.timestamp} in {found.type.name} #{header.sequence}",
+            "R-RSP-14",
+        )
+    sequence_high = int.from_bytes(high[5:7])
+    lasts = [(d.at, d.header.last_received) for d in session_packets]
+    ctx.expect(
+        all(last in (0, sequence_high) for _, last in lasts),
+        f"last received 0 (WELCOME's), then {sequence_high}: never the late 5",
+        ", ".join(str(last) for _, last in lasts),
+        "R-RSP-15",
+    )
+    ctx.expect(
+        all(last == sequence_high for at, last in lasts if at >= high_at + 2 * period),
+        f"last received {sequence_high} two periods after UPLINK #{sequence_high}",
+        ", ".join(str(last) for at, last in lasts if at >= high_at + 2 * period) or "no DOWNLINK",
+        "R-RSP-15",
+    )
+
+
+@local_case(
+    "rsp/local/every-period",
+    "A DOWNLINK every T of WELCOME (raised above HELLO's), each requesting all the scenario wants",
+    ["R-RSP-23"],
+)
+async def every_period(ctx: Context) -> None:
+    probe = await session(ctx, slower=2)
+    period = probe.period
+    found = await running(probe)
+    await probe.listen(10 * period)
+    downlinks = [found, *probe.packets(PacketType.DOWNLINK, after=probe.after(found))]
+    wanted = requested(probe.model)
+    for down in downlinks:
+        missing = wanted - {i.device for i in down.items}
+        ctx.expect(
+            not missing,
+            f"every DOWNLINK requesting {names(probe.model, wanted)}",
+            f"DOWNLINK #{down.header.sequence} without {names(probe.model, missing)}",
+        )
+    gaps = [b.at - a.at for a, b in itertools.pairwise(downlinks)]
+    ctx.expect(len(gaps) >= 4, "a DOWNLINK every period", f"{len(downlinks)} DOWNLINKs")
+    median = statistics.median(gaps)
+    ctx.expect(
+        0.7 * period <= median <= 1.4 * period,
+        f"DOWNLINKs {period * 1000:g} ms apart (WELCOME's T, twice HELLO's)",
+        f"a median of {median * 1000:.1f} ms between {len(downlinks)} DOWNLINKs",
+    )
+
+
+# -- selective retransmission (D-RSP-17) ---------------------------------------------------------
+
+
+@local_case(
+    "rsp/local/command-until-acked",
+    "An unacknowledged command rides every DOWNLINK, with its ID, until its ACK; then it stops",
+    ["R-RSP-27", "R-RSP-24"],
+)
+async def command_until_acked(ctx: Context) -> None:
+    command = first(_model(ctx), DeviceKind.COMMAND)
+    probe = await session(ctx, withheld=[command])
+    period = probe.period
+    carrying = await probe.next(PacketType.DOWNLINK, after=0, where=carries(command))
+    if carrying is None:
+        raise Inconclusive(f"no {command.name} command issued (D-RSP-24 step 2)")
+    item = carrying.item(command.position)
+    assert item is not None
+    assert item.id is not None
+    ident = item.id
+    await probe.listen(6 * period)
+    riding = probe.packets(PacketType.DOWNLINK, after=probe.after(carrying))
+    ctx.expect(
+        len(riding) >= 3,
+        f"a DOWNLINK every period carrying {command.name} #{ident}",
+        f"{len(riding)} DOWNLINKs in {6 * period * 1000:g} ms",
+    )
+    for down in riding:
+        again = down.item(command.position)
+        ctx.expect(
+            again is not None,
+            f"{command.name} #{ident} in every DOWNLINK until its ACK",
+            f"DOWNLINK #{down.header.sequence} without it",
+        )
+        assert again is not None
+        ctx.expect(
+            again.id == ident and again.values == item.values,
+            f"{command.name} repeated as #{ident} with its values",
+            f"#{again.id} {dict(again.values or {})} in DOWNLINK #{down.header.sequence}",
+            "R-RSP-24",
+        )
+    ack = probe.ack([item])
+    ack_at, ack_sequence = probe.now, int.from_bytes(ack[5:7])
+    mark = probe.mark()
+    await probe.listen(6 * period)
+    after = [
+        d
+        for d in probe.packets(PacketType.DOWNLINK, after=mark)
+        if newer(d.header.last_received, ack_sequence) or d.at >= ack_at + 2 * period
+    ]
+    if not after:
+        raise Inconclusive("no DOWNLINK after the ACK")
+    still = [d for d in after if carries(command, ident)(d)]
+    ctx.expect(
+        not still,
+        f"{command.name} #{ident} no more once its ACK arrived",
+        f"in DOWNLINK #{still[0].header.sequence}" if still else "",
+    )
+
+
+@local_case(
+    "rsp/local/memory-command-resent",
+    "An unacknowledged memory command is sent again after each retransmission timeout, no sooner",
+    ["R-RSP-28", "R-RSP-29"],
+    timeout=8.0,
+)
+async def memory_command_resent(ctx: Context) -> None:
+    memory = first(_model(ctx), DeviceKind.MEMORY_COMMAND)
+    probe = await session(ctx, withheld=[memory])
+    period = probe.period
+    sent = await probe.next(PacketType.DOWNLINK, after=0, where=carries(memory))
+    if sent is None:
+        raise Inconclusive(f"no {memory.name} memory command issued (D-RSP-24 step 2)")
+    sends = [sent]
+    deadline = sent.at + 2 * MAX_RTO + 0.5 * ctx.scale
+    while len(sends) < 4 and probe.now < deadline:
+        found = await probe.next(
+            PacketType.DOWNLINK,
+            after=probe.after(sends[-1]),
+            wait=deadline - probe.now,
+            where=carries(memory),
+        )
+        if found is None:
+            break
+        sends.append(found)
+    seen = ids(probe.packets(PacketType.DOWNLINK), memory)
+    ctx.expect(
+        len(seen) == 1,
+        f"no {memory.name} but #{seen[0]} before its ACK",
+        f"#{', #'.join(map(str, seen))}",
+        "R-RSP-29",
+    )
+    gaps = [b.at - a.at for a, b in itertools.pairwise(sends)]
+    ctx.expect(
+        len(sends) >= 3,
+        f"{memory.name} #{seen[0]} sent again after each retransmission timeout (at most 2 s)",
+        f"sent {len(sends)} times in {probe.now - sent.at:.2f} s",
+    )
+    floor = 2 * period
+    ctx.expect(
+        all(gap >= 0.8 * floor for gap in gaps),
+        f"no sooner than the retransmission timeout (at least 2 T = {floor * 1000:g} ms)",
+        f"sent again after {ms(gaps)}",
+    )
+    ctx.expect(
+        all(b >= min(1.5 * a - period, 0.9 * MAX_RTO) for a, b in itertools.pairwise(gaps)),
+        "the timeout doubled after each retransmission (D-RSP-17)",
+        f"sent again after {ms(gaps)}",
+    )
+
+
+@local_case(
+    "rsp/local/next-waits-for-ack",
+    "A device's next command or memory command waits for the ACK of the one before",
+    ["R-RSP-29"],
+)
+async def next_waits_for_ack(ctx: Context) -> None:
+    model = _model(ctx)
+    command = first(model, DeviceKind.COMMAND)
+    memory = first(model, DeviceKind.MEMORY_COMMAND)
+    event = first(model, DeviceKind.EVENT)
+    probe = await session(ctx, withheld=[command, memory])
+    period = probe.period
+    await running(probe)
+    both = await probe.next(
+        PacketType.DOWNLINK,
+        after=0,
+        where=lambda d: carries(command)(d) and carries(memory)(d),
+    )
+    if both is None:
+        raise Inconclusive(f"no {command.name} and {memory.name} under way (D-RSP-24 step 2)")
+    probe.uplink([occurrence(event, 0)])  # taken, it issues another command (step 3)
+    await probe.listen(8 * period)
+    downlinks = probe.packets(PacketType.DOWNLINK)
+    for device in (command, memory):
+        seen = ids(downlinks, device)
+        ctx.expect(
+            len(seen) == 1,
+            f"{device.name} #{seen[0]} alone until its ACK",
+            f"{device.name} #{', #'.join(map(str, seen))}",
+        )
+
+
+@local_case(
+    "rsp/local/occurrence-ids",
+    "The local system numbers each device's occurrences 0, 1, 2, ...: commands and memory commands",
+    ["R-RSP-24"],
+)
+async def occurrence_ids(ctx: Context) -> None:
+    model = _model(ctx)
+    command = first(model, DeviceKind.COMMAND)
+    memory = first(model, DeviceKind.MEMORY_COMMAND)
+    events = of_kind(model, DeviceKind.EVENT)
+    probe = await session(ctx)
+    period = probe.period
+    await running(probe)
+    if events:  # each taken, each issues a command (D-RSP-24 step 3)
+        probe.uplink([occurrence(events[0], 0)])
+        probe.uplink([occurrence(events[0], 1)])
+    await probe.next(
+        PacketType.DOWNLINK,
+        after=0,
+        wait=max(12 * period, probe.quiet),
+        where=lambda _: len(ids(probe.packets(PacketType.DOWNLINK), memory)) >= 4,
+    )
+    downlinks = probe.packets(PacketType.DOWNLINK)
+    memories, commands = ids(downlinks, memory), ids(downlinks, command)
+    if len(memories) < 2:
+        raise Inconclusive(f"{memory.name} memory commands are not under way (D-RSP-24 step 2)")
+    for device, seen in ((memory, memories), (command, commands)):
+        ctx.expect(
+            seen == list(range(len(seen))),
+            f"{device.name} #0, #1, #2, ...",
+            f"{device.name} #{', #'.join(map(str, seen))}",
+        )
+
+
+@local_case(
+    "rsp/local/no-free-buffer",
+    "No memory command while the robot has no free buffer; one when one frees; none after it",
+    ["R-RSP-32"],
+)
+async def no_free_buffer(ctx: Context) -> None:
+    memory = first(_model(ctx), DeviceKind.MEMORY_COMMAND)
+    probe = await session(ctx, free=0, withheld=[memory])
+    period = probe.period
+    await running(probe)
+    await probe.listen(8 * period)
+    early = [d for d in probe.packets(PacketType.DOWNLINK) if carries(memory)(d)]
+    ctx.expect(
+        not early,
+        f"no {memory.name} while every packet of the robot gives 0 free buffers",
+        f"{memory.name} in DOWNLINK #{early[0].header.sequence}" if early else "",
+    )
+    mark = probe.mark()
+    probe.free = 1
+    probe.uplink()
+    sent = await probe.next(PacketType.DOWNLINK, after=mark, where=carries(memory))
+    if sent is None:
+        raise Inconclusive(f"no {memory.name} sent when a buffer freed (D-RSP-24 step 2)")
+    item = sent.item(memory.position)
+    assert item is not None
+    probe.free = 0  # the robot took it: full again, and says so before it acknowledges it
+    probe.uplink()
+    probe.ack([item])
+    mark = probe.mark()
+    await probe.listen(8 * period)
+    more = [i for i in ids(probe.packets(PacketType.DOWNLINK, after=mark), memory) if i != item.id]
+    ctx.expect(
+        not more,
+        f"no {memory.name} after #{item.id} filled the one free buffer",
+        f"{memory.name} #{', #'.join(map(str, more))}",
+    )
+
+
+# -- occurrences from the robot (D-RSP-16) -------------------------------------------------------
+
+
+@local_case(
+    "rsp/local/event-taken-once",
+    "An event that rides four UPLINKs is taken once: it issues one command (D-RSP-24 step 3)",
+    ["R-RSP-25"],
+)
+async def event_taken_once(ctx: Context) -> None:
+    model = _model(ctx)
+    command = first(model, DeviceKind.COMMAND)
+    event = first(model, DeviceKind.EVENT)
+    probe = await session(ctx)
+    period = probe.period
+    await running(probe)
+    start = await probe.next(PacketType.DOWNLINK, after=0, where=carries(command))
+    if start is None:
+        raise Inconclusive(f"no {command.name} command issued (D-RSP-24 step 2)")
+    item = start.item(command.position)
+    assert item is not None
+    assert item.id is not None
+    before = item.id
+    for _ in range(4):  # the three of R-RSP-30, and a late copy
+        probe.uplink([occurrence(event, 0)])
+        await probe.listen(period)
+    echo = await probe.next(
+        PacketType.DOWNLINK,
+        after=0,
+        where=lambda d: carries(command)(d) and not carries(command, before)(d),
+    )
+    if echo is None:
+        raise Inconclusive(
+            f"no {command.name} issued for {event.name} #0: whether it was taken cannot be seen"
+            " (D-RSP-24 step 3)"
+        )
+    await probe.listen(8 * period)
+    issued = [i for i in ids(probe.packets(PacketType.DOWNLINK), command) if i != before]
+    ctx.expect(
+        len(issued) == 1,
+        f"{event.name} #0 taken once: one {command.name} for it",
+        f"{len(issued)} commands: {command.name} #{', #'.join(map(str, issued))}",
+    )
+
+
+@local_case(
+    "rsp/local/acks-memory-event",
+    "A memory event is acknowledged at once, again when repeated, and taken once",
+    ["R-RSP-26", "R-RSP-25"],
+)
+async def acks_memory_event(ctx: Context) -> None:
+    found = first(_model(ctx), DeviceKind.MEMORY_EVENT)
+    probe = await session(ctx)
+    period = probe.period
+    await running(probe)
+    for attempt in ("", "repeated "):
+        mark = probe.mark()
+        probe.uplink([occurrence(found, 0)])
+        ack = await probe.expect(
+            PacketType.ACK,
+            "R-RSP-26",
+            after=mark,
+            where=lambda d: 0 in d.acks(found.position),
+            expected=f"an ACK of the {attempt}{found.name} #0",
+        )
+        between = probe.packets(PacketType.DOWNLINK, after=mark)[: probe.after(ack) - mark]
+        between = [d for d in between if d.at < ack.at]
+        ctx.expect(
+            len(between) <= 1,
+            f"the ACK of {found.name} #0 at once, not after later DOWNLINKs",
+            f"after {len(between)} DOWNLINKs",
+            "R-RSP-26",
+        )
+    await probe.listen(3 * period)
+    periods = {
+        d.body.period_ms for d in probe.packets(PacketType.PERIOD) if isinstance(d.body, Period)
+    }
+    ctx.expect(
+        len(periods) <= 1,
+        f"{found.name} #0 taken once: T changed once (D-RSP-24 step 4)",
+        f"PERIOD of {', '.join(map(str, sorted(periods)))} ms",
+        "R-RSP-25",
+    )
+
+
+@local_case(
+    "rsp/local/idle-keep-alive",
+    "Idle, the local system sends PERIOD three periods running, then an empty DOWNLINK every 5 T",
+    ["R-RSP-22", "R-RSP-23"],
+)
+async def idle_keep_alive(ctx: Context) -> None:
+    found = first(_model(ctx), DeviceKind.MEMORY_EVENT)
+    probe = await session(ctx, free=0)  # memory commands held (R-RSP-32): nothing left to send
+    period = probe.period
+    await running(probe)
+    await probe.listen(3 * period)  # the command acknowledged and gone
+    mark = probe.mark()
+    probe.uplink([occurrence(found, 0)])  # taken, the scenario goes idle at 2 T (step 4)
+    change = await probe.next(PacketType.PERIOD, after=mark)
+    if change is None or not isinstance(change.body, Period):
+        raise Inconclusive(f"no PERIOD after {found.name} #0 (D-RSP-24 step 4)")
+    slower = change.body.period_ms / 1000
+    keep = KEEPALIVE_PERIODS * slower
+    start = probe.after(change) - 1
+    await probe.next(
+        PacketType.DOWNLINK,
+        after=start,
+        wait=2.6 * keep,
+        where=lambda _: len(_empty(probe.packets(PacketType.DOWNLINK, after=start))) >= 2,
+    )
+    periods = probe.packets(PacketType.PERIOD, after=start)
+    values = {d.body.period_ms for d in periods if isinstance(d.body, Period)}
+    ctx.expect(
+        len(periods) == 3 and len(values) == 1,
+        f"PERIOD of {slower * 1000:g} ms in each of three periods running (D-RSP-13)",
+        f"{len(periods)} PERIODs of {', '.join(map(str, sorted(values)))} ms",
+        "R-RSP-23",
+    )
+    spread = periods[-1].at - periods[0].at if periods else 0.0
+    ctx.expect(
+        spread <= 3.5 * slower,
+        f"the PERIODs within three periods of {slower * 1000:g} ms",
+        f"over {spread * 1000:.0f} ms",
+        "R-RSP-23",
+    )
+    downlinks = probe.packets(PacketType.DOWNLINK, after=start)
+    busy = [d for d in downlinks if d.items and d.at > change.at + 1.5 * slower]
+    if busy:
+        raise Inconclusive(
+            f"not idle after {found.name} #0: DOWNLINK #{busy[0].header.sequence} carries"
+            f" {', '.join(sorted(busy[0].devices(probe.model)))} (D-RSP-24 step 4)"
+        )
+    empty = _empty(downlinks)
+    ctx.expect(
+        len(empty) >= 2,
+        f"an empty DOWNLINK every {KEEPALIVE_PERIODS} periods ({keep * 1000:g} ms)",
+        f"{len(empty)} in {(probe.now - change.at) * 1000:.0f} ms",
+    )
+    gaps = [b.at - a.at for a, b in itertools.pairwise(empty)]
+    ctx.expect(
+        all(0.6 * keep <= gap <= 1.6 * keep for gap in gaps),
+        f"empty DOWNLINKs {keep * 1000:g} ms apart",
+        ms(gaps),
+    )
+
+
+def _empty(downlinks: list[Datagram]) -> list[Datagram]:
+    return [d for d in downlinks if not d.items]
+
+
+# -- the end ------------------------------------------------------------------------------------
+
+
+@local_case(
+    "rsp/local/bye-ends",
+    "After the robot's BYE the local system sends nothing more of the session",
+    ["R-RSP-22"],
+)
+async def bye_ends(ctx: Context) -> None:
+    probe = await session(ctx)
+    period = probe.period
+    await running(probe)
+    bye = probe.bye(ByeReason.SHUTDOWN)
+    at, sequence = probe.now, int.from_bytes(bye[5:7])
+    mark = probe.mark()
+    await probe.listen(max(8 * period, probe.quiet))
+    late = [
+        d
+        for d in probe.packets(after=mark)
+        if d.type is not PacketType.BYE
+        and (newer(d.header.last_received, sequence) or d.at > at + 2 * period)
+    ]
+    ctx.expect(
+        not late,
+        "nothing of the session after BYE",
+        f"{late[0].type.name} #{late[0].header.sequence}" if late else "",
+    )
+
+
+# -- security (D-RSP-21) ------------------------------------------------------------------------
+
+
+@local_case(
+    "rsp/local/welcome-mac",
+    "A WELCOME with a wrong MAC is dropped (HELLO repeated); the right one opens a sealed session",
+    ["R-RSP-38", "R-RSP-37"],
+)
+async def welcome_mac(ctx: Context) -> None:
+    psk = ctx.target.rsp_psk
+    if psk is None:
+        raise NotApplicable("the robot's pre-shared key is not known (ICS [rsp] psk-file)")
+    probe = await ctx.local()
+    if probe.encryption is Encryption.NONE:
+        probe.refuse(RefusedReason.ENCRYPTION_NOT_OFFERED)  # D-RSP-24 step 1: it tries an AEAD
+        probe = await ctx.local(again=True)
+        if probe.encryption is Encryption.NONE:
+            probe.refuse(RefusedReason.ENCRYPTION_NOT_OFFERED)
+            raise NotApplicable("the local system offers no encrypted session (D-RSP-24 step 1)")
+    signed = probe.hello
+    ctx.expect(
+        mac_matches(psk, signed.data[:-MAC_SIZE], signed.data[-MAC_SIZE:]),
+        "a HELLO signed with the pre-shared key (D-RSP-21)",
+        f"MAC {signed.data[-MAC_SIZE:].hex()}",
+        "R-RSP-37",
+    )
+    mark = probe.mark()
+    probe.welcome(key=bytes(b ^ 0x5A for b in psk))
+    again = await probe.next(PacketType.HELLO, after=mark, wait=2 * HELLO_INTERVAL + probe.quiet)
+    stray = [d for d in probe.packets(after=mark) if d.type is not PacketType.HELLO]
+    ctx.expect(
+        not stray,
+        "the forged WELCOME dropped: nothing of its session",
+        f"{stray[0].type.name} #{stray[0].header.sequence}" if stray else "",
+    )
+    ctx.expect(again is not None, "HELLO repeated: no session yet", "no HELLO again")
+    mark = probe.mark()
+    probe.welcome()
+    await probe.expect(
+        PacketType.DOWNLINK,
+        "R-RSP-37",
+        after=mark,
+        where=lambda d: d.body is not None,
+        expected="a DOWNLINK sealed with the session's keys",
+    )
+
+
+def _model(ctx: Context) -> RobotModel:
+    if ctx.target.rsp_model is None:
+        raise NotApplicable("the robot model the harness plays is not known (give --model)")
+    return ctx.target.rsp_model
