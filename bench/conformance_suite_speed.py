@@ -24,7 +24,7 @@ import time
 from rcmlconf.conformance.ics import EVERYTHING
 from rcmlconf.conformance.registry import all_cases
 from rcmlconf.conformance.runner import RunOptions, run_cases, under_test
-from rcmlconf.conformance.targets import embedded_reference
+from rcmlconf.conformance.targets import embedded_reference, quiet_reference_logs
 from rcmlconf.conformance.verdicts import Result, Verdict
 from rcmlconf.impair.spec import parse_impairment
 
@@ -47,11 +47,13 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     impairment = parse_impairment(args.impair) if args.impair else None
+    quiet_reference_logs()
     options = RunOptions(seed=args.seed, impair=impairment)
     walls, sums = [], []
     slowest: Result | None = None
     counts: dict[str, int] = {}
     verdicts: dict[str, set[str]] = {}
+    reasons: list[str] = []
     for run in range(args.runs):
         wall, results = asyncio.run(suite(options))
         walls.append(wall)
@@ -60,6 +62,8 @@ def main() -> None:
         for r in results:
             counts[r.verdict.value] = counts.get(r.verdict.value, 0) + 1
             verdicts.setdefault(r.case, set()).add(r.verdict.value)
+            if r.verdict not in (Verdict.PASS, Verdict.NOT_APPLICABLE):
+                reasons.append(f"run {run + 1}: {r.case}: {r.verdict.value}: {r.reason}")
         print(f"run {run + 1}: {wall:6.2f} s", flush=True)
     assert slowest is not None
     alone, _ = asyncio.run(suite(options, slowest.case))
@@ -76,6 +80,8 @@ def main() -> None:
     if bad:
         print(f"NOT all passed: {bad}")
     unstable = {case: sorted(found) for case, found in verdicts.items() if len(found) > 1}
+    for reason in reasons:
+        print(f"  {reason}")
     print(f"same verdict in every run: {'yes' if not unstable else f'NO: {unstable}'}")
 
 

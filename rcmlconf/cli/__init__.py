@@ -44,17 +44,28 @@ COMMANDS = {
     "run": (
         "rcmlconf.cli.run",
         "run",
-        "Run the conformance cases against an RCTP server or RSP robot (or the reference).",
+        "Run the conformance cases against an RCTP server or client, an RSP robot or local"
+        " system, or the embedded reference.",
     ),
     "serve": (
         "rcmlconf.cli.serve",
         "serve",
         "Serve a robot over RCTP/2.0 and its files over HTTP (the reference server).",
     ),
+    "sniff": (
+        "rcmlconf.cli.sniff",
+        "sniff",
+        "Capture RCTP and RSP live and print a line a message (needs root or CAP_NET_RAW).",
+    ),
     "validate": (
         "rcmlconf.cli.validate",
         "validate",
-        "Check RCML 2.0 and RXID 2.0 files against specs/.",
+        "Check RCML 2.0, RXID 2.0 and RSP robot-model files against specs/.",
+    ),
+    "wireshark": (
+        "rcmlconf.cli.wireshark",
+        "wireshark",
+        "Write a Wireshark Lua dissector for RCTP/2.0 and RSP (from the codecs' own tables).",
     ),
 }
 

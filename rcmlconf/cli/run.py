@@ -5,7 +5,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
-import logging
 import sys
 import time
 from collections.abc import AsyncIterator, Sequence
@@ -27,7 +26,12 @@ from rcmlconf.conformance.reports.json_report import to_json
 from rcmlconf.conformance.reports.junit import to_junit
 from rcmlconf.conformance.reports.summary import counts, explain, new_failures
 from rcmlconf.conformance.runner import RunOptions, run_cases, under_test
-from rcmlconf.conformance.targets import REFERENCE_RCML, Target, embedded_reference
+from rcmlconf.conformance.targets import (
+    REFERENCE_RCML,
+    Target,
+    embedded_reference,
+    quiet_reference_logs,
+)
 from rcmlconf.conformance.verdicts import Result, Verdict
 from rcmlconf.impair.spec import ImpairmentError, parse_impairment
 from rcmlconf.rcml.model import RcmlDocument
@@ -245,7 +249,7 @@ def run(
         address = listen if ":" in listen else f"127.0.0.1:{listen}"
         external = ClientTarget(parse_address(address, RCTP_PORT), robot, declared.features)
     if external is None:
-        _quiet_reference()
+        quiet_reference_logs()
     started = time.time()
     try:
         tested, results = asyncio.run(
@@ -292,14 +296,6 @@ async def _run(
 
             results = await run_cases(cases, target, options, done)
         return target, results
-
-
-def _quiet_reference() -> None:
-    """The embedded reference's own logs (a dropped packet a case sent on purpose) are not the
-    run's output: the verdicts say what happened."""
-    quiet = logging.getLogger("rcmlconf")
-    quiet.addHandler(logging.NullHandler())
-    quiet.propagate = False
 
 
 @contextlib.asynccontextmanager

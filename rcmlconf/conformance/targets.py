@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import functools
+import logging
 import os
 from collections.abc import AsyncIterator
 from dataclasses import dataclass, field
@@ -117,6 +118,14 @@ async def embedded_reference(
         await clients.close()
         await local.close()
         await server.stop()
+
+
+def quiet_reference_logs() -> None:
+    """Keep the embedded reference's own logs (a packet a case sent on purpose, dropped) out of
+    a run's output: the verdicts say what happened. For commands and benches, not libraries."""
+    quiet = logging.getLogger("rcmlconf")
+    quiet.addHandler(logging.NullHandler())
+    quiet.propagate = False
 
 
 #: How long a summoned reference client stays connected at most.

@@ -1,0 +1,172 @@
+"""`rcmlconf sniff`: RCTP and RSP captured live, one line per message as it arrives."""
+
+from __future__ import annotations
+
+import errno
+import logging
+import sys
+from pathlib import Path
+from typing import Any
+
+import click
+
+from rcmlconf.cli.console import Output
+from rcmlconf.wording import plural
+
+#: Exit status when capture cannot start: not permitted, no such interface.
+CANNOT_CAPTURE = 2
+
+
+@click.command()
+@click.option(
+    "-i",
+    "--interface",
+    "interface",
+    metavar="IFACE",
+    help="The interface to capture on (lo for a robot on this machine). Default: scapy's "
+    "default route interface.",
+)
+@click.option(
+    "--count",
+    type=click.IntRange(min=1),
+    metavar="N",
+    help="Stop after N messages. Default: at Ctrl-C.",
+)
+@click.option(
+    "--model",
+    "model_path",
+    type=click.Path(path_type=Path),
+    metavar="MODEL.rmodel",
+    help="The RSP robot model: decode Device Maps and payloads (raw bytes without it).",
+)
+@click.option(
+    "--decode-as",
+    "decode_as",
+    multiple=True,
+    metavar="PROTO=PORT",
+    help="Also decode PORT as PROTO: rctp (the TCP control connection), rctp-data (the UDP "
+    "data stream) or rsp (UDP).",
+)
+def sniff(
+    interface: str | None,
+    count: int | None,
+    model_path: Path | None,
+    decode_as: tuple[str, ...],
+) -> None:
+    """Capture RCTP/2.0 and RSP traffic live and print one line per message as it arrives:
+    time, endpoints, then the method and target or the status of a control message, or the
+    type and sequence number of a data-stream or RSP packet.
+
+    RCTP's control connection is read on TCP port 7330 and reassembled (messages split across
+    segments, pipelined); its data stream on the UDP ports SETUP negotiates (seen in the
+    Transport fields) and 7330; RSP on UDP port 7340. Capturing needs root or CAP_NET_RAW.
+
+    \b
+    Exit status: 0 done (--count reached or Ctrl-C); 1 invalid model;
+      2 capture not permitted, no such interface, or a usage error.
+
+    \b
+    Examples:
+      sudo rcmlconf sniff -i lo
+      sudo rcmlconf sniff -i eth0 --model cubo.rmodel --count 100
+      sudo rcmlconf sniff -i lo --decode-as rsp=9000
+    """
+    output = Output()
+    model = None
+    if model_path is not None:
+        from rcmlconf.cli.models import load_or_exit
+        from rcmlconf.validate.validator import load_robot_model
+
+        model = load_or_exit(output, "sniff", model_path, load_robot_model)
+    # scapy takes a moment to import: only once the options hold.
+    logging.getLogger("scapy.runtime").setLevel(logging.ERROR)
+    from rcmlconf.scapy_layers import capture, rsp
+
+    try:
+        ports = [capture.parse_decode_as(text) for text in decode_as]
+    except ValueError as error:
+        raise click.BadParameter(str(error), param_hint="--decode-as") from None
+    bpf = _bpf(ports)
+    socket = _open(output, interface, bpf)
+    rsp.use_model(model)
+    dissector = capture.Dissector(ports)
+    shown = 0
+    frames = 0
+    try:
+        output.notice(f"capturing on {socket.iface} ({bpf}); Ctrl-C to stop")
+        while count is None or shown < count:
+            layer, data, stamp = socket.recv_raw()
+            if data is None:
+                continue
+            frames += 1
+            linktype = _linktype(layer, data)
+            when = float(stamp) if stamp is not None else _now()
+            for message in dissector.frame(frames, when, linktype, data):
+                output.live([(capture.summary(message), "")])
+                shown += 1
+                if count is not None and shown >= count:
+                    break
+    except KeyboardInterrupt:
+        pass
+    finally:
+        socket.close()
+    output.summary(f"{plural(shown, 'message')} in {plural(frames, 'frame')}", ok=True)
+
+
+def _bpf(ports: list[tuple[str, int]]) -> str:
+    """The kernel's filter: RCTP's control connection on its TCP ports, and UDP, since the data
+    stream's ports are negotiated (D-RCTP-18) and learned from the control messages."""
+    from rcmlconf.scapy_layers.capture import DEFAULT_TCP, RCTP
+
+    tcp = sorted({*DEFAULT_TCP, *(port for proto, port in ports if proto == RCTP)})
+    return " or ".join([*(f"tcp port {port}" for port in tcp), "udp"])
+
+
+def _open(output: Output, interface: str | None, bpf: str) -> Any:
+    """A capturing socket; the one line that says why not, and exit 2."""
+    import scapy.arch  # noqa: F401  (sets conf.L2listen)
+    from scapy.config import conf
+    from scapy.interfaces import get_if_list
+
+    name = interface or str(conf.iface)
+    if name not in get_if_list():
+        known = ", ".join(sorted(get_if_list()))
+        output.problem("sniff", f"no interface {name!r} (this machine has {known})")
+        sys.exit(CANNOT_CAPTURE)
+    # Loopback shows each packet twice, going out and coming in: a socket that drops what goes
+    # out sees it once, as tcpdump does. Elsewhere both directions are wanted.
+    flags = conf.ifaces.dev_from_name(name).flags
+    listen = conf.L2socket if flags and "LOOPBACK" in flags else conf.L2listen
+    try:
+        return listen(iface=name, filter=bpf)
+    except PermissionError:
+        pass
+    except OSError as exc:
+        if exc.errno not in (errno.EPERM, errno.EACCES):
+            output.problem("sniff", f"cannot capture on {name}: {exc.strerror or exc}")
+            sys.exit(CANNOT_CAPTURE)
+    output.problem(
+        "sniff",
+        f"capture on {name} is not permitted: run as root, or give Python CAP_NET_RAW "
+        "(sudo setcap cap_net_raw,cap_net_admin+eip $(readlink -f $(which python3)))",
+    )
+    sys.exit(CANNOT_CAPTURE)
+
+
+def _linktype(layer: Any, data: bytes) -> int:
+    """The link type of a captured frame: scapy's, or guessed from the bytes when scapy does not
+    know the interface's (Linux loopback gives frames with an Ethernet header of zeros)."""
+    from scapy.config import conf
+
+    known = conf.l2types.layer2num.get(layer)
+    if known is not None:
+        return int(known)
+    if data[12:14] in (b"\x08\x00", b"\x86\xdd"):
+        return 1  # Ethernet
+    return 101  # raw IP
+
+
+def _now() -> float:
+    import time
+
+    return time.time()

@@ -1,0 +1,756 @@
+"""
+RSP: the Robot Simulacrum Protocol (specs/rsp.md)
+
+RSP runs over UDP port 7340 (D-RSP-9). Every packet starts with the 20-byte header of Table II
+(``RSP``, D-RSP-10); its type picks the body (D-RSP-11): ``RSPHello``, ``RSPWelcome``,
+``RSPRefused``, ``RSPDownlink``, ``RSPUplink``, ``RSPAck``, ``RSPBye``, ``RSPPeriod``, and
+``RSPSealed`` for a body an encrypted session sealed (D-RSP-21).
+
+The Device Map of DOWNLINK, UPLINK and ACK is one bit per device of the robot model, and what
+follows a set bit depends on the device's kind and the packet (D-RSP-14): the map's size and the
+payloads are known only with the model. Give it once, and the map bodies are decoded device by
+device; without it they stay raw bytes::
+
+    >>> from rcmlconf.scapy_layers import rsp
+    >>> rsp.use_model("rcmlconf/reference/robots/cubo/cubo.rmodel")
+    >>> packets = rdpcap("cubo.pcap")
+    >>> packets[5][rsp.RSPDownlink].payloads
+
+A second implementation of the wire format, kept apart from ``rcmlconf.rsp.codec`` on purpose (as
+scapy's contrib layers are apart from the implementations they dissect): the tests check both
+against every vector. The layer dissects the layout and shows the values it finds: what does not
+fit the layout (a body cut short, bytes after it, a bit the table says is never set) is left to
+scapy's ``Raw``; a value the rules refuse (out of its range, a period too short) is shown as it is.
+"""
+
+# scapy.contrib.description = RSP, the Robot Simulacrum Protocol
+# scapy.contrib.status = loads
+
+from __future__ import annotations
+
+import os
+import struct
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+from scapy.config import conf
+from scapy.fields import (
+    ByteEnumField,
+    ByteField,
+    ConditionalField,
+    Field,
+    IntField,
+    ShortField,
+    StrField,
+    XStrFixedLenField,
+)
+from scapy.layers.inet import UDP
+from scapy.packet import Packet, bind_bottom_up, bind_layers
+
+if TYPE_CHECKING:
+    from rcmlconf.rsp.model import RobotModel
+
+RSP_PORT = 7340
+RSP_VERSION = 1
+RSP_HEADER_SIZE = 20
+
+#: D-RSP-10, D-RSP-21.
+RSP_ENCRYPTIONS = {0: "none", 1: "AES-256-GCM", 2: "ChaCha20-Poly1305"}
+#: D-RSP-11.
+RSP_TYPES = {
+    1: "HELLO",
+    2: "WELCOME",
+    3: "REFUSED",
+    4: "DOWNLINK",
+    5: "UPLINK",
+    6: "ACK",
+    7: "BYE",
+    8: "PERIOD",
+}
+RSP_REFUSED_REASONS = {
+    1: "unknown model",
+    2: "encryption not offered",
+    3: "busy",
+    4: "not authenticated",
+}
+RSP_BYE_REASONS = {0: "closed", 1: "timeout", 2: "shutdown"}
+#: D-RSP-10: bit 7 of the buffer byte of the local system.
+RSP_CLEAR_BUFFER = 0x80
+RSP_NONCE_SIZE = 16
+RSP_MAC_SIZE = 16
+RSP_TAG_SIZE = 16
+
+#: Who sends each packet type (D-RSP-11), which decides what its buffer byte says.
+_FROM_LOCAL = frozenset({1, 4, 8})
+_FROM_ROBOT = frozenset({2, 3, 5})
+#: HELLO and REFUSED belong to no session: their session ID is 0 (D-RSP-10).
+_WITHOUT_SESSION = frozenset({1, 3})
+#: The robot's free buffers fit in bits 0 to 6 (`commandBuffers` is at most 127).
+_MAX_FREE_BUFFERS = 0x7F
+#: Bodies sent before a session has keys: never sealed (D-RSP-21).
+_NEVER_SEALED = frozenset({1, 2, 3})
+
+#: D-RSP-14: what a set bit brings, by device kind, in DOWNLINK, UPLINK and ACK. "flag": nothing
+#: (a request, a module's activation); "state": the fields; "occurrence": an ID then the fields;
+#: "id": an acknowledged occurrence's ID; None: the bit is never set.
+RSP_BITS: dict[str, tuple[str | None, str | None, str | None]] = {
+    "effector": ("state", None, None),
+    "sensor": ("flag", "state", None),
+    "monitor": ("flag", "state", None),
+    "module": ("flag", None, None),
+    "command": ("occurrence", None, "id"),
+    "event": ("flag", "occurrence", None),
+    "memoryCommand": ("occurrence", None, "id"),
+    "memoryEvent": ("flag", "occurrence", "id"),
+}
+_COLUMNS = ("DOWNLINK", "UPLINK", "ACK")
+
+#: D-RCML-9: the struct code of each fixed-size type; string and bytes are a 16-bit length and
+#: that many bytes.
+RSP_VALUE_CODES = {
+    "bool": "B",
+    "int8": "b",
+    "uint8": "B",
+    "int16": "h",
+    "uint16": "H",
+    "int32": "i",
+    "uint32": "I",
+    "int64": "q",
+    "uint64": "Q",
+    "float32": "f",
+    "float64": "d",
+}
+
+
+# -- the robot model, as the layer reads it -------------------------------------------------------
+
+
+class _CutShort(Exception):
+    pass
+
+
+#: (datagram, position) -> (value, position after it).
+_Decode = Callable[[bytes, int], tuple[Any, int]]
+#: value -> its bytes.
+_Encode = Callable[[Any], bytes]
+
+
+def _bool(byte: int) -> bool | int:
+    # 0x00 and 0x01 only (R-RCML-30): any other byte is shown as the number it is.
+    return {0: False, 1: True}.get(byte, byte)
+
+
+def _value_codec(type_name: str, count: int) -> tuple[_Decode, _Encode]:
+    """How one field's value is read and written (D-RCML-10, D-RCML-11)."""
+    if type_name in ("string", "bytes"):
+        text = type_name == "string"
+
+        def decode_sized(data: bytes, pos: int) -> tuple[Any, int]:
+            items: list[Any] = []
+            for _ in range(count):
+                if pos + 2 > len(data):
+                    raise _CutShort
+                length = int.from_bytes(data[pos : pos + 2], "big")
+                pos += 2
+                if pos + length > len(data):
+                    raise _CutShort
+                raw = data[pos : pos + length]
+                pos += length
+                if text:
+                    try:
+                        items.append(raw.decode("utf-8"))
+                    except UnicodeDecodeError:
+                        items.append(raw)  # not UTF-8 (R-RCML-30): the bytes as they are
+                else:
+                    items.append(raw)
+            return (items[0] if count == 1 else tuple(items)), pos
+
+        def encode_sized(value: Any) -> bytes:
+            out = b""
+            for item in (value,) if count == 1 else value:
+                raw = item.encode("utf-8") if isinstance(item, str) else bytes(item)
+                out += struct.pack("!H", len(raw)) + raw
+            return out
+
+        return decode_sized, encode_sized
+    code = RSP_VALUE_CODES[type_name]
+    layout = struct.Struct(f"!{count}{code}")
+    is_bool = type_name == "bool"
+
+    def decode_fixed(data: bytes, pos: int) -> tuple[Any, int]:
+        if pos + layout.size > len(data):
+            raise _CutShort
+        values = layout.unpack_from(data, pos)
+        if is_bool:
+            values = tuple(_bool(v) for v in values)
+        return (values[0] if count == 1 else values), pos + layout.size
+
+    def encode_fixed(value: Any) -> bytes:
+        return layout.pack(*((value,) if count == 1 else value))
+
+    return decode_fixed, encode_fixed
+
+
+class _FieldLayout(NamedTuple):
+    name: str
+    decode: _Decode
+    encode: _Encode
+
+
+class _DeviceLayout(NamedTuple):
+    position: int
+    name: str
+    kind: str
+    fields: tuple[_FieldLayout, ...]
+    #: What a set bit brings in DOWNLINK, UPLINK, ACK (RSP_BITS).
+    bits: tuple[str | None, str | None, str | None]
+
+
+class ModelLayout(NamedTuple):
+    """What the layer needs of a robot model: its ID, ID length, and devices in model order."""
+
+    name: str
+    model_id: int
+    id_length: int
+    devices: tuple[_DeviceLayout, ...]
+
+    @property
+    def map_size(self) -> int:
+        return (len(self.devices) + 7) // 8
+
+    @classmethod
+    def of(cls, model: RobotModel) -> ModelLayout:
+        devices = []
+        for device in model.devices:
+            fields = tuple(
+                _FieldLayout(f.name, *_value_codec(f.type.base.name, f.type.count))
+                for f in device.fields
+            )
+            kind = device.kind.value
+            bits = RSP_BITS[kind]
+            devices.append(_DeviceLayout(device.position, device.name, kind, fields, bits))
+        return cls(model.name, model.model_id, model.id_length, tuple(devices))
+
+
+_layout: ModelLayout | None = None
+_model: RobotModel | None = None
+
+
+def use_model(model: RobotModel | str | os.PathLike[str] | None) -> RobotModel | None:
+    """Decode Device Maps and payloads with this robot model (or the model file at that path)
+    from now on; None for raw bytes. Returns the model used before."""
+    global _layout, _model
+    if isinstance(model, str | os.PathLike):
+        from pathlib import Path
+
+        from rcmlconf.validate.validator import load_robot_model
+
+        model = load_robot_model(Path(model))
+    before = _model
+    _model = model
+    _layout = None if model is None else ModelLayout.of(model)
+    return before
+
+
+def current_model() -> RobotModel | None:
+    return _model
+
+
+class RSPItem(NamedTuple):
+    """What one set bit of a Device Map brings (D-RSP-14)."""
+
+    position: int
+    #: The device's name; "bit N" for a bit past the model's last device.
+    device: str
+    #: An occurrence's ID, or the ID an ACK acknowledges; else None.
+    id: int | None = None
+    #: A state's or an occurrence's fields by name; else None.
+    values: dict[str, Any] | None = None
+    #: Why the payloads stop here: what follows is left undecoded (``Raw``).
+    note: str | None = None
+
+
+# -- fields ---------------------------------------------------------------------------------------
+
+
+class _SessionIdField(Field[int, bytes]):
+    """48 bits the robot chose for the session (D-RSP-12)."""
+
+    def __init__(self, name: str, default: int) -> None:
+        super().__init__(name, default, "6s")
+
+    def m2i(self, pkt: Packet | None, x: bytes) -> int:
+        return int.from_bytes(x, "big")
+
+    def i2m(self, pkt: Packet | None, x: int | None) -> bytes:
+        return (x or 0).to_bytes(6, "big")
+
+    def i2repr(self, pkt: Packet | None, x: int) -> str:
+        return f"0x{x:012x}" if x is not None else "None"
+
+
+class _BufferField(ByteField):
+    """From the local system, Clear Buffer in bit 7; from the robot, its free memory-command
+    buffers (D-RSP-10, D-RSP-19)."""
+
+    def i2repr(self, pkt: Packet | None, x: int) -> str:
+        kind = getattr(pkt, "type", None)
+        if x is None:
+            return "None"
+        if kind in _FROM_LOCAL:
+            return f"0x{x:02x} (Clear Buffer)" if x & RSP_CLEAR_BUFFER else f"0x{x:02x}"
+        if kind in _FROM_ROBOT:
+            return f"{x} (free buffers)"
+        return str(x)
+
+
+class _MillisecondsField(ShortField):
+    def i2repr(self, pkt: Packet | None, x: int) -> str:
+        return f"{x} ms" if x is not None else "None"
+
+
+class _TimestampField(IntField):
+    def i2repr(self, pkt: Packet | None, x: int) -> str:
+        return f"{x} ms" if x is not None else "None"
+
+
+def _fits(layout: ModelLayout | None, header: Packet | None) -> ModelLayout | None:
+    """The layout, when it is the model of the packet's header (D-RSP-6)."""
+    if layout is None:
+        return None
+    if header is not None and getattr(header, "model_id", None) != layout.model_id:
+        return None
+    return layout
+
+
+def _layout_of(pkt: Packet) -> ModelLayout | None:
+    """The model a map body was dissected with; for one built by hand, the model now in use."""
+    kept: dict[str, ModelLayout | None] = pkt.__dict__
+    if "layout" in kept:
+        return kept["layout"]
+    return _fits(_layout, pkt.underlayer)
+
+
+def _decoded(pkt: Packet) -> bool:
+    return _layout_of(pkt) is not None
+
+
+class _DeviceMapField(Field[int, bytes]):
+    """One bit per device in model order, the first in the most significant bit (D-RSP-14)."""
+
+    def __init__(self, name: str, default: int) -> None:
+        super().__init__(name, default, "0s")
+
+    @staticmethod
+    def _size(pkt: Packet | None) -> int:
+        layout = _layout_of(pkt) if pkt is not None else None
+        return layout.map_size if layout is not None else 0
+
+    def getfield(self, pkt: Packet, s: bytes) -> tuple[bytes, int]:
+        size = self._size(pkt)
+        return s[size:], int.from_bytes(s[:size], "big")
+
+    def addfield(self, pkt: Packet, s: bytes, val: int | None) -> bytes:
+        return s + (val or 0).to_bytes(self._size(pkt), "big")
+
+    def i2len(self, pkt: Packet, x: Any) -> int:
+        return self._size(pkt)
+
+    def i2repr(self, pkt: Packet | None, x: int) -> str:
+        layout = _layout_of(pkt) if pkt is not None else None
+        if layout is None or x is None:
+            return repr(x)
+        size = layout.map_size
+        names = [
+            layout.devices[n].name if n < len(layout.devices) else f"bit {n} (no device)"
+            for n in set_bits(x, size)
+        ]
+        return f"0x{x:0{2 * size}x} ({', '.join(names) or 'no bit set'})"
+
+
+def set_bits(number: int, size: int) -> list[int]:
+    """The set bits of a Device Map of `size` bytes, as device positions in model order."""
+    width = 8 * size
+    return [width - 1 - bit for bit in range(width - 1, -1, -1) if number >> bit & 1]
+
+
+def _show_value(value: Any) -> str:
+    if isinstance(value, bytes):
+        shown = value[:16].hex()
+        return f"0x{shown}..({len(value)} bytes)" if len(value) > 16 else f"0x{shown}"
+    if isinstance(value, tuple):
+        return "[" + ", ".join(_show_value(v) for v in value) + "]"
+    return repr(value)
+
+
+def _show_item(item: RSPItem) -> str:
+    text = item.device
+    if item.id is not None:
+        text += f" #{item.id}"
+    if item.values is not None:
+        text += ": " + " ".join(f"{k}={_show_value(v)}" for k, v in item.values.items())
+    if item.note is not None:
+        text += f" [{item.note}]"
+    return text
+
+
+class _PayloadsField(Field[list[RSPItem], bytes]):
+    """The payloads of the set bits, in model order, with nothing between them (D-RSP-14)."""
+
+    islist = 1
+    ismutable = True
+
+    def __init__(self, name: str, default: list[RSPItem] | None) -> None:
+        super().__init__(name, default, "0s")
+
+    def getfield(self, pkt: Packet, s: bytes) -> tuple[bytes, list[RSPItem]]:
+        layout = _layout_of(pkt)
+        if layout is None:
+            return s, []
+        column = pkt.column
+        items: list[RSPItem] = []
+        pos = 0
+        ident_size = layout.id_length
+        for position in set_bits(pkt.device_map or 0, layout.map_size):
+            if position >= len(layout.devices):
+                items.append(RSPItem(position, f"bit {position}", note="no such device"))
+                break
+            device = layout.devices[position]
+            meaning = device.bits[column]
+            if meaning is None:
+                note = f"never set in {_COLUMNS[column]} (D-RSP-14)"
+                items.append(RSPItem(position, device.name, note=note))
+                break
+            start = pos
+            try:
+                ident = None
+                if meaning in ("occurrence", "id"):
+                    if pos + ident_size > len(s):
+                        raise _CutShort
+                    ident = int.from_bytes(s[pos : pos + ident_size], "big")
+                    pos += ident_size
+                values = None
+                if meaning in ("state", "occurrence"):
+                    values = {}
+                    for field in device.fields:
+                        values[field.name], pos = field.decode(s, pos)
+            except _CutShort:
+                pos = start
+                items.append(RSPItem(position, device.name, note="cut short"))
+                break
+            items.append(RSPItem(position, device.name, ident, values))
+        return s[pos:], items
+
+    def addfield(self, pkt: Packet, s: bytes, val: list[RSPItem] | None) -> bytes:
+        layout = _layout_of(pkt)
+        if layout is None:
+            return s
+        out = [s]
+        for item in val or []:
+            if item.note is not None or item.position >= len(layout.devices):
+                continue
+            device = layout.devices[item.position]
+            if item.id is not None:
+                out.append(item.id.to_bytes(layout.id_length, "big"))
+            if item.values is not None:
+                out.extend(field.encode(item.values[field.name]) for field in device.fields)
+        return b"".join(out)
+
+    def i2len(self, pkt: Packet, x: Any) -> int:
+        return len(self.addfield(pkt, b"", x))
+
+    def i2repr(self, pkt: Packet | None, x: list[RSPItem] | None) -> str:
+        if not x:
+            return "(none)"
+        lines = [_show_item(item) for item in x]
+        return ("\n" + " " * max(0, 10 - len(self.name))).join(lines)
+
+    def do_copy(self, x: list[RSPItem]) -> list[RSPItem]:
+        return list(x)
+
+
+class _AllButTagField(StrField):
+    """A sealed body: everything but the last 16 bytes, the AEAD tag (D-RSP-21)."""
+
+    def getfield(self, pkt: Packet, s: bytes) -> tuple[bytes, bytes]:
+        cut = max(0, len(s) - RSP_TAG_SIZE)
+        return s[cut:], s[:cut]
+
+
+def header_fits(data: bytes) -> bool:
+    """A header any model's packet may have (R-RSP-13): version 1, a model ID, a known
+    encryption and type, a session ID that is 0 exactly in HELLO and REFUSED, and a buffer byte
+    of the form its sender gives it (D-RSP-10)."""
+    if len(data) < RSP_HEADER_SIZE or data[0] != RSP_VERSION:
+        return False
+    kind, buffer = data[4], data[19]
+    if not (data[1] or data[2]) or data[3] not in RSP_ENCRYPTIONS or kind not in RSP_TYPES:
+        return False
+    if (not any(data[11:17])) != (kind in _WITHOUT_SESSION):
+        return False
+    if kind in _FROM_LOCAL:
+        return buffer in (0, RSP_CLEAR_BUFFER)
+    if kind in _FROM_ROBOT:
+        return buffer <= _MAX_FREE_BUFFERS
+    return buffer <= _MAX_FREE_BUFFERS or buffer == RSP_CLEAR_BUFFER
+
+
+# -- the header -----------------------------------------------------------------------------------
+
+
+class RSP(Packet):
+    """The 20 bytes of Table II that start every packet (D-RSP-10)."""
+
+    name = "RSP"
+    #  0                   1                   2                   3
+    #  0 1 2 3 4 5 6 7 8 9 0 1 2 3 4 5 6 7 8 9 0 1 2 3 4 5 6 7 8 9 0 1
+    # +-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+
+    # |  version = 1  |           model ID            |  encryption   |  bytes 0-3
+    # +-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+
+    # |     type      |        sequence number        |   timestamp   :  bytes 4-7
+    # +-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+
+    # :        timestamp (bytes 7-10, 32 bits)        |  session ID   :  bytes 8-11
+    # +-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+
+    # :               session ID (bytes 11-16, 48 bits)               :  bytes 12-15
+    # +-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+
+    # :  session ID   | last received sequence number |    buffer     |  bytes 16-19
+    # +-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+-+
+    fields_desc = [  # noqa: RUF012 (scapy reads the class attribute)
+        ByteField("version", RSP_VERSION),
+        ShortField("model_id", 1),
+        ByteEnumField("encryption", 0, RSP_ENCRYPTIONS),
+        ByteEnumField("type", 4, RSP_TYPES),
+        ShortField("seq", 0),
+        _TimestampField("timestamp", 0),
+        _SessionIdField("session_id", 0),
+        ShortField("last_received", 0),
+        _BufferField("buffer", 0),
+    ]
+
+    @classmethod
+    def dispatch_hook(cls, _pkt: bytes | None = None, *args: Any, **kargs: Any) -> type[Packet]:
+        if _pkt is not None and len(_pkt) < RSP_HEADER_SIZE:
+            return conf.raw_layer  # a header cut short (R-RSP-13)
+        return cls
+
+    def guess_payload_class(self, payload: bytes) -> type[Packet]:
+        if self.encryption and self.type not in _NEVER_SEALED:
+            return RSPSealed
+        return super().guess_payload_class(payload)
+
+    def mysummary(self) -> str:
+        return self.describe()
+
+    def describe(self) -> str:
+        """The packet type, sequence number, session and what the body says, on one line."""
+        kind = RSP_TYPES.get(self.type, f"type {self.type}")
+        text = f"RSP {kind} seq={self.seq} session=0x{self.session_id:012x}"
+        body = self.payload
+        if isinstance(body, _RSPBody):
+            detail = body.detail()
+            if detail:
+                text += " " + detail
+        return text
+
+
+# -- the bodies -----------------------------------------------------------------------------------
+
+
+def _encrypted(pkt: Packet) -> bool:
+    header = pkt.underlayer
+    return header is not None and bool(getattr(header, "encryption", False))
+
+
+class _RSPBody(Packet):
+    #: Bytes of the body's fields, without a MAC: shorter bodies are left to Raw.
+    size = 0
+    #: HELLO and WELCOME end with a MAC in an encrypted session (D-RSP-21).
+    signed = False
+    #: The header's summary line tells what the body says (`detail`): `IP / UDP / RSP HELLO ...`.
+    show_summary = False
+
+    def mysummary(self) -> str:
+        return ""
+
+    def detail(self) -> str:
+        """What the body adds to the header's summary line."""
+        return ""
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        # scapy asks only a class's own dispatch_hook (Packet_metaclass.__call__): every body
+        # class gets one, so that a body cut short is left to Raw.
+        type.__setattr__(cls, "dispatch_hook", classmethod(_body_hook))
+
+    @classmethod
+    def needed(cls, header: Packet | None) -> int:
+        """Bytes a body of this class has at least."""
+        if cls.signed and header is not None and getattr(header, "encryption", False):
+            return cls.size + RSP_MAC_SIZE
+        return cls.size
+
+
+def _body_hook(
+    cls: type[_RSPBody], _pkt: bytes | None = None, *args: Any, **kargs: Any
+) -> type[Packet]:
+    if _pkt is not None and len(_pkt) < cls.needed(kargs.get("_underlayer")):
+        return conf.raw_layer  # cut short (R-RSP-16)
+    return cls
+
+
+class RSPHello(_RSPBody):
+    """The local system opens a session (D-RSP-12)."""
+
+    name = "RSP HELLO"
+    size = RSP_NONCE_SIZE + 2
+    signed = True
+    # | client nonce (16 bytes) | period (uint16, ms) | MAC (16 bytes, encrypted sessions) |
+    fields_desc = [  # noqa: RUF012 (scapy reads the class attribute)
+        XStrFixedLenField("client_nonce", b"\0" * RSP_NONCE_SIZE, RSP_NONCE_SIZE),
+        _MillisecondsField("period_ms", 20),
+        ConditionalField(XStrFixedLenField("mac", b"", RSP_MAC_SIZE), _encrypted),
+    ]
+
+    def detail(self) -> str:
+        return f"period {self.period_ms} ms"
+
+
+class RSPWelcome(_RSPBody):
+    """The robot opens the session its header names (D-RSP-12)."""
+
+    name = "RSP WELCOME"
+    size = 2 * RSP_NONCE_SIZE + 2
+    signed = True
+    # | client nonce (16) | robot nonce (16) | period in force (uint16, ms) | MAC (16, encrypted) |
+    fields_desc = [  # noqa: RUF012 (scapy reads the class attribute)
+        XStrFixedLenField("client_nonce", b"\0" * RSP_NONCE_SIZE, RSP_NONCE_SIZE),
+        XStrFixedLenField("robot_nonce", b"\0" * RSP_NONCE_SIZE, RSP_NONCE_SIZE),
+        _MillisecondsField("period_ms", 20),
+        ConditionalField(XStrFixedLenField("mac", b"", RSP_MAC_SIZE), _encrypted),
+    ]
+
+    def detail(self) -> str:
+        return f"period {self.period_ms} ms"
+
+
+class RSPRefused(_RSPBody):
+    name = "RSP REFUSED"
+    size = 1
+    # | reason (uint8) |
+    fields_desc = [ByteEnumField("reason", 3, RSP_REFUSED_REASONS)]  # noqa: RUF012
+
+    def detail(self) -> str:
+        return RSP_REFUSED_REASONS.get(self.reason, f"reason {self.reason}")
+
+
+class RSPBye(_RSPBody):
+    name = "RSP BYE"
+    size = 1
+    # | reason (uint8) |
+    fields_desc = [ByteEnumField("reason", 0, RSP_BYE_REASONS)]  # noqa: RUF012
+
+    def detail(self) -> str:
+        return RSP_BYE_REASONS.get(self.reason, f"reason {self.reason}")
+
+
+class RSPPeriod(_RSPBody):
+    """T changed while the session runs (D-RSP-13)."""
+
+    name = "RSP PERIOD"
+    size = 2
+    # | the new period (uint16, ms) |
+    fields_desc = [_MillisecondsField("period_ms", 20)]  # noqa: RUF012
+
+    def detail(self) -> str:
+        return f"period {self.period_ms} ms"
+
+
+class _RSPMapBody(_RSPBody):
+    """A Device Map and the payloads of its set bits (D-RSP-14); raw bytes without the model."""
+
+    #: The column of RSP_BITS.
+    column = 0
+    # | Device Map: one bit per device, model order, ceil(devices / 8) bytes |
+    # | the payloads of the set bits, in model order, nothing between them   |
+    fields_desc = [  # noqa: RUF012 (scapy reads the class attribute)
+        ConditionalField(_DeviceMapField("device_map", 0), _decoded),
+        ConditionalField(_PayloadsField("payloads", []), _decoded),
+    ]
+
+    @classmethod
+    def needed(cls, header: Packet | None) -> int:
+        layout = _fits(_layout, header)
+        return layout.map_size if layout is not None else 0  # the Device Map
+
+    def pre_dissect(self, s: bytes) -> bytes:
+        # The model this body is read with, kept: it is shown with the same one later.
+        self.__dict__["layout"] = _fits(_layout, self.underlayer)
+        return s
+
+    def _keep_layout(self, clone: Packet) -> Any:
+        if "layout" in self.__dict__:
+            clone.__dict__["layout"] = self.__dict__["layout"]
+        return clone
+
+    def copy(self) -> Any:
+        return self._keep_layout(super().copy())
+
+    def clone_with(self, payload: Any = None, **kargs: Any) -> Any:
+        return self._keep_layout(super().clone_with(payload, **kargs))
+
+    def detail(self) -> str:
+        items: Sequence[RSPItem] = self.getfieldval("payloads") or ()
+        if not _decoded(self):
+            return f"{len(bytes(self.payload))} bytes (no model)"
+        names = [item.device + (f"#{item.id}" if item.id is not None else "") for item in items]
+        return "items: " + (", ".join(names) or "none")
+
+
+class RSPDownlink(_RSPMapBody):
+    name = "RSP DOWNLINK"
+    column = 0
+
+
+class RSPUplink(_RSPMapBody):
+    name = "RSP UPLINK"
+    column = 1
+
+
+class RSPAck(_RSPMapBody):
+    name = "RSP ACK"
+    column = 2
+
+
+class RSPSealed(_RSPBody):
+    """A body an encrypted session sealed (D-RSP-21): ciphertext, then the 16-byte tag."""
+
+    name = "RSP sealed body"
+    size = RSP_TAG_SIZE
+    fields_desc = [  # noqa: RUF012 (scapy reads the class attribute)
+        _AllButTagField("ciphertext", b""),
+        XStrFixedLenField("tag", b"", RSP_TAG_SIZE),
+    ]
+
+    def detail(self) -> str:
+        return f"sealed {len(self.ciphertext or b'')}B"
+
+
+# -- bindings ------------------------------------------------------------------------------------
+
+
+def bind_port(port: int) -> None:
+    """Dissect UDP `port` as RSP, in either direction (D-RSP-9: 7340 unless told otherwise)."""
+    bind_bottom_up(UDP, RSP, sport=port)
+    bind_bottom_up(UDP, RSP, dport=port)
+
+
+bind_port(RSP_PORT)
+bind_layers(UDP, RSP, sport=RSP_PORT, dport=RSP_PORT)
+bind_layers(RSP, RSPHello, type=1)
+bind_layers(RSP, RSPWelcome, type=2)
+bind_layers(RSP, RSPRefused, type=3)
+bind_layers(RSP, RSPDownlink, type=4)
+bind_layers(RSP, RSPUplink, type=5)
+bind_layers(RSP, RSPAck, type=6)
+bind_layers(RSP, RSPBye, type=7)
+bind_layers(RSP, RSPPeriod, type=8)
