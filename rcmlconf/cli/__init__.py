@@ -26,6 +26,12 @@ COMMANDS = {
         "client",
         "Read, write, stream and watch a robot over RCTP/2.0 (the reference client).",
     ),
+    "dissect": (
+        "rcmlconf.cli.dissect",
+        "dissect",
+        "Decode and analyse a pcap/pcapng capture of RCTP/2.0 and RSP: a line a message, then"
+        " the analysis.",
+    ),
     "local": (
         "rcmlconf.cli.local",
         "local",

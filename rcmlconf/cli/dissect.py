@@ -1,0 +1,266 @@
+"""`rcmlconf dissect FILE`: what went over the wire, and what went wrong (rcmlconf.dissect)."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import click
+
+from rcmlconf.cli.console import Output
+from rcmlconf.cli.models import load_or_exit
+from rcmlconf.diagnostics import Diagnostic
+from rcmlconf.dissect import PROTOCOLS, Dissector, Options, Record, Severity
+from rcmlconf.dissect.output import JsonFormat, TextFormat, analysis_json, analysis_lines
+from rcmlconf.pcap.reader import Capture, CaptureError
+from rcmlconf.rcml.model import RcmlDocument
+from rcmlconf.rsp.model import RobotModel
+from rcmlconf.validate.validator import InvalidRobot, Validator
+
+#: Lines written to the console at once: one write per batch, not per message.
+BATCH = 2048
+
+
+def _decode_as(
+    ctx: click.Context, param: click.Parameter, values: tuple[str, ...]
+) -> tuple[tuple[str, int], ...]:
+    pairs = []
+    for value in values:
+        protocol, sep, port = value.partition("=")
+        protocol = protocol.strip().lower()
+        if not sep or protocol not in PROTOCOLS or not port.isdigit() or not 0 < int(port) < 65536:
+            raise click.BadParameter(
+                f"{value!r} is not PROTO=PORT with PROTO one of {', '.join(PROTOCOLS)} and a port"
+                " from 1 to 65535"
+            )
+        pairs.append((protocol, int(port)))
+    return tuple(pairs)
+
+
+def _load_model(path: Path, warnings: list[Diagnostic]) -> RobotModel | RcmlDocument:
+    """A robot model (.rmodel) or an RCML document (.rcml), whichever the file is."""
+    try:
+        report, model = Validator().load_file(path)
+    except OSError as exc:
+        raise InvalidRobot(f"{path}: cannot be read: {exc.strerror}") from None
+    if not isinstance(model, RobotModel | RcmlDocument):
+        raise InvalidRobot(
+            f"{path}: not a valid robot model or RCML document; `rcmlconf validate {path}` says"
+            " why",
+            report,
+        )
+    warnings.extend(report.diagnostics)
+    return model
+
+
+@click.command()
+@click.argument("capture", metavar="FILE", type=click.Path(dir_okay=False, path_type=Path))
+@click.option(
+    "--model",
+    "models",
+    multiple=True,
+    metavar="FILE",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    help="The robot model (.rmodel) to decode RSP payloads with, and/or the robot's RCML (.rcml)"
+    " to decode data-stream values and READ/WRITE bodies with. Repeatable: one of each.",
+)
+@click.option(
+    "--format",
+    "output_format",
+    type=click.Choice(["text", "json"]),
+    default="text",
+    show_default=True,
+    help="text: a summary line per message, then the analysis; json: JSON Lines, an object per"
+    ' message, then {"analysis": ...}.',
+)
+@click.option(
+    "--decode-as",
+    multiple=True,
+    metavar="PROTO=PORT",
+    callback=_decode_as,
+    help="Decode the traffic of PORT as PROTO: rctp (TCP), rctp-data or rsp (UDP). Repeatable.",
+)
+@click.option(
+    "--no-heuristics",
+    is_flag=True,
+    help="Recognise our protocols only by port (defaults, --decode-as, SETUP's Transport),"
+    " not by the look of a flow's first packet.",
+)
+@click.option(
+    "--plot",
+    type=click.Path(dir_okay=False, path_type=Path),
+    metavar="FILE.png",
+    help="Also draw inter-arrival time and latency over time per stream (needs matplotlib:"
+    " the `plot` extra).",
+)
+@click.option("-q", "--quiet", is_flag=True, help="Print the analysis only, no line per message.")
+@click.option(
+    "-V",
+    "verbose",
+    is_flag=True,
+    help="The full field tree of each message (the scapy layers).",
+)
+def dissect(
+    capture: Path,
+    models: tuple[Path, ...],
+    output_format: str,
+    decode_as: tuple[tuple[str, int], ...],
+    no_heuristics: bool,
+    plot: Path | None,
+    quiet: bool,
+    verbose: bool,
+) -> None:
+    """Decode a pcap or pcapng capture of RCTP/2.0 and RSP, and analyse it.
+
+    RCTP control connections (TCP 7330), the data stream (UDP: the ports SETUP's Transport
+    names, and 7330) and RSP (UDP 7340) are found by port, by --decode-as, and by the look of
+    each flow's first packet. Each message is one summary line (time, endpoints, protocol,
+    method/status or packet type, sequence number, key fields); the analysis follows: sessions
+    and streams, loss, reordering, duplicates, TCP retransmissions, request-to-response times,
+    heartbeat round trips and clock offsets, jitter, methods sent in a state that does not allow
+    them, and malformed messages with their offset — each finding with the requirement of
+    specs/ it concerns.
+
+    RSP payloads need the robot model (--model cubo.rmodel): without one they are shown as
+    bytes. The values of data-stream packets and of READ and WRITE bodies need the robot's
+    RCML (--model rover.rcml).
+
+    \b
+    Exit status: 0 when the analysis finds no error; 1 when it finds one
+    (a MUST of specs/ broken on the wire); 2 for a usage error or a file
+    that is not a readable capture (or breaks before its end).
+
+    \b
+    Examples:
+      rcmlconf dissect run.pcap
+      rcmlconf dissect --model cubo.rmodel --format json cubo.pcapng > cubo.jsonl
+      rcmlconf dissect --decode-as rsp=9000 --plot streams.png -q lab.pcap
+    """
+    output = Output()
+    rsp_model: RobotModel | None = None
+    rcml: RcmlDocument | None = None
+    for path in models:
+        model = load_or_exit(output, "dissect", path, _load_model)
+        if isinstance(model, RobotModel):
+            rsp_model = model
+        else:
+            rcml = model
+    options = Options(rsp_model, rcml, decode_as, not no_heuristics, plot is not None)
+    if verbose:
+        sys.exit(_verbose(capture, options, output))
+    try:
+        opened = Capture.open(capture)
+    except OSError as exc:
+        output.problem("dissect", f"cannot read {capture}: {exc.strerror or exc}")
+        sys.exit(2)
+    except CaptureError as exc:
+        output.problem("dissect", f"{capture}: {exc.reason} (byte {exc.offset})")
+        sys.exit(2)
+    with opened:
+        lines = _Lines(output, output_format, rsp_model, quiet, opened)
+        dissector = Dissector(options, lines.emit)
+        analysis = dissector.run(opened)
+        lines.flush()
+    if output_format == "json":
+        lines.json({"analysis": analysis_json(analysis)})
+    else:
+        for text, style in analysis_lines(analysis):
+            output.out.line([(text, style)])
+    status = 1 if analysis.errors else 0
+    if analysis.capture.error is not None:
+        offset, reason = analysis.capture.error
+        output.problem("dissect", f"{capture}: {reason} (byte {offset}); read up to there")
+        status = 2
+    if plot is not None:
+        status = max(status, _plot(output, dissector, plot, capture))
+    warnings = sum(1 for f in analysis.findings if f.severity is Severity.WARNING)
+    messages = sum(analysis.capture.messages.values())
+    output.summary(
+        f"{capture}: {analysis.capture.frames:,} frames, {messages:,} messages,"
+        f" {analysis.errors} errors, {warnings} warnings",
+        ok=status == 0,
+    )
+    sys.exit(status)
+
+
+class _Lines:
+    """Each record's line (or JSON object), written in batches."""
+
+    def __init__(
+        self,
+        output: Output,
+        output_format: str,
+        model: RobotModel | None,
+        quiet: bool,
+        capture: Capture,
+    ) -> None:
+        self.output = output
+        self._batch: list[str] = []
+        decimals = capture.decimals
+        self._form: Callable[[Record], str] = (
+            TextFormat(model, capture.first_time(), decimals).line
+            if output_format == "text"
+            else JsonFormat(model, decimals).line
+        )
+        #: What the dissector calls with each record.
+        self.emit: Callable[[Record], None] = self._nothing if quiet else self._append
+
+    def _nothing(self, record: Record) -> None:
+        pass
+
+    def _append(self, record: Record) -> None:
+        batch = self._batch
+        batch.append(self._form(record))
+        if len(batch) >= BATCH:
+            self.flush()
+
+    def json(self, document: object) -> None:
+        import json
+
+        text = json.dumps(document, ensure_ascii=False, separators=(",", ":"))
+        self.output.out.line([(text, "")])
+
+    def flush(self) -> None:
+        if self._batch:
+            self.output.out.line([("\n".join(self._batch), "")])
+            self._batch.clear()
+
+
+def _plot(output: Output, dissector: Dissector, path: Path, capture: Path) -> int:
+    try:
+        from rcmlconf.dissect.plot import plot_streams
+    except ImportError:  # pragma: no cover - the plot extra is missing
+        output.problem("dissect", "--plot needs matplotlib: pip install 'rcmlconf[plot]'")
+        return 2
+    try:
+        drawn = plot_streams(dissector.streams, path, f"rcmlconf dissect {capture.name}")
+    except ImportError:
+        output.problem("dissect", "--plot needs matplotlib: pip install 'rcmlconf[plot]'")
+        return 2
+    except (OSError, ValueError) as exc:
+        output.problem("dissect", f"--plot {path}: {exc}")
+        return 2
+    output.notice(f"{path}: {drawn} streams drawn")
+    return 0
+
+
+def _verbose(capture: Path, options: Options, output: Output) -> int:
+    """-V: each message's summary and whole field tree, from the scapy layers (imported only
+    here: the summary and json paths never build a scapy packet)."""
+    from scapy.error import Scapy_Exception
+
+    from rcmlconf.scapy_layers import capture as layers
+
+    found = layers.messages(capture, options.rsp_model, options.decode_as, options.heuristics)
+    try:
+        for message in found:
+            output.live([(layers.summary(message), "bold")])
+            tree = layers.render(message.packet)
+            output.out.file.write(tree if tree.endswith("\n") else tree + "\n")
+    except BrokenPipeError:
+        raise  # `| head`: the command's own handler ends quietly
+    except (OSError, Scapy_Exception, ValueError) as exc:
+        output.problem("dissect", f"{capture}: {exc}")
+        return 2
+    return 0
