@@ -28,7 +28,8 @@ from collections.abc import Awaitable, Callable, Iterable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from rcmlconf.conformance.probes.rsp import Datagram, Where, summary
+from rcmlconf.conformance.probes.datagrams import DatagramLog
+from rcmlconf.conformance.probes.rsp import Datagram, summary
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Failed, HarnessError, Inconclusive
 from rcmlconf.errors import ProtocolError
@@ -236,7 +237,7 @@ class LocalListener:
             self._transport.close()
 
 
-class LocalProbe:
+class LocalProbe(DatagramLog):
     """One local system's session, from the robot the harness plays (`LocalListener.accept`)."""
 
     def __init__(
@@ -376,76 +377,9 @@ class LocalProbe:
         kind = self.model.devices[item.device].kind
         return kind is not DeviceKind.MEMORY_COMMAND or self.free > 0  # R-RSP-31
 
-    def check(self) -> None:
-        """Fail the case if the local system sent a datagram the codec could not read."""
-        if self.fault is not None:
-            raise self.fault
-
-    # -- waiting -------------------------------------------------------------------------------
-
-    def mark(self) -> int:
-        """A place in `received`: `packets(after=...)` and `next(after=...)` start there."""
-        return len(self.received)
-
     def after(self, found: Datagram) -> int:
         """The place in `received` just after `found`."""
         return self.received.index(found) + 1
-
-    def packets(
-        self, kinds: Iterable[PacketType] | PacketType | None = None, *, after: int = 0
-    ) -> list[Datagram]:
-        wanted = _kinds(kinds)
-        return [d for d in self.received[after:] if wanted is None or d.type in wanted]
-
-    async def next(
-        self,
-        kinds: Iterable[PacketType] | PacketType | None = None,
-        *,
-        after: int | None = None,
-        wait: float | None = None,
-        where: Where | None = None,
-    ) -> Datagram | None:
-        """The first datagram from `after` (by default: from now) of one of `kinds` for which
-        `where` holds; None if none came within `wait`."""
-        wanted = _kinds(kinds)
-        start = self.mark() if after is None else after
-        deadline = self.now + (self.wait if wait is None else wait)
-        while True:
-            self.check()
-            for index in range(start, len(self.received)):
-                found = self.received[index]
-                if (wanted is None or found.type in wanted) and (where is None or where(found)):
-                    return found
-            start = len(self.received)
-            remaining = deadline - self.now
-            if remaining <= 0:
-                return None
-            self._arrival.clear()
-            with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(self._arrival.wait(), remaining)
-
-    async def expect(
-        self,
-        kinds: Iterable[PacketType] | PacketType,
-        requirement: str,
-        *,
-        after: int | None = None,
-        wait: float | None = None,
-        where: Where | None = None,
-        expected: str = "",
-    ) -> Datagram:
-        """As `next`, but Failed (`requirement`) when nothing comes."""
-        found = await self.next(kinds, after=after, wait=wait, where=where)
-        if found is None:
-            names = "/".join(k.name for k in sorted(_kinds(kinds) or ()))
-            seconds = self.wait if wait is None else wait
-            raise Failed(requirement, expected or names, f"nothing within {seconds:.2g} s")
-        return found
-
-    async def listen(self, seconds: float) -> None:
-        """Let `seconds` pass (the probe keeps receiving and acknowledging)."""
-        await asyncio.sleep(max(seconds, 0.0))
-        self.check()
 
     # -- sending -------------------------------------------------------------------------------
 
@@ -567,14 +501,6 @@ class LocalProbe:
             self._beat.cancel()
             self._beat = None
         self.listener._unbind(self)
-
-
-def _kinds(kinds: Iterable[PacketType] | PacketType | None) -> frozenset[PacketType] | None:
-    if kinds is None:
-        return None
-    if isinstance(kinds, PacketType):
-        return frozenset({kinds})
-    return frozenset(kinds)
 
 
 # -- the scenario (D-RSP-24) ----------------------------------------------------------------------

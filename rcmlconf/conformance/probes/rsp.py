@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from typing import cast
 
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.datagrams import DatagramLog
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Failed, HarnessError, Inconclusive, NotApplicable
 from rcmlconf.errors import EncodeError, ProtocolError
@@ -237,7 +238,7 @@ class _Socket(asyncio.DatagramProtocol):
         self.probe.transcript.note(f"UDP error: {exc}")
 
 
-class RspProbe:
+class RspProbe(DatagramLog):
     """One local system's socket towards one robot (use `open_probe`)."""
 
     def __init__(
@@ -452,71 +453,6 @@ class RspProbe:
             if raw.nonce == body.client_nonce and raw.wire.session_id == 0:
                 raw.accept(found)
 
-    def check(self) -> None:
-        """Fail the case if the robot sent a datagram the codec could not read."""
-        if self.fault is not None:
-            raise self.fault
-
-    def mark(self) -> int:
-        """A place in `received`: `packets(after=...)` and `next(after=...)` start there."""
-        return len(self.received)
-
-    def packets(
-        self, kinds: Iterable[PacketType] | PacketType | None = None, *, after: int = 0
-    ) -> list[Datagram]:
-        wanted = _kinds(kinds)
-        return [d for d in self.received[after:] if wanted is None or d.type in wanted]
-
-    async def next(
-        self,
-        kinds: Iterable[PacketType] | PacketType | None = None,
-        *,
-        after: int | None = None,
-        wait: float | None = None,
-        where: Where | None = None,
-    ) -> Datagram | None:
-        """The first datagram from `after` (by default: from now) of one of `kinds` for which
-        `where` holds; None if none came within `wait`."""
-        wanted = _kinds(kinds)
-        start = self.mark() if after is None else after
-        deadline = self.now + (self.wait if wait is None else wait)
-        while True:
-            self.check()
-            for index in range(start, len(self.received)):
-                found = self.received[index]
-                if (wanted is None or found.type in wanted) and (where is None or where(found)):
-                    return found
-            start = len(self.received)
-            remaining = deadline - self.now
-            if remaining <= 0:
-                return None
-            self._arrival.clear()
-            with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(self._arrival.wait(), remaining)
-
-    async def expect(
-        self,
-        kinds: Iterable[PacketType] | PacketType,
-        requirement: str,
-        *,
-        after: int | None = None,
-        wait: float | None = None,
-        where: Where | None = None,
-        expected: str = "",
-    ) -> Datagram:
-        """As `next`, but Failed (`requirement`) when nothing comes."""
-        found = await self.next(kinds, after=after, wait=wait, where=where)
-        if found is None:
-            names = "/".join(k.name for k in sorted(_kinds(kinds) or ()))
-            seconds = self.wait if wait is None else wait
-            raise Failed(requirement, expected or names, f"nothing within {seconds:.2g} s")
-        return found
-
-    async def listen(self, seconds: float) -> None:
-        """Let `seconds` pass (the probe keeps receiving, the endpoint keeps beating)."""
-        await asyncio.sleep(seconds)
-        self.check()
-
     # -- the endpoint --------------------------------------------------------------------------
 
     async def open_session(
@@ -711,14 +647,6 @@ class RspProbe:
             self._timer.cancel()
         if self._transport is not None:
             self._transport.close()
-
-
-def _kinds(kinds: Iterable[PacketType] | PacketType | None) -> frozenset[PacketType] | None:
-    if kinds is None:
-        return None
-    if isinstance(kinds, PacketType):
-        return frozenset({kinds})
-    return frozenset(kinds)
 
 
 class RawSession:

@@ -1,0 +1,103 @@
+"""What the RSP probes share, whichever side the harness plays (`rsp.RspProbe` the local
+system, `locals.LocalProbe` the robot): the datagrams received so far, in order, decoded, and
+bounded waits for the next one of some types."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from collections.abc import Iterable
+from typing import TYPE_CHECKING
+
+from rcmlconf.conformance.verdicts import Failed
+from rcmlconf.rsp.codec import PacketType
+
+if TYPE_CHECKING:
+    from rcmlconf.conformance.probes.rsp import Datagram, Where
+
+
+class DatagramLog:
+    """Mixed into a probe that keeps `received` (decoded, in arrival order), sets `_arrival` on
+    each, keeps the first undecodable datagram's failure in `fault`, and has `wait` and `now`."""
+
+    received: list[Datagram]
+    fault: Failed | None
+    wait: float
+    _arrival: asyncio.Event
+
+    @property
+    def now(self) -> float:
+        raise NotImplementedError
+
+    def check(self) -> None:
+        """Fail the case if the peer sent a datagram the codec could not read."""
+        if self.fault is not None:
+            raise self.fault
+
+    def mark(self) -> int:
+        """A place in `received`: `packets(after=...)` and `next(after=...)` start there."""
+        return len(self.received)
+
+    def packets(
+        self, kinds: Iterable[PacketType] | PacketType | None = None, *, after: int = 0
+    ) -> list[Datagram]:
+        wanted = _kinds(kinds)
+        return [d for d in self.received[after:] if wanted is None or d.type in wanted]
+
+    async def next(
+        self,
+        kinds: Iterable[PacketType] | PacketType | None = None,
+        *,
+        after: int | None = None,
+        wait: float | None = None,
+        where: Where | None = None,
+    ) -> Datagram | None:
+        """The first datagram from `after` (by default: from now) of one of `kinds` for which
+        `where` holds; None if none came within `wait`."""
+        wanted = _kinds(kinds)
+        start = self.mark() if after is None else after
+        deadline = self.now + (self.wait if wait is None else wait)
+        while True:
+            self.check()
+            for index in range(start, len(self.received)):
+                found = self.received[index]
+                if (wanted is None or found.type in wanted) and (where is None or where(found)):
+                    return found
+            start = len(self.received)
+            remaining = deadline - self.now
+            if remaining <= 0:
+                return None
+            self._arrival.clear()
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._arrival.wait(), remaining)
+
+    async def expect(
+        self,
+        kinds: Iterable[PacketType] | PacketType,
+        requirement: str,
+        *,
+        after: int | None = None,
+        wait: float | None = None,
+        where: Where | None = None,
+        expected: str = "",
+    ) -> Datagram:
+        """As `next`, but Failed (`requirement`) when nothing comes."""
+        found = await self.next(kinds, after=after, wait=wait, where=where)
+        if found is None:
+            names = "/".join(k.name for k in sorted(_kinds(kinds) or ()))
+            seconds = self.wait if wait is None else wait
+            raise Failed(requirement, expected or names, f"nothing within {seconds:.2g} s")
+        return found
+
+    async def listen(self, seconds: float) -> None:
+        """Let `seconds` pass (the probe keeps receiving, and answering what it answers)."""
+        await asyncio.sleep(max(seconds, 0.0))
+        self.check()
+
+
+def _kinds(kinds: Iterable[PacketType] | PacketType | None) -> frozenset[PacketType] | None:
+    if kinds is None:
+        return None
+    if isinstance(kinds, PacketType):
+        return frozenset({kinds})
+    return frozenset(kinds)
