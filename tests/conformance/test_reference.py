@@ -36,11 +36,15 @@ def run_all(options: RunOptions) -> list[Result]:
 
 def test_every_case_passes_on_the_reference_twice_with_the_same_verdicts() -> None:
     results = run_all(RunOptions(repeat=2))
+    cases = all_cases()
     failing = [
         f"{r.case} (run {r.run}): {r.verdict.value}: {r.reason}\n" + "\n".join(r.exchange)
         for r in results
         if r.verdict is not Verdict.PASS
         and not (r.verdict is Verdict.NOT_APPLICABLE and r.case in NOT_APPLICABLE)
+        # A case run under its own impairment may find the answer hidden by it: inconclusive,
+        # never a failure (rsp/reliable/memory-commands-under-loss, a few runs in a thousand).
+        and not (r.verdict is Verdict.INCONCLUSIVE and cases[r.case].impairment is not None)
     ]
     assert not failing, "\n\n".join(failing)
 
