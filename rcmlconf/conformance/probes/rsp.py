@@ -32,7 +32,7 @@ from rcmlconf.conformance.probes.datagrams import DatagramLog
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Failed, HarnessError, Inconclusive, NotApplicable
 from rcmlconf.errors import EncodeError, ProtocolError
-from rcmlconf.impair import ImpairedChannel, Impairment, derive_seed, parse_impairment
+from rcmlconf.impair import ImpairedChannel, Impairment, derive_seed
 from rcmlconf.rctp.datastream.order import SequenceTracker
 from rcmlconf.rsp.codec import (
     Bye,
@@ -779,15 +779,14 @@ async def open_probe(ctx: Context, *, robot: Address | None = None, name: str = 
     if model is None:
         raise NotApplicable("the RSP robot's model is not known (give --rsp-model)")
     address = await ctx.rsp() if robot is None else robot
-    impairment = parse_impairment(ctx.case.impairment) if ctx.case.impairment else None
     probe = RspProbe(
         model,
         address,
         ctx.transcript,
         ctx.wait,
         ctx.target.rsp_psk,
-        impairment,
-        derive_seed(ctx.seed, ctx.case.id),
+        ctx.impairment,  # --impair's, else the case's
+        ctx.impairment_seed(name),
         name,
     )
     probe.quiet = QUIET * ctx.scale

@@ -24,7 +24,7 @@ from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.transcript import Address, Transcript, show
 from rcmlconf.conformance.verdicts import Failed, HarnessError, Inconclusive
 from rcmlconf.errors import ProtocolError, ValueTextError
-from rcmlconf.impair import ImpairedChannel, Impairment, channel_pair, parse_impairment
+from rcmlconf.impair import ImpairedChannel, Impairment, channel_pair
 from rcmlconf.rcml.model import AccessNode, DataNode
 from rcmlconf.rctp.bodies import ValuesCodec
 from rcmlconf.rctp.datastream import (
@@ -569,10 +569,10 @@ def answers(datagram: Datagram) -> list[FlowMessage]:
 async def open_stream(ctx: Context, control: ControlProbe, flow: int = 0) -> StreamProbe:
     """A data-stream socket for the case, on the control connection's local address (where the
     target sends, D-RCTP-28), under the case's impairment (`flow` numbers the case's sockets
-    for the impairment's seeds), closed with the case."""
-    impairment = parse_impairment(ctx.case.impairment) if ctx.case.impairment else None
+    for the impairment's seeds), closed with the case. The impairment is --impair's, else the
+    case's (`Context.impairment`)."""
     probe = await StreamProbe.open(
-        control.local[0], ctx.transcript, ctx.wait, impairment, ctx.seed, flow
+        control.local[0], ctx.transcript, ctx.wait, ctx.impairment, ctx.impairment_seed(), flow
     )
     ctx.on_close(probe.close)
     return probe
