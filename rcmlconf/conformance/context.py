@@ -174,13 +174,30 @@ class Context:
             raise Failed(self.requirement(requirement), expected, actual)
 
     def expect_status(
-        self, answer: Response, statuses: int | Iterable[int], requirement: str | None = None
+        self,
+        answer: Response,
+        statuses: int | Iterable[int],
+        requirement: str | None = None,
+        *,
+        what: str = "",
     ) -> None:
-        """The answer's status is one of `statuses`."""
+        """The answer's status is one of `statuses`; `what` names the request it answers."""
         allowed = (statuses,) if isinstance(statuses, int) else tuple(statuses)
+        prefix = f"{what}: " if what else ""
         self.expect(
             answer.status in allowed,
-            tuple(str(s) for s in allowed),
+            tuple(f"{prefix}{s}" for s in allowed),
             f"{answer.status} {answer.reason}",
             requirement,
         )
+
+
+def expect_answer(
+    ctx: Context,
+    answer: Response,
+    statuses: int | Iterable[int],
+    what: str,
+    requirement: str | None = None,
+) -> None:
+    """`ctx.expect_status`, saying which request the answer was to."""
+    ctx.expect_status(answer, statuses, requirement, what=what)

@@ -7,11 +7,11 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import re
-from collections.abc import AsyncIterator, Sequence
+from collections.abc import AsyncIterator
 from dataclasses import dataclass
 
-from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.control import ControlProbe, Fields
+from rcmlconf.conformance.context import Context, expect_answer
+from rcmlconf.conformance.probes.control import ControlProbe, Fields, describe
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
 from rcmlconf.errors import ProtocolError
@@ -85,7 +85,7 @@ async def cseq_not_number(ctx: Context) -> None:
         fields = [("CSeq", value)]
         await probe.send(_request(probe, "CONNECT", site, fields, cseq=False))
         answer = await probe.response()
-        _expect_status(ctx, answer, 400, f"CONNECT with CSeq {value!r}", "R-RCTP-11")
+        expect_answer(ctx, answer, 400, f"CONNECT with CSeq {value!r}", "R-RCTP-11")
         echoed = answer.headers.get("CSeq")
         ctx.expect(
             echoed is None,
@@ -93,7 +93,7 @@ async def cseq_not_number(ctx: Context) -> None:
             f"CSeq: {echoed}",
             "R-RCTP-3",
         )
-    _expect_status(ctx, await probe.request("CONNECT", site), 200, "CONNECT afterwards")
+    expect_answer(ctx, await probe.request("CONNECT", site), 200, "CONNECT afterwards")
 
 
 @case(
@@ -122,15 +122,15 @@ async def repeated_fields(ctx: Context) -> None:
         f"READ {readable} {VERSION}\r\nCSeq: {cseq}\r\nCSeq: {cseq}\r\n"
         f"Session: {probe.session}\r\n\r\n".encode()
     )
-    _expect_status(ctx, await probe.response(), 400, "READ with CSeq twice")
+    expect_answer(ctx, await probe.response(), 400, "READ with CSeq twice")
     for method, target, field, body in once:
         await probe.send(_request(probe, method, target, [field, field], body))
         answer = await probe.response()
-        _expect_status(ctx, answer, 400, f"{method} {target} with {field[0]} twice", "R-RCTP-11")
+        expect_answer(ctx, answer, 400, f"{method} {target} with {field[0]} twice", "R-RCTP-11")
         _expect_cseq(ctx, answer, probe.cseq)
     repeated = [("X-Rcmlconf-Probe", "one"), ("X-Rcmlconf-Probe", "two")]
     answer = await probe.request("READ", readable, repeated)
-    _expect_status(ctx, answer, 200, "READ with an unknown field twice", "R-RCTP-14")
+    expect_answer(ctx, answer, 200, "READ with an unknown field twice", "R-RCTP-14")
 
 
 @case(
@@ -168,7 +168,7 @@ async def body_split_everywhere(ctx: Context) -> None:
         await probe.send(data[cut:])
         answer = await probe.response()
         what = f"WRITE of a path that names no node, cut at byte {cut} of {len(data)}"
-        _expect_status(ctx, answer, 404, what, "R-RCTP-13")
+        expect_answer(ctx, answer, 404, what, "R-RCTP-13")
         _expect_cseq(ctx, answer, probe.cseq, "R-RCTP-6")
 
 
@@ -185,7 +185,7 @@ async def write_without_content_length(ctx: Context) -> None:
     typed = [*fields, ("Content-Type", "application/rctp-values")]
     async with _holding(ctx, probe, held):
         await probe.send(_request(probe, "WRITE", target, typed))
-        _expect_status(ctx, await probe.response(), 411, "WRITE without Content-Length")
+        expect_answer(ctx, await probe.response(), 411, "WRITE without Content-Length")
 
 
 @case(
@@ -201,7 +201,7 @@ async def unsupported_content_type(ctx: Context) -> None:
         for media in ("text/plain; charset=utf-8", "application/octet-stream"):
             typed = [*fields, ("Content-Type", media)]
             answer = await probe.request("WRITE", target, typed, b"\0\0\0\0")
-            _expect_status(ctx, answer, 415, f"WRITE with Content-Type {media}")
+            expect_answer(ctx, answer, 415, f"WRITE with Content-Type {media}")
 
 
 @case(
@@ -228,7 +228,7 @@ async def start_line_limit(ctx: Context) -> None:
     fixed = len(f"READ / {VERSION}")
     at = _request(probe, "READ", "/" + _filler(START_LINE - 2 - fixed))
     await probe.send(at)
-    _expect_status(ctx, await probe.response(), 404, "READ with a 4094-byte request line")
+    expect_answer(ctx, await probe.response(), 404, "READ with a 4094-byte request line")
     over = _request(probe, "READ", "/" + _filler(START_LINE + 1 - fixed))
     await _refused_and_closed(ctx, probe, over, 414, "R-RCTP-16")
 
@@ -258,7 +258,7 @@ async def header_line_limit(ctx: Context) -> None:
     fixed = len(f"{name}: ")
     at = _request(probe, "CONNECT", site, [(name, _filler(HEADER_LINE - 2 - fixed))])
     await probe.send(at)
-    _expect_status(ctx, await probe.response(), 200, "CONNECT with a 4094-byte header line")
+    expect_answer(ctx, await probe.response(), 200, "CONNECT with a 4094-byte header line")
     over = _request(probe, "CONNECT", site, [(name, _filler(HEADER_LINE + 1 - fixed))])
     await _refused_and_closed(ctx, probe, over, 431, "R-RCTP-16")
 
@@ -274,13 +274,13 @@ async def header_section_limit(ctx: Context) -> None:
     pads = [(f"X-Rcmlconf-Pad-{i}", _filler(3600)) for i in range(5)]
     probe = await ctx.session()
     await probe.send(_request(probe, "CONNECT", site, pads[:4]))
-    _expect_status(ctx, await probe.response(), 200, "CONNECT with a 14.5 kB header section")
+    expect_answer(ctx, await probe.response(), 200, "CONNECT with a 14.5 kB header section")
     await _refused_and_closed(ctx, probe, _request(probe, "CONNECT", site, pads), 431, "R-RCTP-16")
     # CSeq and Session, and the rest up to the limit: 64 fields, then 65.
     many = [(f"X-Rcmlconf-{i}", str(i)) for i in range(HEADER_FIELDS - 1)]
     probe = await ctx.session()
     await probe.send(_request(probe, "CONNECT", site, many[:-1]))
-    _expect_status(ctx, await probe.response(), 200, "CONNECT with 64 header fields")
+    expect_answer(ctx, await probe.response(), 200, "CONNECT with 64 header fields")
     await _refused_and_closed(ctx, probe, _request(probe, "CONNECT", site, many), 431, "R-RCTP-16")
 
 
@@ -295,7 +295,7 @@ async def content_length_limit(ctx: Context) -> None:
     missing = _missing(ctx)
     await probe.send(_request(probe, "WRITE", missing, (), bytes(BODY)))
     answer = await probe.response()
-    _expect_status(ctx, answer, 404, "WRITE of a path that names no node, 4194304-byte body")
+    expect_answer(ctx, answer, 404, "WRITE of a path that names no node, 4194304-byte body")
     head = _request(probe, "WRITE", missing, (), b"\0")
     head = head.replace(b"Content-Length: 1\r\n", f"Content-Length: {BODY + 1}\r\n".encode())
     await _refused_and_closed(ctx, probe, head[:-1], 413, "R-RCTP-16")
@@ -336,9 +336,9 @@ async def bad_targets(ctx: Context) -> None:
         await probe.send(data)
         # D-RCTP-25: the target is checked after framing; the connection goes on
         answer = await _answer(probe, "R-RCTP-15")
-        _expect_status(ctx, answer, 400, f"READ {target.decode('latin-1')!r}")
+        expect_answer(ctx, answer, 400, f"READ {target.decode('latin-1')!r}")
     answer = await probe.request("READ", readable)
-    _expect_status(ctx, answer, 200, f"READ {readable} afterwards")
+    expect_answer(ctx, answer, 200, f"READ {readable} afterwards")
 
 
 @case(
@@ -355,7 +355,7 @@ async def percent_encoded_target(ctx: Context) -> None:
             "/" + "".join(hexes.format(byte) for byte in name.encode())
             for name in path[1:].split("/")
         )
-        _expect_status(ctx, await probe.request("READ", encoded), 200, f"READ {encoded}")
+        expect_answer(ctx, await probe.request("READ", encoded), 200, f"READ {encoded}")
 
 
 @case(
@@ -380,7 +380,7 @@ async def answers_echo_cseq(ctx: Context) -> None:
     for cseq, (data, status) in enumerate(requests, start=2):
         await probe.send(data)
         answer = await probe.response()
-        _expect_status(ctx, answer, status, data.split(b"\r\n")[0].decode(), "R-RCTP-3")
+        expect_answer(ctx, answer, status, data.split(b"\r\n")[0].decode(), "R-RCTP-3")
         _expect_cseq(ctx, answer, cseq)
         ctx.expect(answer.version == VERSION, VERSION, answer.version, "R-RCTP-2")
 
@@ -454,7 +454,7 @@ async def pipelined_mixed(ctx: Context) -> None:
     for index, (line, status, cseq) in enumerate(expected, start=1):
         answer = await probe.response()
         what = f"answer {index} of {len(expected)}, to {line}"
-        _expect_status(ctx, answer, status, what, "R-RCTP-5")
+        expect_answer(ctx, answer, status, what, "R-RCTP-5")
         if cseq is not None:
             _expect_cseq(ctx, answer, cseq, "R-RCTP-5")
 
@@ -470,8 +470,8 @@ async def lower_case_method(ctx: Context) -> None:
     site = ctx.target.site_path
     for method in ("connect", "Connect"):
         await probe.send(_request(probe, method, site))
-        _expect_status(ctx, await probe.response(), 501, f"{method} {site}")
-    _expect_status(ctx, await probe.request("CONNECT", site), 200, f"CONNECT {site}")
+        expect_answer(ctx, await probe.response(), 501, f"{method} {site}")
+    expect_answer(ctx, await probe.request("CONNECT", site), 200, f"CONNECT {site}")
 
 
 @case(
@@ -502,14 +502,14 @@ async def field_syntax_variants(ctx: Context) -> None:
         f"CONNECT {site} {VERSION}\r\ncseq:1\r\nuser-agent: \t rcmlconf \t\r\n\r\n".encode()
     )
     answer = await probe.response()
-    _expect_status(ctx, answer, 200, "CONNECT with cseq:1", "R-RCTP-3")
+    expect_answer(ctx, answer, 200, "CONNECT with cseq:1", "R-RCTP-3")
     _expect_cseq(ctx, answer, 1)
     session = (answer.headers.get("Session") or "").split(";")[0].strip()
     await probe.send(
         f"READ {normal} {VERSION}\r\nCSEQ:\t2 \r\nsession:  {session}\t\r\n\r\n".encode()
     )
     answer = await probe.response()
-    _expect_status(ctx, answer, 200, f"READ with session:  {session}", "R-RCTP-19")
+    expect_answer(ctx, answer, 200, f"READ with session:  {session}", "R-RCTP-19")
     _expect_cseq(ctx, answer, 2)
 
 
@@ -523,7 +523,7 @@ async def response_without_request(ctx: Context) -> None:
     for data in (b"RCTP/2.0 200 OK\r\nCSeq: 1\r\n\r\n", b"RCTP/2.0 2x0 OK\r\nCSeq: 1\r\n\r\n"):
         probe = await ctx.session()
         await probe.send(data)
-        outcome = await _outcome(probe, ctx.wait)
+        outcome = await probe.outcome(ctx.wait)
         ctx.expect(outcome == "closed", "the connection closed without an answer", outcome)
 
 
@@ -540,7 +540,7 @@ async def server_requests_numbered(ctx: Context) -> None:
             await pushes.write(value)
             found = await pushes.watcher.message()
             if not isinstance(found, Request) or found.method != "WRITE":
-                raise Inconclusive(f"no data-change WRITE after a change: {_describe(found)}")
+                raise Inconclusive(f"no data-change WRITE after a change: {describe(found)}")
             _expect_cseq(ctx, found, number, "R-RCTP-4")
             given = found.headers.get("Session")
             session = pushes.watcher.session
@@ -560,13 +560,13 @@ async def response_wrong_cseq(ctx: Context) -> None:
         await pushes.write(pushes.other)
         found = await pushes.watcher.message()
         if not isinstance(found, Request) or found.method != "WRITE":
-            raise Inconclusive(f"no data-change WRITE after a change: {_describe(found)}")
+            raise Inconclusive(f"no data-change WRITE after a change: {describe(found)}")
         wrong = int(found.headers.get("CSeq") or 0) + 1
         session = pushes.watcher.session
         await pushes.watcher.send(
             f"{VERSION} 200 OK\r\nCSeq: {wrong}\r\nSession: {session}\r\n\r\n".encode()
         )
-        outcome = await _outcome(pushes.watcher, ctx.wait)
+        outcome = await pushes.watcher.outcome(ctx.wait)
         ctx.expect(outcome == "closed", "the connection closed without an answer", outcome)
 
 
@@ -655,7 +655,7 @@ async def _refused_and_closed(
     await probe.send(data)
     answer = await _answer(probe, requirement)
     what = data.split(b"\r\n")[0][:60].decode("latin-1")
-    _expect_status(ctx, answer, status, f"the answer to {what!r}", requirement)
+    expect_answer(ctx, answer, status, f"the answer to {what!r}", requirement)
     closed = await probe.closes()
     ctx.expect(closed, "the connection closed after the answer", "it stayed open", requirement)
 
@@ -668,43 +668,6 @@ async def _answer(probe: ControlProbe, requirement: str) -> Response:
         if failed.requirement != "R-RCTP-5":
             raise
         raise Failed(requirement, "an answer", failed.actual) from None
-
-
-async def _outcome(probe: ControlProbe, wait: float) -> str:
-    """What the target does within `wait`: "closed" (nothing sent first), "silent", or what it
-    sent."""
-    try:
-        found = await probe.message(wait)
-    except Failed as failed:
-        if failed.requirement != "R-RCTP-5":
-            raise
-        return "silent"
-    return "closed" if found is None else f"it sent {_describe(found)}"
-
-
-def _describe(message: Message | None) -> str:
-    if message is None:
-        return "nothing (the connection closed)"
-    if isinstance(message, Request):
-        return f"{message.method} {message.target}"
-    return f"{message.status} {message.reason}"
-
-
-def _expect_status(
-    ctx: Context,
-    answer: Response,
-    statuses: int | Sequence[int],
-    what: str,
-    requirement: str | None = None,
-) -> None:
-    """`ctx.expect_status`, saying which request the answer was to."""
-    allowed = (statuses,) if isinstance(statuses, int) else tuple(statuses)
-    ctx.expect(
-        answer.status in allowed,
-        tuple(f"{what}: {s}" for s in allowed),
-        f"{answer.status} {answer.reason}",
-        requirement,
-    )
 
 
 def _expect_cseq(

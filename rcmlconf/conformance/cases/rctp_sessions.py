@@ -8,12 +8,12 @@ import asyncio
 import itertools
 import re
 
-from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.control import ControlProbe, Fields
+from rcmlconf.conformance.context import Context, expect_answer
+from rcmlconf.conformance.probes.control import ControlProbe, Fields, describe
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
 from rcmlconf.rcml.model import AccessType, Permission
-from rcmlconf.rctp.messages import VERSION, Message, Request, Response
+from rcmlconf.rctp.messages import VERSION, Request, Response
 from rcmlconf.rctp.targets import format_target
 
 #: §2.1: session-id = 8*64( ALPHA / DIGIT / "$" / "-" / "_" / "." / "+" ), then the timeout.
@@ -74,8 +74,8 @@ async def session_before_connect(ctx: Context) -> None:
     normal = _readable(ctx)
     for session in (STRANGER, other.session):
         answer = await probe.request("READ", normal, [("Session", session)])
-        _expect_status(ctx, answer, 454, f"READ before CONNECT, with Session: {session}")
-    _expect_status(ctx, await probe.connect(ctx.target.site_path), 200, "CONNECT afterwards")
+        expect_answer(ctx, answer, 454, f"READ before CONNECT, with Session: {session}")
+    expect_answer(ctx, await probe.connect(ctx.target.site_path), 200, "CONNECT afterwards")
 
 
 @case(
@@ -91,8 +91,8 @@ async def wrong_session(ctx: Context) -> None:
     normal = _readable(ctx)
     for session in (STRANGER, other.session):
         answer = await probe.request("READ", normal, [("Session", session)])
-        _expect_status(ctx, answer, 454, f"READ with Session: {session}")
-    _expect_status(ctx, await probe.request("READ", normal), 200, "READ with the session")
+        expect_answer(ctx, answer, 454, f"READ with Session: {session}")
+    expect_answer(ctx, await probe.request("READ", normal), 200, "READ with the session")
 
 
 @case(
@@ -104,8 +104,8 @@ async def missing_session(ctx: Context) -> None:
     probe = await ctx.session()
     normal = _readable(ctx)
     await probe.send(_sessionless(probe, "READ", normal))
-    _expect_status(ctx, await probe.response(), 454, "READ without Session")
-    _expect_status(ctx, await probe.request("READ", normal), 200, "READ with the session")
+    expect_answer(ctx, await probe.response(), 454, "READ without Session")
+    expect_answer(ctx, await probe.request("READ", normal), 200, "READ with the session")
 
 
 @case(
@@ -131,9 +131,9 @@ async def second_connect(ctx: Context) -> None:
     probe = await ctx.session()
     site = ctx.target.site_path
     await probe.send(_sessionless(probe, "CONNECT", site))
-    _expect_status(ctx, await probe.response(), 455, "a second CONNECT without Session")
+    expect_answer(ctx, await probe.response(), 455, "a second CONNECT without Session")
     normal = _readable(ctx)
-    _expect_status(ctx, await probe.request("READ", normal), 200, "READ with the first session")
+    expect_answer(ctx, await probe.request("READ", normal), 200, "READ with the first session")
 
 
 @case(
@@ -145,11 +145,11 @@ async def connect_unknown_site(ctx: Context) -> None:
     probe = await ctx.control()
     site = ctx.target.site_path
     nowhere = site.rstrip("/") + "/rcmlconf-no-robot"
-    _expect_status(ctx, await probe.connect(nowhere), 404, f"CONNECT {nowhere}", "R-RCTP-26")
+    expect_answer(ctx, await probe.connect(nowhere), 404, f"CONNECT {nowhere}", "R-RCTP-26")
     normal = _readable(ctx)
     answer = await probe.request("READ", normal, [("Session", STRANGER)])
-    _expect_status(ctx, answer, 454, "READ after the refused CONNECT", "R-RCTP-17")
-    _expect_status(ctx, await probe.connect(site), 200, f"CONNECT {site}")
+    expect_answer(ctx, answer, 454, "READ after the refused CONNECT", "R-RCTP-17")
+    expect_answer(ctx, await probe.connect(site), 200, f"CONNECT {site}")
 
 
 @case(
@@ -163,7 +163,7 @@ async def bye_by_client(ctx: Context) -> None:
     ctx.expect_status(answer, 200)
     given = answer.headers.get("CSeq")
     ctx.expect(given == str(probe.cseq), f"CSeq: {probe.cseq}", f"CSeq: {given}", "R-RCTP-3")
-    outcome = await _outcome(probe, 0.5 * ctx.scale)
+    outcome = await probe.outcome(0.5 * ctx.scale)
     ctx.expect(outcome in ("closed", "silent"), "nothing after the answer to BYE", outcome)
 
 
@@ -212,7 +212,7 @@ async def timeout_bye(ctx: Context) -> None:
         given == probe.session, f"Session: {probe.session}", f"Session: {given}", "R-RCTP-19"
     )
     await probe.answer(bye)
-    outcome = await _outcome(probe, ctx.wait)
+    outcome = await probe.outcome(ctx.wait)
     ctx.expect(
         outcome == "closed", "the connection closed once BYE was answered", outcome, "R-RCTP-23"
     )
@@ -228,17 +228,17 @@ async def keepalive(ctx: Context) -> None:
     probe, timeout, _ = await _timed_session(ctx)
     normal = _readable(ctx)
     for method, target in (("READ", normal), ("CONNECT", ctx.target.site_path)):
-        outcome = await _outcome(probe, 0.6 * timeout)
+        outcome = await probe.outcome(0.6 * timeout)
         ctx.expect(outcome == "silent", "nothing before the timeout", outcome, "R-RCTP-21")
         await probe.send(probe.request_bytes(method, target))
         found = await probe.message()
         ctx.expect(
             isinstance(found, Response) and found.status == 200,
             f"the answer 200 to {method}",
-            _describe(found),
+            describe(found),
             "R-RCTP-21" if method == "READ" else "R-RCTP-22",
         )
-    outcome = await _outcome(probe, timeout - 0.5)
+    outcome = await probe.outcome(timeout - 0.5)
     ctx.expect(
         outcome == "silent",
         f"no BYE within {timeout - 0.5:g} s of the last request",
@@ -257,7 +257,7 @@ async def bye_error_answer_closes(ctx: Context) -> None:
     probe, timeout, started = await _timed_session(ctx)
     bye = await _server_bye(ctx, probe, timeout, started)
     await probe.answer(bye, 454, "Session Not Found")
-    outcome = await _outcome(probe, ctx.wait)
+    outcome = await probe.outcome(ctx.wait)
     ctx.expect(outcome == "closed", "the connection closed once BYE was answered", outcome)
 
 
@@ -272,7 +272,7 @@ async def bye_unanswered_closes(ctx: Context) -> None:
     await _server_bye(ctx, probe, timeout, started)
     loop = asyncio.get_running_loop()
     asked = loop.time()
-    outcome = await _outcome(probe, BYE_WAIT + 1.5 * ctx.scale)
+    outcome = await probe.outcome(BYE_WAIT + 1.5 * ctx.scale)
     waited = loop.time() - asked
     ctx.expect(
         outcome == "closed" and waited >= BYE_WAIT - 0.5,
@@ -333,7 +333,7 @@ async def _server_bye(ctx: Context, probe: ControlProbe, timeout: int, started: 
     ctx.expect(
         isinstance(found, Request) and found.method == "BYE" and found.target == "*",
         f"BYE * once the timeout of {timeout} s passed",
-        _describe(found),
+        describe(found),
         "R-RCTP-21",
     )
     ctx.expect(
@@ -373,7 +373,7 @@ async def _acquired_soon(ctx: Context, probe: ControlProbe, path: str, when: str
         if answer.status == 200 or loop.time() > deadline:
             break
         await asyncio.sleep(0.05)
-    _expect_status(ctx, answer, 200, f"ACQUIRE {path} {when}")
+    expect_answer(ctx, answer, 200, f"ACQUIRE {path} {when}")
     await probe.request("RELEASE", path)
 
 
@@ -392,35 +392,3 @@ def _sessionless(probe: ControlProbe, method: str, target: str, fields: Fields =
     lines = [f"{method} {target} {VERSION}", f"CSeq: {probe.cseq}"]
     lines += [f"{name}: {value}" for name, value in fields]
     return ("\r\n".join(lines) + "\r\n\r\n").encode()
-
-
-async def _outcome(probe: ControlProbe, wait: float) -> str:
-    """What the target does within `wait`: "closed" (nothing sent first), "silent", or what it
-    sent."""
-    try:
-        found = await probe.message(max(wait, 0.0))
-    except Failed as failed:
-        if failed.requirement != "R-RCTP-5":
-            raise
-        return "silent"
-    return "closed" if found is None else f"it sent {_describe(found)}"
-
-
-def _describe(message: Message | None) -> str:
-    if message is None:
-        return "nothing (the connection closed)"
-    if isinstance(message, Request):
-        return f"{message.method} {message.target}"
-    return f"{message.status} {message.reason}"
-
-
-def _expect_status(
-    ctx: Context, answer: Response, status: int, what: str, requirement: str | None = None
-) -> None:
-    """`ctx.expect_status`, saying which request the answer was to."""
-    ctx.expect(
-        answer.status == status,
-        f"{what}: {status}",
-        f"{answer.status} {answer.reason}",
-        requirement,
-    )

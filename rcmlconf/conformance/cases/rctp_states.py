@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.context import Context, expect_answer
 from rcmlconf.conformance.probes.control import ControlProbe, Fields
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
@@ -37,8 +37,8 @@ async def idle_methods(ctx: Context) -> None:
     probe = await ctx.control()
     for method, target, fields, body in _every_method(ctx, connect=False):
         answer = await probe.request(method, target, fields, body)
-        _expect_status(ctx, answer, 454, f"{method} {target} before CONNECT")
-    _expect_status(ctx, await probe.connect(ctx.target.site_path), 200, "CONNECT afterwards")
+        expect_answer(ctx, answer, 454, f"{method} {target} before CONNECT")
+    expect_answer(ctx, await probe.connect(ctx.target.site_path), 200, "CONNECT afterwards")
 
 
 @case(
@@ -64,7 +64,7 @@ async def open_methods(ctx: Context) -> None:
     ]
     for method, target, fields, body, status in steps:
         answer = await probe.request(method, target, fields, body)
-        _expect_status(ctx, answer, status, f"{method} {target} in open", "R-RCTP-20")
+        expect_answer(ctx, answer, status, f"{method} {target} in open", "R-RCTP-20")
 
 
 @case(
@@ -94,7 +94,7 @@ async def closing_methods(ctx: Context) -> None:
     first = probe.cseq - len(requests) + 1
     for cseq, (method, target, _, _) in enumerate(requests, start=first):
         answer = await probe.response()
-        _expect_status(ctx, answer, 455, f"{method} {target} while closing")
+        expect_answer(ctx, answer, 455, f"{method} {target} while closing")
         given = answer.headers.get("CSeq")
         ctx.expect(given == str(cseq), f"CSeq: {cseq}", f"CSeq: {given}", "R-RCTP-5")
     await probe.answer(bye)
@@ -259,7 +259,7 @@ async def order_before_session(ctx: Context) -> None:
         await probe.send(data)
         line = data.split(b"\r\n")[0].decode()
         what = f"{line} before CONNECT" + (f" ({note})" if note else "")
-        _expect_status(ctx, await probe.response(), status, what, requirement)
+        expect_answer(ctx, await probe.response(), status, what, requirement)
 
 
 @case(
@@ -277,7 +277,7 @@ async def order_state_before_node(ctx: Context) -> None:
         ("SETUP", 404, "R-RCTP-26"),  # init takes SETUP: the node check decides
     ):
         answer = await probe.request(method, missing)
-        _expect_status(ctx, answer, status, f"{method} {missing}", requirement)
+        expect_answer(ctx, answer, status, f"{method} {missing}", requirement)
 
 
 @case(
@@ -289,11 +289,11 @@ async def order_session_before_state(ctx: Context) -> None:
     probe = await ctx.session()
     event = format_target(_event(ctx).path)
     answer = await probe.request("GO", event, [("Session", STRANGER)])
-    _expect_status(ctx, answer, 454, f"GO {event} with Session: {STRANGER}", "R-RCTP-19")
+    expect_answer(ctx, answer, 454, f"GO {event} with Session: {STRANGER}", "R-RCTP-19")
     probe.cseq += 1
     await probe.send(f"GO {event} {VERSION}\r\nCSeq: {probe.cseq}\r\n\r\n".encode())
-    _expect_status(ctx, await probe.response(), 454, f"GO {event} without Session", "R-RCTP-19")
-    _expect_status(ctx, await probe.request("GO", event), 455, f"GO {event}", "R-RCTP-20")
+    expect_answer(ctx, await probe.response(), 454, f"GO {event} without Session", "R-RCTP-19")
+    expect_answer(ctx, await probe.request("GO", event), 455, f"GO {event}", "R-RCTP-20")
 
 
 @case(
@@ -319,7 +319,7 @@ async def order_after_session(ctx: Context) -> None:
     for target, fields, statuses, requirement in steps:
         answer = await probe.request("WRITE", target, fields, b"rcmlconf")
         what = f"WRITE {target} with a text/plain body, not holding it"
-        _expect_status(ctx, answer, statuses, what, requirement)
+        expect_answer(ctx, answer, statuses, what, requirement)
 
 
 @case(
@@ -423,7 +423,7 @@ async def _walk(
     for index, (method, status) in enumerate(steps, start=1):
         answer = await probe.request(method, target)
         what = f"step {index} of {len(steps)}: {method} {target}"
-        _expect_status(ctx, answer, status, what, "R-RCTP-20")
+        expect_answer(ctx, answer, status, what, "R-RCTP-20")
 
 
 async def _not_allowed(
@@ -436,7 +436,7 @@ async def _not_allowed(
 ) -> None:
     """`method` of `target` is answered 405 with `row` as Allow (R-RCTP-26)."""
     answer = await probe.request(method, target, (), body)
-    _expect_status(ctx, answer, 405, f"{method} {target}", "R-RCTP-26")
+    expect_answer(ctx, answer, 405, f"{method} {target}", "R-RCTP-26")
     given = answer.headers.get("Allow")
     listed = tuple(m.strip(" \t") for m in given.split(",")) if given is not None else ()
     ctx.expect(
@@ -514,20 +514,3 @@ def _unwritable(ctx: Context) -> tuple[str, Fields] | None:
             if access.type is AccessType.EVENT:
                 return format_target(access.path), [("Nodes", format_nodes([data.name]))]
     return None
-
-
-def _expect_status(
-    ctx: Context,
-    answer: Response,
-    statuses: int | Sequence[int],
-    what: str,
-    requirement: str | None = None,
-) -> None:
-    """`ctx.expect_status`, saying which request the answer was to."""
-    allowed = (statuses,) if isinstance(statuses, int) else tuple(statuses)
-    ctx.expect(
-        answer.status in allowed,
-        tuple(f"{what}: {s}" for s in allowed),
-        f"{answer.status} {answer.reason}",
-        requirement,
-    )

@@ -172,6 +172,17 @@ class ControlProbe:
             raise Failed(requirement, "a request", f"a response, {found.status} {found.reason}")
         return found
 
+    async def outcome(self, wait: float) -> str:
+        """What the peer does within `wait`: "closed" (nothing sent first), "silent", or what
+        it sent."""
+        try:
+            found = await self.message(max(wait, 0.0))
+        except Failed as failed:
+            if failed.requirement != "R-RCTP-5":
+                raise
+            return "silent"
+        return "closed" if found is None else f"it sent {describe(found)}"
+
     async def closes(self, wait: float | None = None) -> bool:
         """Whether the target closes the connection within `wait` (messages before are read)."""
         with contextlib.suppress(Failed):
@@ -205,3 +216,12 @@ class ControlProbe:
 def _fields(message: Message) -> str:
     shown = ", ".join(f"{name}: {value}" for name, value in message.headers)
     return f"[{shown}]" + (f" +{len(message.body)} bytes" if message.body else "")
+
+
+def describe(message: Message | None) -> str:
+    """A message in a few words: `GO /a`, `455 Method Not Valid in This State`."""
+    if message is None:
+        return "nothing (the connection closed)"
+    if isinstance(message, Request):
+        return f"{message.method} {message.target}"
+    return f"{message.status} {message.reason}"
