@@ -45,7 +45,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from rcmlconf.cli.console import Output
-from rcmlconf.cli.dissect import _Lines
+from rcmlconf.cli.dissect import RecordLines
 from rcmlconf.dissect import Dissector, Options
 from rcmlconf.dissect.output import analysis_json, analysis_lines
 from rcmlconf.pcap.reader import Capture
@@ -250,7 +250,7 @@ def run_path(path: Path, output_format: str) -> int:
     """What `rcmlconf dissect [--format json] FILE` does once its arguments are read."""
     with open(os.devnull, "w", encoding="utf-8") as sink, Capture.open(path) as capture:
         output = Output(stdout=sink, stderr=io.StringIO())
-        lines = _Lines(output, output_format, None, False, capture)
+        lines = RecordLines(output, output_format, None, False, capture)
         analysis = Dissector(Options(), lines.emit).run(capture)
         lines.flush()
         if output_format == "json":

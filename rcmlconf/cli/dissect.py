@@ -147,8 +147,6 @@ def dissect(
         else:
             rcml = model
     options = Options(rsp_model, rcml, decode_as, not no_heuristics, plot is not None)
-    if verbose:
-        sys.exit(_verbose(capture, options, output))
     try:
         opened = Capture.open(capture)
     except OSError as exc:
@@ -158,7 +156,9 @@ def dissect(
         output.problem("dissect", f"{capture}: {exc.reason} (byte {exc.offset})")
         sys.exit(2)
     with opened:
-        lines = _Lines(output, output_format, rsp_model, quiet, opened)
+        if verbose:
+            sys.exit(_verbose(opened, options, output))
+        lines = RecordLines(output, output_format, rsp_model, quiet, opened)
         dissector = Dissector(options, lines.emit)
         analysis = dissector.run(opened)
         lines.flush()
@@ -184,7 +184,7 @@ def dissect(
     sys.exit(status)
 
 
-class _Lines:
+class RecordLines:
     """Each record's line (or JSON object), written in batches."""
 
     def __init__(
@@ -245,11 +245,9 @@ def _plot(output: Output, dissector: Dissector, path: Path, capture: Path) -> in
     return 0
 
 
-def _verbose(capture: Path, options: Options, output: Output) -> int:
+def _verbose(capture: Capture, options: Options, output: Output) -> int:
     """-V: each message's summary and whole field tree, from the scapy layers (imported only
     here: the summary and json paths never build a scapy packet)."""
-    from scapy.error import Scapy_Exception
-
     from rcmlconf.scapy_layers import capture as layers
 
     found = layers.messages(capture, options.rsp_model, options.decode_as, options.heuristics)
@@ -260,7 +258,9 @@ def _verbose(capture: Path, options: Options, output: Output) -> int:
             output.out.file.write(tree if tree.endswith("\n") else tree + "\n")
     except BrokenPipeError:
         raise  # `| head`: the command's own handler ends quietly
-    except (OSError, Scapy_Exception, ValueError) as exc:
-        output.problem("dissect", f"{capture}: {exc}")
+    except CaptureError as exc:
+        output.problem(
+            "dissect", f"{capture.name}: {exc.reason} (byte {exc.offset}); read up to there"
+        )
         return 2
     return 0

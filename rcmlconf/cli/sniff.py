@@ -154,16 +154,19 @@ def _open(output: Output, interface: str | None, bpf: str) -> Any:
 
 
 def _linktype(layer: Any, data: bytes) -> int:
-    """The link type of a captured frame: scapy's, or guessed from the bytes when scapy does not
-    know the interface's (Linux loopback gives frames with an Ethernet header of zeros)."""
+    """The link type of a captured frame, for the `FrameDecoder` that reads capture files too:
+    scapy's, or guessed from the bytes when scapy does not know the interface's (Linux loopback
+    gives frames with an Ethernet header of zeros)."""
     from scapy.config import conf
+
+    from rcmlconf.pcap.reader import LINKTYPE_ETHERNET, LINKTYPE_RAW
 
     known = conf.l2types.layer2num.get(layer)
     if known is not None:
         return int(known)
     if data[12:14] in (b"\x08\x00", b"\x86\xdd"):
-        return 1  # Ethernet
-    return 101  # raw IP
+        return LINKTYPE_ETHERNET
+    return LINKTYPE_RAW
 
 
 def _now() -> float:

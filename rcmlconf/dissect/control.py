@@ -29,6 +29,7 @@ from rcmlconf.dissect.tcp import ACK, SYN, TcpStream
 from rcmlconf.errors import ProtocolError, ValueTextError
 from rcmlconf.rcml.model import AccessNode, DataNode
 from rcmlconf.rctp.bodies import ValuesCodec
+from rcmlconf.rctp.connection import SINGLE_FIELDS
 from rcmlconf.rctp.errors import RemoteProtocolError
 from rcmlconf.rctp.fields import (
     SessionField,
@@ -57,8 +58,6 @@ CLIENT = "client"
 SERVER = "server"
 #: The requirement that says what a request that cannot be framed is answered.
 _ANSWER_RULE = {413: "R-RCTP-16", 414: "R-RCTP-16", 431: "R-RCTP-16"}
-#: Fields that appear at most once (§2.2).
-_SINGLE = ("CSeq", "Session", "Content-Type", "Nodes", "Transport")
 
 
 @dataclass(frozen=True, slots=True)
@@ -532,7 +531,7 @@ class ControlConnection:
         if cseq is None:
             return 400, "no valid CSeq", "R-RCTP-11"
         names = [name.lower() for name, _ in request.headers]
-        for name in _SINGLE:
+        for name in SINGLE_FIELDS:
             if names.count(name.lower()) > 1:
                 return 400, f"{name} appears more than once", "R-RCTP-11"
         if sent.expected is not None:

@@ -72,8 +72,11 @@ class TcpStream:
                 self._next = (sequence + 1) & _MASK
                 self.started = True
                 self.from_start = True
-            return []
-        if not self.started:
+            if not payload:
+                return []
+            # Data on a SYN (TCP Fast Open, RFC 7413) starts after the SYN's sequence number.
+            sequence = (sequence + 1) & _MASK
+        elif not self.started:
             # The capture began after the handshake: the stream starts here.
             self._next = sequence
             self.started = True

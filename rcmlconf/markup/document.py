@@ -121,7 +121,7 @@ def parse_document(data: bytes) -> XmlDocument | ParseFailure:
         return ParseFailure(
             "R-XML-6", line, column, f"elements nest deeper than {MAX_DEPTH} levels"
         )
-    references = _entity_references(text) if doctype is not None and doctype.system_id else ()
+    references = find_entity_references(text) if doctype is not None and doctype.system_id else ()
     return XmlDocument(root, doctype, SourceMap(source), references)
 
 
@@ -176,7 +176,7 @@ _REFERENCES = re.compile(r"<!--.*?-->|<!\[CDATA\[.*?\]\]>|<\?.*?\?>|&([^#;\s<>&]
 _PREDEFINED = frozenset({"lt", "gt", "amp", "quot", "apos"})
 
 
-def _entity_references(text: str) -> tuple[EntityReference, ...]:
+def find_entity_references(text: str) -> tuple[EntityReference, ...]:
     """R-XML-11: references that a parser, having named but not read a DTD, drops in silence."""
     found = []
     line, line_start, counted = 1, 0, 0  # positions advance with the matches: one pass in all

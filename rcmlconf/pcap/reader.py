@@ -388,6 +388,9 @@ Segment = tuple[int, bytes, int, bytes, int, bytes, int, int, int, bool]
 _ETHERTYPE_IPV4 = 0x0800
 _ETHERTYPE_IPV6 = 0x86DD
 _ETHERTYPE_VLAN = frozenset({0x8100, 0x88A8, 0x9100})
+#: DLT_RAW as some systems number it (12, and 14 on OpenBSD), in files written before LINKTYPE_RAW
+#: (101) took its place: raw IP, as Wireshark reads them.
+_DLT_RAW = frozenset({12, 14})
 #: BSD loopback's address families of IPv6 (they differ by system).
 _AF_INET6 = frozenset({24, 28, 30})
 _IPV6_EXTENSIONS = frozenset({0, 43, 60})
@@ -493,7 +496,7 @@ class FrameDecoder:
             return -1
 
     def _link(self, data: bytes | mmap.mmap, start: int, end: int, linktype: int) -> int:
-        if linktype == LINKTYPE_IPV6:
+        if linktype == LINKTYPE_IPV6 or linktype in _DLT_RAW:
             return start
         if linktype == LINKTYPE_LINUX_SLL:
             if end - start < 16:

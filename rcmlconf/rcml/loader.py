@@ -74,7 +74,7 @@ def load_rcml(checker: Checker, base_dir: Path | None = None) -> RcmlDocument | 
 
     `base_dir` is the file's directory, for the existence check of R-RCML-27; None skips it.
     """
-    return _Walk(checker, base_dir).document(checker.document.root)
+    return RcmlWalk(checker, base_dir).document(checker.document.root)
 
 
 def load(checker: Checker, base_dir: Path | None, resolve: object) -> RcmlDocument | None:
@@ -82,7 +82,10 @@ def load(checker: Checker, base_dir: Path | None, resolve: object) -> RcmlDocume
     return load_rcml(checker, base_dir)
 
 
-class _Walk:
+class RcmlWalk:
+    """One document's elements to its model, with a fast path for plain data nodes (checked
+    against the element-by-element path by the tests)."""
+
     def __init__(self, checker: Checker, base_dir: Path | None) -> None:
         self.check = checker
         self.base_dir = base_dir

@@ -52,8 +52,9 @@ from rcmlconf.rctp.writer import write_message
 
 #: R-RCTP-23: how long the sender of BYE waits for its answer before closing.
 BYE_WAIT = 5.0
-#: Fields that appear at most once (§2.2); Content-Length is the reader's business.
-_SINGLE = ("CSeq", "Session", "Content-Type", "Nodes", "Transport")
+#: The fields a message holds at most once (§2.2): a request repeating one is answered 400
+#: (R-RCTP-11). Content-Length is the reader's business. The Wireshark plugin flags them too.
+SINGLE_FIELDS = ("CSeq", "Session", "Content-Type", "Nodes", "Transport")
 
 
 # -- events ------------------------------------------------------------------------------------
@@ -293,7 +294,7 @@ class Connection:
                 inbound, 400, cseq_problem or "the request has no single CSeq", "R-RCTP-11"
             )
         names = [name.lower() for name, _ in request.headers]
-        for name in _SINGLE:
+        for name in SINGLE_FIELDS:
             if names.count(name.lower()) > 1:
                 return self._reject(inbound, 400, f"{name} appears more than once", "R-RCTP-11")
         if cseq != expected:

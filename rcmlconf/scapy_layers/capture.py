@@ -1,12 +1,14 @@
 """RCTP and RSP messages of a capture, each dissected by the scapy layers: `rcmlconf dissect -V`
 and `rcmlconf sniff`.
 
-Building a scapy packet for the IP, TCP and UDP headers of every frame costs more than the
-layers themselves (about 150 µs a frame against 50), so the headers are read here with `struct`
-and scapy dissects the RCTP and RSP bytes only. TCP is reassembled per direction, in sequence
-order, and cut into messages by `rctp.message_length` (Content-Length framing, pipelining,
-R-RCTP-13). Flows are found as `rcmlconf dissect` finds them (`Dissector`): default ports,
-`--decode-as`, the data-stream endpoints of SETUP's answers (D-RCTP-18), and heuristics.
+Frames are read as `rcmlconf dissect` reads them: the file by `pcap.reader.Capture`, the link
+layer, IP (its fragments put back together) and the TCP and UDP headers by `FrameDecoder`, with
+`struct` (a scapy packet for those headers costs more than the layers themselves: about 150 µs a
+frame against 50), and each direction of a TCP connection is put in order by `tcp.TcpStream`.
+scapy dissects the RCTP and RSP bytes only; a direction's bytes are cut into messages by
+`rctp.message_length` (Content-Length framing, pipelining, R-RCTP-13). Flows are found as
+`rcmlconf dissect` finds them (`Dissector`): default ports, `--decode-as`, the data-stream
+endpoints of SETUP's answers (D-RCTP-18), and heuristics.
 
 `render` writes a packet as scapy's `show(dump=True)` does, without its color-theme calls per
 field, which cost more than the dissection: `-V` on 10,000 packets takes about 2 s.
@@ -14,11 +16,8 @@ field, which cost more than the dissection: `-V` on 10,000 packets takes about 2
 
 from __future__ import annotations
 
-import functools
-import ipaddress
 import os
 import re
-import struct
 from collections.abc import Iterable, Iterator
 from datetime import datetime
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -26,8 +25,9 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 from scapy.config import conf
 from scapy.fields import ConditionalField
 from scapy.packet import Packet
-from scapy.utils import RawPcapReader
 
+from rcmlconf.dissect.tcp import SYN, Piece, TcpStream
+from rcmlconf.pcap.reader import UDP, Capture, CaptureError, FrameDecoder, FrameError, address_text
 from rcmlconf.scapy_layers import rctp, rsp
 
 if TYPE_CHECKING:
@@ -97,56 +97,60 @@ def _transport_ports(transport: str) -> dict[str, int]:
 
 # -- TCP -------------------------------------------------------------------------------------------
 
-_MASK = 0xFFFFFFFF
-#: Segments held after a hole before the hole is given up as lost from the capture.
+#: Segments held behind a hole before it is given up on. `rcmlconf dissect` reads a file and waits
+#: for `tcp.MAX_WAITING` bytes (4 MiB); `sniff` prints as frames come, and a segment the capture
+#: lost would hold back a control connection's small messages until 4 MiB of them had come.
 _MAX_PENDING = 64
 
 
 class _Stream:
     """One direction of a TCP connection: its bytes in order, cut into RCTP messages."""
 
-    __slots__ = ("buffer", "needed", "next_seq", "pending")
+    __slots__ = ("buffer", "needed", "syn", "tcp")
 
-    def __init__(self) -> None:
-        self.next_seq: int | None = None
+    def __init__(self, syn: int | None) -> None:
+        #: The sequence number of the SYN that opened it, when the capture holds it.
+        self.syn = syn
+        self.tcp = TcpStream()
         self.buffer = bytearray()
         #: Bytes the message at the start of the buffer needs, once its head is known.
         self.needed = 0
-        self.pending: dict[int, bytes] = {}
 
-    def add(self, seq: int, syn: bool, payload: bytes) -> bool:
-        """Add a segment; True when new bytes joined the buffer."""
-        if syn:
-            self.next_seq = (seq + 1) & _MASK
-            seq = self.next_seq
-        if not payload:
-            return False
-        if self.next_seq is None:
-            self.next_seq = seq  # the capture started after the handshake
-        ahead = ((seq - self.next_seq + 0x80000000) & _MASK) - 0x80000000
-        if ahead < 0:  # a retransmission, maybe with new bytes at its end
-            payload = payload[-ahead:]
-            ahead = 0
-            if not payload:
-                return False
-        if ahead > 0:
-            self.pending[seq] = payload
-            if len(self.pending) <= _MAX_PENDING:
-                return False
-            # A hole the capture will not fill: the message it cut cannot be framed.
-            self.buffer.clear()
-            self.needed = 0
-            start = self.next_seq
-            self.next_seq = min(self.pending, key=lambda s: (s - start) & _MASK)
-            payload = self.pending.pop(self.next_seq)
-        self._append(payload)
-        while self.next_seq in self.pending:
-            self._append(self.pending.pop(self.next_seq))
-        return True
+    def add(self, seq: int, flags: int, payload: bytes) -> list[Packet]:
+        """Take a segment; the messages it completed."""
+        tcp = self.tcp
+        holes = tcp.holes
+        found = self._take(tcp.segment(seq, flags, payload, 0, 0.0, -1), tcp.holes != holes)
+        if len(tcp.waiting) > _MAX_PENDING:
+            found += self._take(tcp.give_up(), True)
+        return found
 
-    def _append(self, payload: bytes) -> None:
-        self.buffer += payload
-        self.next_seq = ((self.next_seq or 0) + len(payload)) & _MASK
+    def end(self) -> list[Packet]:
+        """The capture is over: the messages after the holes it never filled, and what is left
+        (a message cut short)."""
+        found: list[Packet] = []
+        while self.tcp.waiting:
+            found += self._take(self.tcp.give_up(), True)
+        rest = self.rest()
+        return [*found, rest] if rest is not None else found
+
+    def _take(self, pieces: list[Piece], hole: bool) -> list[Packet]:
+        """The messages bytes in order complete. Before a hole the capture lost, what the buffer
+        holds is a message cut short: nothing is framed across the hole."""
+        found: list[Packet] = []
+        if hole:
+            rest = self.rest()
+            if rest is not None:
+                found.append(rest)
+        for piece in pieces:
+            self.buffer += piece[1]
+        if pieces:
+            found.extend(self.messages())
+        return found
+
+    def _clear(self) -> None:
+        self.buffer.clear()
+        self.needed = 0
 
     def messages(self) -> Iterator[Packet]:
         """The whole messages at the start of the buffer; Raw for bytes that cannot be framed."""
@@ -155,8 +159,7 @@ class _Stream:
             try:
                 length = rctp.message_length(data)
             except rctp.FramingError:
-                self.buffer.clear()
-                self.needed = 0
+                self._clear()
                 yield conf.raw_layer(data)
                 return
             if length is None or length > len(data):
@@ -167,98 +170,13 @@ class _Stream:
             yield rctp.RCTP(data[:length])
 
     def rest(self) -> Packet | None:
-        """What is left when the connection ends: a message cut short, or nothing."""
+        """What the buffer holds when the connection ends or the capture lost bytes: a message
+        cut short, or nothing."""
         if not self.buffer:
             return None
         data = bytes(self.buffer)
-        self.buffer.clear()
-        self.needed = 0
+        self._clear()
         return rctp.RCTP(data)
-
-
-# -- IP and the link layer -------------------------------------------------------------------------
-
-
-#: Datagrams whose fragments are held at once.
-_MAX_DATAGRAMS = 256
-
-
-class _Fragments:
-    """IPv4 datagrams cut into fragments (an RSP packet above the MTU), put back together."""
-
-    def __init__(self) -> None:
-        self._parts: dict[tuple[bytes, bytes, int, int], dict[int, bytes]] = {}
-        self._ends: dict[tuple[bytes, bytes, int, int], int] = {}
-
-    def add(
-        self, key: tuple[bytes, bytes, int, int], offset: int, more: bool, data: bytes
-    ) -> bytes | None:
-        if key not in self._parts and len(self._parts) >= _MAX_DATAGRAMS:
-            # the oldest datagram still missing a fragment will not be completed
-            oldest = next(iter(self._parts))
-            del self._parts[oldest]
-            self._ends.pop(oldest, None)
-        parts = self._parts.setdefault(key, {})
-        parts[offset] = data
-        if not more:
-            self._ends[key] = offset + len(data)
-        end = self._ends.get(key)
-        if end is None:
-            return None
-        whole = bytearray()
-        while len(whole) < end:
-            part = parts.get(len(whole))
-            if part is None:
-                return None
-            whole += part
-        del self._parts[key]
-        del self._ends[key]
-        return bytes(whole[:end])
-
-
-#: Link types whose frames are an IP packet, and where it starts (LINKTYPE_*, pcap-linktype(7)).
-_RAW_IP = {101: 0, 12: 0, 14: 0, 228: 0, 229: 0, 0: 4, 108: 4}
-_ETHER_IP = {0x0800, 0x86DD}
-_VLAN = {0x8100, 0x88A8, 0x9100}
-
-
-def ip_of_frame(linktype: int, frame: bytes) -> bytes | None:
-    """The IP packet a captured frame carries, or None."""
-    start = _RAW_IP.get(linktype)
-    if start is not None:
-        return frame[start:]
-    if linktype == 1:  # Ethernet, with any VLAN tags
-        offset = 12
-        while len(frame) >= offset + 2:
-            kind = int.from_bytes(frame[offset : offset + 2], "big")
-            if kind in _VLAN:
-                offset += 4
-                continue
-            return frame[offset + 2 :] if kind in _ETHER_IP else None
-        return None
-    if linktype == 113:  # Linux cooked capture
-        kind = int.from_bytes(frame[14:16], "big")
-        return frame[16:] if kind in _ETHER_IP else None
-    if linktype == 276:  # Linux cooked capture v2
-        kind = int.from_bytes(frame[0:2], "big")
-        return frame[20:] if kind in _ETHER_IP else None
-    layer_class = conf.l2types.num2layer.get(linktype)
-    if layer_class is None:
-        return None
-    from scapy.layers.inet import IP
-    from scapy.layers.inet6 import IPv6
-
-    try:
-        packet = layer_class(frame)
-    except Exception:
-        return None
-    found = packet.getlayer(IP) or packet.getlayer(IPv6)
-    return bytes(found) if found is not None else None
-
-
-@functools.lru_cache(maxsize=4096)
-def _address(raw: bytes) -> str:
-    return str(ipaddress.ip_address(raw))
 
 
 FlowKey = tuple[bytes, int, bytes, int]
@@ -272,12 +190,12 @@ class _Pending:
     def __init__(self) -> None:
         #: The first bytes of each direction: the one that opened it, the other.
         self.looked = [b"", b""]
-        #: The segments held meanwhile: (frame, time, key, body).
-        self.segments: list[tuple[int, float, FlowKey, bytes]] = []
+        #: The segments held meanwhile: (frame, time, key, sequence number, flags, payload).
+        self.segments: list[tuple[int, float, FlowKey, int, int, bytes]] = []
 
 
 class Dissector:
-    """Feed frames or IP packets in capture order; take the RCTP and RSP messages they carry.
+    """Feed frames in capture order; take the RCTP and RSP messages they carry.
 
     A UDP flow (one direction) is classified by its first datagram: `decode_as` ports first,
     then the data-stream endpoints a SETUP's answer named (D-RCTP-18), then the default ports,
@@ -309,52 +227,25 @@ class Dissector:
         self._last: dict[FlowKey, tuple[int, float]] = {}
         #: The client port of each connection's last SETUP, for its answer (by the answer's key).
         self._setup: dict[FlowKey, int] = {}
-        self._fragments = _Fragments()
+        self._frames = FrameDecoder()
 
     def frame(self, number: int, time: float, linktype: int, frame: bytes) -> list[Message]:
-        packet = ip_of_frame(linktype, frame)
-        return self.ip(number, time, packet) if packet else []
-
-    def ip(self, number: int, time: float, packet: bytes) -> list[Message]:
-        version = packet[0] >> 4
-        if version == 4 and len(packet) >= 20:
-            header = (packet[0] & 0x0F) * 4
-            total = int.from_bytes(packet[2:4], "big")
-            protocol = packet[9]
-            source, destination = packet[12:16], packet[16:20]
-            flags = int.from_bytes(packet[6:8], "big")
-            body = packet[header:total] if total >= header else packet[header:]
-            if flags & 0x3FFF:  # a fragment: more fragments, or an offset
-                key = (source, destination, int.from_bytes(packet[4:6], "big"), protocol)
-                whole = self._fragments.add(key, (flags & 0x1FFF) * 8, bool(flags & 0x2000), body)
-                if whole is None:
-                    return []
-                body = whole
-        elif version == 6 and len(packet) >= 40:
-            protocol = packet[6]
-            source, destination = packet[8:24], packet[24:40]
-            length = int.from_bytes(packet[4:6], "big")
-            body = packet[40 : 40 + length]
-            while protocol in (0, 43, 60) and len(body) >= 8:  # extension headers
-                protocol, body = body[0], body[(body[1] + 1) * 8 :]
-            if protocol == 44:
-                return []  # IPv6 fragments are not put back together
-        else:
+        """The messages a frame completes; `linktype` is its link type (LINKTYPE_*)."""
+        try:
+            segment = self._frames.decode(frame, 0, len(frame), linktype)
+        except FrameError:
+            return []  # headers that cannot be read: no message in them (`rcmlconf dissect` says)
+        if segment is None:
             return []
-        if protocol == 17 and len(body) >= 8:
-            return self._udp_datagram(number, time, source, destination, body)
-        if protocol == 6 and len(body) >= 20:
-            return self._tcp_segment(number, time, source, destination, body)
-        return []
+        protocol, source, sport, destination, dport, payload, _, seq, flags, _ = segment
+        key = (source, sport, destination, dport)
+        if protocol == UDP:
+            return self._udp_datagram(number, time, key, payload)
+        return self._tcp_segment(number, time, key, seq, flags, payload)
 
     # -- UDP -------------------------------------------------------------------------------------
 
-    def _udp_datagram(
-        self, number: int, time: float, source: bytes, destination: bytes, body: bytes
-    ) -> list[Message]:
-        sport, dport, length = struct.unpack_from("!HHH", body)
-        data = body[8:length] if length >= 8 else body[8:]
-        key = (source, sport, destination, dport)
+    def _udp_datagram(self, number: int, time: float, key: FlowKey, data: bytes) -> list[Message]:
         if key in self._udp:
             proto = self._udp[key]
         else:
@@ -362,8 +253,7 @@ class Dissector:
         if proto is None:
             return []
         layer = rsp.RSP(data) if proto == RSP else rctp.RCTPStream(data)
-        ends = (_address(source), sport), (_address(destination), dport)
-        return [Message(number, time, proto, *ends, layer)]
+        return [Message(number, time, proto, *_ends(key), layer)]
 
     def _udp_protocol(self, key: FlowKey, data: bytes) -> str | None:
         source, sport, destination, dport = key
@@ -407,26 +297,24 @@ class Dissector:
     # -- TCP -------------------------------------------------------------------------------------
 
     def _tcp_segment(
-        self, number: int, time: float, source: bytes, destination: bytes, body: bytes
+        self, number: int, time: float, key: FlowKey, seq: int, flags: int, payload: bytes
     ) -> list[Message]:
-        sport, dport = struct.unpack_from("!HH", body)
-        key = (source, sport, destination, dport)
         known = self._tcp.get(key)
         if known is None:
             known = self._open(key)
         if known is True:
-            return self._segment(number, time, key, body)
+            return self._segment(number, time, key, seq, flags, payload)
         if known is False:
             return []
         pending = known
-        pending.segments.append((number, time, key, body))
+        pending.segments.append((number, time, key, seq, flags, payload))
         side = 0 if pending.segments[0][2] == key else 1
-        pending.looked[side] += body[(body[12] >> 4) * 4 :]
+        pending.looked[side] += payload
         decided = self._recognise(pending)
         if decided is None:
             return []
-        reverse = (destination, dport, source, sport)
-        self._tcp[key] = self._tcp[reverse] = decided
+        source, sport, destination, dport = key
+        self._tcp[key] = self._tcp[(destination, dport, source, sport)] = decided
         if not decided:
             return []
         first = pending.segments[0][2]
@@ -471,92 +359,87 @@ class Dissector:
             return False
         return None if len(pending.segments) <= 32 else False
 
-    def _segment(self, number: int, time: float, key: FlowKey, body: bytes) -> list[Message]:
-        seq = int.from_bytes(body[4:8], "big")
-        offset = (body[12] >> 4) * 4
-        flags = body[13]
-        stream = self._streams.get(key)
-        if stream is None:
-            stream = self._streams[key] = _Stream()
+    def _segment(
+        self, number: int, time: float, key: FlowKey, seq: int, flags: int, payload: bytes
+    ) -> list[Message]:
         found: list[Packet] = []
-        if stream.add(seq, bool(flags & 0x02), body[offset:]):
-            found.extend(stream.messages())
-        if flags & 0x05:  # FIN or RST: what is left will not be completed
+        stream = self._streams.get(key)
+        if stream is None or (flags & SYN and seq != stream.syn):
+            # The first segment seen, or a SYN that is not this one's again: a new connection
+            # between the same ports. What the last one left is all it will have.
+            if stream is not None:
+                found = stream.end()
+            stream = self._streams[key] = _Stream(seq if flags & SYN else None)
+        found += stream.add(seq, flags, payload)
+        if stream.tcp.finished:  # FIN or RST: what is left will not be completed
             rest = stream.rest()
             if rest is not None:
                 found.append(rest)
-            del self._streams[key]
-        else:
-            self._last[key] = (number, time)
+        self._last[key] = (number, time)
         return [self._control(number, time, key, packet) for packet in found]
 
     def _control(self, number: int, time: float, key: FlowKey, packet: Packet) -> Message:
         if isinstance(packet, rctp._RCTPMessage):
             self._learn(key, packet)
-        source, sport, destination, dport = key
-        ends = (_address(source), sport), (_address(destination), dport)
-        return Message(number, time, RCTP, *ends, packet)
+        return Message(number, time, RCTP, *_ends(key), packet)
 
     def finish(self) -> list[Message]:
         """The end of the capture: what the connections left unfinished."""
-        messages = []
+        messages: list[Message] = []
         for key, stream in self._streams.items():
-            rest = stream.rest()
-            if rest is not None:
-                number, time = self._last.get(key, (0, 0.0))
-                messages.append(self._control(number, time, key, rest))
+            number, time = self._last[key]
+            messages.extend(self._control(number, time, key, packet) for packet in stream.end())
         self._streams.clear()
         return messages
+
+
+def _ends(key: FlowKey) -> tuple[Address, Address]:
+    source, sport, destination, dport = key
+    return (address_text(source), sport), (address_text(destination), dport)
 
 
 # -- reading a capture file ------------------------------------------------------------------------
 
 
-def frames(path: str | os.PathLike[str]) -> Iterator[tuple[int, float, int, bytes]]:
-    """(record number from 1, time, link type, bytes) of each record of a pcap or pcapng file."""
-    reader = RawPcapReader(os.fspath(path))
-    try:
-        linktype = getattr(reader, "linktype", None)
-        nano = getattr(reader, "nano", False)
-        for number, (data, meta) in enumerate(reader, 1):
-            info: Any = meta
-            if hasattr(info, "tsresol"):  # pcapng: per interface
-                time = ((info.tshigh << 32) + info.tslow) / info.tsresol
-                yield number, float(time), int(info.linktype), data
-            else:
-                time = info.sec + info.usec / (1e9 if nano else 1e6)
-                yield number, float(time), int(linktype or 0), data
-    finally:
-        reader.close()
-
-
 def messages(
-    path: str | os.PathLike[str],
+    capture: Capture | str | os.PathLike[str],
     model: RobotModel | str | os.PathLike[str] | None = None,
     decode_as: DecodeAs = (),
     heuristics: bool = True,
 ) -> Iterator[Message]:
-    """The RCTP and RSP messages of a capture, in order, RSP map bodies decoded with `model`
-    (raw bytes without one). Raises ValueError for a bad `decode_as`, and scapy's
-    Scapy_Exception or OSError for a file that is not a capture."""
+    """The RCTP and RSP messages of a capture (open, or a file's path), in order, RSP map bodies
+    decoded with `model` (raw bytes without one). Raises ValueError for a bad `decode_as`,
+    OSError for a file that cannot be read, and `CaptureError` for one that is not a capture, or,
+    after the messages before it, where its structure breaks (`rcmlconf dissect` reads that far
+    too)."""
+    if not isinstance(capture, Capture):
+        with Capture.open(capture) as opened:
+            yield from messages(opened, model, decode_as, heuristics)
+        return
     dissector = Dissector(decode_as, heuristics)
     before = rsp.use_model(model)
     try:
-        for number, time, linktype, data in frames(path):
-            yield from dissector.frame(number, time, linktype, data)
+        broken: CaptureError | None = None
+        try:
+            for number, (time, linktype, frame) in enumerate(capture.frames(), 1):
+                yield from dissector.frame(number, time, linktype, frame)
+        except CaptureError as error:
+            broken = error
         yield from dissector.finish()
+        if broken is not None:
+            raise broken
     finally:
         rsp.use_model(before)
 
 
 def detail(
-    path: str | os.PathLike[str],
+    capture: Capture | str | os.PathLike[str],
     model: RobotModel | str | os.PathLike[str] | None = None,
     decode_as: DecodeAs = (),
     heuristics: bool = True,
 ) -> Iterator[str]:
     """The field tree of each message of `messages(...)`, as scapy's show2() writes it."""
-    for message in messages(path, model, decode_as, heuristics):
+    for message in messages(capture, model, decode_as, heuristics):
         yield render(message.packet)
 
 

@@ -23,7 +23,7 @@ from collections.abc import Iterable, Mapping
 from importlib import resources
 
 from rcmlconf import __version__
-from rcmlconf.rctp.connection import _SINGLE as SINGLE_FIELDS
+from rcmlconf.rctp.connection import SINGLE_FIELDS
 from rcmlconf.rctp.datastream import flow, packets
 from rcmlconf.rctp.fields import MAX_CSEQ
 from rcmlconf.rctp.messages import METHODS, REASONS, VERSION
@@ -55,7 +55,7 @@ class LuaExpression(str):
     """Lua source written as is, not as a string literal."""
 
 
-def _lua(value: object, indent: str = "") -> str:
+def lua_literal(value: object, indent: str = "") -> str:
     """`value` as a Lua literal: None, bools, numbers, strings, lists and mappings."""
     if value is None:
         return "nil"
@@ -77,12 +77,14 @@ def _lua(value: object, indent: str = "") -> str:
     if isinstance(value, Mapping):
         if not value:
             return "{}"
-        items = [f"{inner}{_lua_key(key)} = {_lua(item, inner)}," for key, item in value.items()]
+        items = [
+            f"{inner}{_lua_key(key)} = {lua_literal(item, inner)}," for key, item in value.items()
+        ]
         return "{\n" + "\n".join(items) + "\n" + indent + "}"
     if isinstance(value, list | tuple):
         if not value:
             return "{}"
-        rendered = [_lua(item, inner) for item in value]
+        rendered = [lua_literal(item, inner) for item in value]
         if all("\n" not in item for item in rendered) and sum(map(len, rendered)) < 80:
             return "{" + ", ".join(rendered) + "}"
         return "{\n" + "\n".join(f"{inner}{item}," for item in rendered) + "\n" + indent + "}"
@@ -96,7 +98,7 @@ def _lua_key(key: object) -> str:
         and key not in _LUA_WORDS
     ):
         return key
-    return f"[{_lua(key)}]"
+    return f"[{lua_literal(key)}]"
 
 
 _LUA_WORDS = frozenset(
@@ -457,4 +459,4 @@ def generate_lua(model: RobotModel | None = None) -> str:
     )
     source = resources.files("rcmlconf.wireshark").joinpath("dissector.lua")
     body = source.read_text(encoding="utf-8")
-    return head + "local GEN = " + _lua(tables) + "\n\n" + body
+    return head + "local GEN = " + lua_literal(tables) + "\n\n" + body

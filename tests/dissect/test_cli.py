@@ -189,3 +189,13 @@ def test_verbose_prints_each_message_and_its_field_tree_from_the_scapy_layers(go
     bad = run("-V", str(ROVER))  # not a capture
     assert bad.returncode == 2
     assert "rcmlconf dissect" in bad.stderr
+    assert "not a pcap or pcapng file" in bad.stderr
+    # A capture that breaks is read up to there, as without -V.
+    cut = good.with_name("cut.pcap")
+    cut.write_bytes(good.read_bytes()[:-5])
+    broken = run("-V", "--model", str(CUBO), str(cut))
+    assert broken.returncode == 2
+    assert "runs past the end of the file" in broken.stderr
+    assert "read up to there" in broken.stderr
+    assert broken.stdout.count("###[ RCTP Re") == done.stdout.count("###[ RCTP Re") == 2
+    assert "###[ RSP ]###" in broken.stdout

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from support.pcaps import TcpFlow, dissect, ipv4_tcp, ipv4_udp, pcap
+from support.pcaps import TCP_ACK, TCP_PSH, TCP_SYN, TcpFlow, dissect, ipv4_tcp, ipv4_udp, pcap
 
 from rcmlconf.dissect import RCTP, RCTP_DATA, Options, Severity
 from rcmlconf.dissect.control import Answer
@@ -256,6 +256,24 @@ def test_a_hole_the_capture_never_fills() -> None:
     (control,) = dissected.analysis.control
     assert control.holes == 1
     assert control.out_of_order == 1
+
+
+def test_data_on_a_syn_is_the_first_bytes_of_the_stream() -> None:
+    """TCP Fast Open (RFC 7413): the first request rides on the SYN, and a SYN sent again with it
+    is a retransmission."""
+    connect = b"CONNECT /rover RCTP/2.0\r\nCSeq: 1\r\n\r\n"
+    read = b"READ /a RCTP/2.0\r\nCSeq: 2\r\n\r\n"
+    syn = ipv4_tcp(CLIENT, SERVER, 999, TCP_SYN, connect)
+    frames = [
+        (1.0, syn),
+        (1.1, syn),
+        (1.2, ipv4_tcp(CLIENT, SERVER, 1000 + len(connect), TCP_ACK | TCP_PSH, read)),
+    ]
+    dissected = dissect(pcap(frames))
+    assert [r.kind for r in dissected.records] == ["CONNECT", "READ"]
+    assert not dissected.findings("R-RCTP-13")
+    (control,) = dissected.analysis.control
+    assert (control.holes, control.retransmissions) == (0, 1)
 
 
 def test_mid_stream_capture_without_handshake() -> None:

@@ -201,6 +201,8 @@ def test_pcapng_errors_are_located() -> None:
         (LINKTYPE_NULL, null(DATAGRAM, "<")),
         (LINKTYPE_NULL, null(DATAGRAM, ">")),
         (LINKTYPE_LOOP, null(DATAGRAM, ">")),
+        (12, DATAGRAM),  # DLT_RAW of older files
+        (14, DATAGRAM),  # DLT_RAW of OpenBSD's
     ],
 )
 def test_link_layers(linktype: int, frame: bytes) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rcmlconf.markup.document import _entity_references
+from rcmlconf.markup.document import find_entity_references
 from rcmlconf.markup.locate import SourceMap
 from rcmlconf.markup.prolog import text_position
 
@@ -27,5 +27,5 @@ def test_positions_in_one_pass_equal_positions_one_by_one(text: str, data: st.Da
 @given(texts)
 def test_entity_references_point_at_their_ampersand(text: str) -> None:
     lines = text.split("\n")
-    for reference in _entity_references(text):
+    for reference in find_entity_references(text):
         assert lines[reference.line - 1][reference.column - 1 :].startswith(f"&{reference.name};")

@@ -10,7 +10,7 @@ from support.xml_vectors import XML_VECTORS
 
 from rcmlconf.markup.document import XmlDocument, parse_document
 from rcmlconf.markup.structure import Checker
-from rcmlconf.rcml.loader import _Walk, load_rcml
+from rcmlconf.rcml.loader import RcmlWalk, load_rcml
 from rcmlconf.rcml.model import (
     AccessNode,
     AccessType,
@@ -138,7 +138,7 @@ def test_fast_path_agrees_with_the_element_walk(
     assert isinstance(document, XmlDocument)
     access = document.root.children[0]
     checker = Checker(document, "t.rcml", ELEMENTS)
-    walk = _Walk(checker, None)
+    walk = RcmlWalk(checker, None)
     inherited = Permission.from_text(ceiling)
     fast = walk._plain_data(access.children, "/a", inherited)
     names_seen: set[str] = set()

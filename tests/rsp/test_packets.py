@@ -45,7 +45,7 @@ from rcmlconf.rsp.codec import (
 )
 from rcmlconf.rsp.codec.bodies import Body
 from rcmlconf.rsp.codec.flat import DECLINED, FlatLayout
-from rcmlconf.rsp.codec.maps import COMPILE_AT, _Plan
+from rcmlconf.rsp.codec.maps import COMPILE_AT, MapPlan
 from rcmlconf.rsp.codec.payloads import Slot
 from rcmlconf.rsp.layout import Bit, MapPacket, bit
 from rcmlconf.rsp.model import DeviceKind, Field, RobotModel
@@ -420,14 +420,14 @@ def test_round_trip(data: st.DataObject) -> None:
     assert SHARED[key].pull_packet(encoded) == decoded or has_nan(packet.body)
 
 
-def slot_plan(model: RobotModel, packet: MapPacket, items: tuple[Item, ...]) -> _Plan:
+def slot_plan(model: RobotModel, packet: MapPacket, items: tuple[Item, ...]) -> MapPlan:
     slots = [
         Slot(model, model.devices[item.device], bit(model.devices[item.device].kind, packet))
         for item in items
     ]
     positions = [item.device for item in items]
     number = sum(1 << (8 * model.map_size - 1 - p) for p in positions)
-    return _Plan(number.to_bytes(model.map_size), slots, model.id_length)
+    return MapPlan(number.to_bytes(model.map_size), slots, model.id_length)
 
 
 def fixed_items(model: RobotModel, packet: MapPacket) -> st.SearchStrategy[tuple[Item, ...]]:

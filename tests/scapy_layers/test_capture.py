@@ -23,9 +23,11 @@ from scapy.packet import Packet, Padding, Raw
 from scapy.sendrecv import sniff
 from scapy.sessions import TCPSession
 from scapy.utils import PcapNgWriter, wrpcap
+from support.pcaps import TCP_ACK, TCP_FIN, TCP_SYN, epb, idb, ipv4_tcp, pcap, shb
 from support.rsp_models import robot_model
 from support.scapy_layers import core_messages, layer_message
 
+from rcmlconf.pcap.reader import Capture, CaptureError
 from rcmlconf.pcap.writer import Payload, PcapWriter
 from rcmlconf.scapy_layers import capture, rctp, rsp
 
@@ -33,6 +35,7 @@ ROOT = Path(__file__).resolve().parents[2]
 RSP_VECTORS = json.loads((ROOT / "vectors" / "rsp" / "packets.json").read_text("utf-8"))
 RCTP_VECTORS = json.loads((ROOT / "vectors" / "rctp" / "packets.json").read_text("utf-8"))
 CUBO = robot_model()
+CAPTURES = sorted((ROOT / "captures").glob("*.pcap"))
 
 CLIENT = ("10.0.0.1", 40100)
 SERVER = ("10.0.0.2", 7330)
@@ -346,21 +349,42 @@ def test_link_types_and_pcapng(tmp_path: Path) -> None:
         assert found[1].packet.method == b"CONNECT", name
 
 
+#: An RSP packet above the MTU: a DOWNLINK with an LCD image.
+IMAGE = bytes(range(256)) * 8
+LCD = (
+    struct.pack(">BHBBHIHIHB", 1, 1, 0, 4, 7, 140, 0xA1B2, 0xC3D4E5F6, 6, 0)
+    + b"\x00\x90\x00\x00"  # the Device Map: head, lcd
+    + len(IMAGE).to_bytes(2, "big")
+    + IMAGE
+)
+
+
 def test_ip_fragments_are_put_back_together(tmp_path: Path) -> None:
-    """An RSP packet above the MTU (an LCD image) arrives in IPv4 fragments."""
-    image = bytes(range(256)) * 8
-    body = b"\x00\x90\x00\x00" + len(image).to_bytes(2, "big") + image  # head, lcd
-    header = struct.pack(">BHBBHIHIHB", 1, 1, 0, 4, 7, 140, 0xA1B2, 0xC3D4E5F6, 6, 0)
-    datagram = (
-        IP(src="10.0.0.1", dst="10.0.0.2", id=77) / UDP(sport=5000, dport=7340) / (header + body)
-    )
+    """An RSP packet above the MTU arrives in IPv4 fragments, or IPv6 ones, in any order, some
+    sent again in other sizes."""
+    from scapy.layers.inet6 import IPv6, IPv6ExtHdrFragment, fragment6
+
+    datagram = IP(src="10.0.0.1", dst="10.0.0.2", id=77) / UDP(sport=5000, dport=7340) / LCD
     parts = fragment(datagram, fragsize=600)
     assert len(parts) > 3
-    wrpcap(str(tmp_path / "fragments.pcap"), list(reversed(parts)))
-    (message,) = capture.messages(tmp_path / "fragments.pcap", model=CUBO)
-    items = message.packet.payload.payloads
-    assert [item.device for item in items] == ["head", "lcd"]
-    assert items[1].values == {"image": image}
+    overlapping = [*parts[:2], *fragment(datagram, fragsize=808)[1:]]
+    v6 = (
+        IPv6(src="fe80::1", dst="fe80::2")
+        / IPv6ExtHdrFragment(id=5)
+        / UDP(sport=5000, dport=7340)
+        / LCD
+    )
+    wrpcap(str(tmp_path / "v4.pcap"), list(reversed(parts)) + overlapping)
+    wrpcap(str(tmp_path / "v6.pcap"), fragment6(v6, 1280))
+    found = [
+        *capture.messages(tmp_path / "v4.pcap", model=CUBO),
+        *capture.messages(tmp_path / "v6.pcap", model=CUBO),
+    ]
+    assert len(found) == 3
+    for message in found:
+        items = message.packet.payload.payloads
+        assert [item.device for item in items] == ["head", "lcd"]
+        assert items[1].values == {"image": IMAGE}
 
 
 def test_segments_out_of_order_and_retransmitted_are_read_once(tmp_path: Path) -> None:
@@ -386,6 +410,128 @@ def test_segments_out_of_order_and_retransmitted_are_read_once(tmp_path: Path) -
     wrpcap(str(tmp_path / "order.pcap"), frames)
     found = [m.packet for m in capture.messages(tmp_path / "order.pcap")]
     assert [bytes(p) for p in found] == [one, two]
+
+
+READ = b"READ /a RCTP/2.0\r\nCSeq: %d\r\n\r\n"
+
+
+def client_segments(path: Path, *segments: tuple[int, int, bytes]) -> list[capture.Message]:
+    """The messages of a capture of the client's SYN (sequence number 999), then `segments`:
+    (sequence number, TCP flags, payload), one frame each."""
+    frames = [(1.0, ipv4_tcp(CLIENT, SERVER, 999, TCP_SYN, b""))]
+    frames += [(2.0 + n, ipv4_tcp(CLIENT, SERVER, *segment)) for n, segment in enumerate(segments)]
+    path.write_bytes(pcap(frames))
+    return list(capture.messages(path))
+
+
+def test_segments_overlapping_what_waits_are_read_once(tmp_path: Path) -> None:
+    data = READ % 1 + READ % 2 + READ % 3
+    found = client_segments(
+        tmp_path / "overlap.pcap",
+        (1020, TCP_ACK, data[20:60]),  # ahead of a hole
+        (1020, TCP_ACK, data[20:40]),  # a shorter copy of what waits
+        (1000, TCP_ACK, data[:30]),  # ends inside what waits
+        (1060, TCP_ACK | TCP_FIN, data[60:]),
+    )
+    assert [bytes(m.packet) for m in found] == [READ % 1, READ % 2, READ % 3]
+    assert [m.frame for m in found] == [4, 4, 5]
+
+
+def test_a_new_connection_between_the_same_ports(tmp_path: Path) -> None:
+    """A SYN that is not the connection's own again opens a new one; a segment sent again after
+    the FIN is not a message again."""
+    first = READ % 1 + (READ % 2)[:10]
+    found = client_segments(
+        tmp_path / "again.pcap",
+        (1000, TCP_ACK, first),
+        (1000 + len(first), TCP_ACK | TCP_FIN, b""),
+        (1000, TCP_ACK, READ % 1),  # sent again after the FIN
+        (999, TCP_SYN, b""),  # the first SYN again: nothing new
+        (70000, TCP_SYN, b""),
+        (70001, TCP_ACK, READ % 1),
+    )
+    assert [(m.frame, bytes(m.packet)) for m in found] == [
+        (2, READ % 1),
+        (3, (READ % 2)[:10]),  # cut short by the FIN
+        (7, READ % 1),
+    ]
+
+
+def test_what_follows_a_hole_the_capture_never_fills(tmp_path: Path) -> None:
+    """A segment the capture lost: the message it cut is shown cut short, and what follows comes
+    out at the end of the capture, or once 64 segments wait behind the hole (`sniff` prints
+    as frames come)."""
+    one, two = READ % 1, READ % 2
+    found = client_segments(
+        tmp_path / "hole.pcap",
+        (1000, TCP_ACK, one + two[:10]),
+        (1000 + len(one) + 20, TCP_ACK, two[20:]),  # after 10 bytes the capture lost
+        (1000 + len(one + two), TCP_ACK, READ % 3),
+    )
+    assert [(m.frame, bytes(m.packet)) for m in found] == [
+        (2, one),
+        (4, two[:10]),
+        (4, two[20:] + READ % 3),  # starts inside a message: it cannot be framed
+    ]
+    assert isinstance(found[2].packet, Raw)
+    later = [READ % n for n in range(3, 73)]
+    starts = list(itertools.accumulate(map(len, later), initial=1000 + len(one + two)))
+    found = client_segments(
+        tmp_path / "long.pcap",
+        (1000, TCP_ACK, one),
+        *((start, TCP_ACK, data) for start, data in zip(starts, later, strict=False)),
+    )
+    assert [bytes(m.packet) for m in found] == [one, *later]
+    # frame 2 is the first segment, 3 to 67 the 65 behind the hole: the 65th gives it up
+    assert [m.frame for m in found[1:66]] == [67] * 65
+    assert [m.frame for m in found[66:]] == [68, 69, 70, 71, 72]
+
+
+def test_data_on_a_syn_is_read(tmp_path: Path) -> None:
+    """TCP Fast Open (RFC 7413): the first request rides on the SYN."""
+    path = tmp_path / "fast-open.pcap"
+    path.write_bytes(
+        pcap(
+            [
+                (1.0, ipv4_tcp(CLIENT, SERVER, 999, TCP_SYN, READ % 1)),
+                (2.0, ipv4_tcp(CLIENT, SERVER, 1000 + len(READ % 1), TCP_ACK, READ % 2)),
+            ]
+        )
+    )
+    assert [bytes(m.packet) for m in capture.messages(path)] == [READ % 1, READ % 2]
+
+
+@pytest.mark.parametrize("path", CAPTURES, ids=lambda path: path.name)
+def test_a_pcapng_of_a_capture_reads_as_the_pcap(path: Path, tmp_path: Path) -> None:
+    """The same records in a pcapng file (nanosecond stamps): the same messages, in the same
+    frames, with the same summary lines and field trees."""
+    with Capture.open(path) as opened:
+        records = list(opened.frames())
+    copy = tmp_path / f"{path.stem}.pcapng"
+    blocks = [epb(0, round(time * 1e9), frame) for time, _, frame in records]
+    copy.write_bytes(shb() + idb(records[0][1], tsresol=9) + b"".join(blocks))
+
+    def shown(file: Path) -> list[tuple[int, str, str]]:
+        found = capture.messages(file, model=CUBO)
+        return [(m.frame, capture.summary(m), capture.render(m.packet)) for m in found]
+
+    assert shown(copy) == shown(path)
+
+
+def test_a_capture_that_breaks_is_read_up_to_there(session_pcap: Path, tmp_path: Path) -> None:
+    """As `rcmlconf dissect` reads it: the messages before the broken record, what the
+    connections left unfinished, then the error."""
+    broken = tmp_path / "broken.pcap"
+    broken.write_bytes(session_pcap.read_bytes()[:-10])
+    whole = list(capture.messages(session_pcap))
+    found: list[capture.Message] = []
+    with pytest.raises(CaptureError, match="runs past the end of the file"):
+        found.extend(capture.messages(broken))
+    assert found[:-1] == whole[:-1]
+    # the last record completed the server's BYE: cut short without it
+    assert whole[-1].packet.method == b"BYE"
+    assert bytes(found[-1].packet) == bytes(whole[-1].packet)[: len(bytes(found[-1].packet))]
+    assert len(bytes(found[-1].packet)) < len(bytes(whole[-1].packet))
 
 
 def test_bytes_that_cannot_be_framed_are_one_raw_message(tmp_path: Path) -> None:

@@ -16,7 +16,7 @@ from support.wireshark_pcaps import VECTORS, need_tshark, udp_pcap
 from rcmlconf.cli.wireshark import wireshark
 from rcmlconf.rctp.messages import METHODS, REASONS
 from rcmlconf.rsp.codec import PacketType
-from rcmlconf.wireshark.lua import _lua, abbreviation, field_abbreviations, generate_lua
+from rcmlconf.wireshark.lua import abbreviation, field_abbreviations, generate_lua, lua_literal
 from rcmlconf.wireshark.tshark import run_tshark, tshark_path
 
 #: The fields every plugin has, and their Wireshark types.
@@ -96,11 +96,13 @@ def test_usage_errors(tmp_path: Path) -> None:
 
 
 def test_lua_literals() -> None:
-    assert _lua('a"b\\c\n') == '"a\\"b\\\\c\\010"'
-    assert _lua("é") == '"\\195\\169"'
-    assert _lua({"and": 1, 2: [True, None]}) == '{\n    ["and"] = 1,\n    [2] = {true, nil},\n}'
-    assert _lua(-0.5) == "-0.5"
-    assert _lua(float("inf")) == "math.huge"
+    assert lua_literal('a"b\\c\n') == '"a\\"b\\\\c\\010"'
+    assert lua_literal("é") == '"\\195\\169"'
+    assert (
+        lua_literal({"and": 1, 2: [True, None]}) == '{\n    ["and"] = 1,\n    [2] = {true, nil},\n}'
+    )
+    assert lua_literal(-0.5) == "-0.5"
+    assert lua_literal(float("inf")) == "math.huge"
 
 
 ODD_NAMES = """<?xml version="1.0" encoding="UTF-8"?>

@@ -3,7 +3,7 @@
 A `MapCodec` is made once per model and map packet type. A session sends the same Device Map
 period after period (D-RSP-18), so what a map means — which slots follow, and the one struct of
 their payloads when all of them have fixed sizes (`flat`) — is worked out once per map and kept
-(`_Plan`), found by the map's bytes when reading and by the items' devices when writing. The
+(`MapPlan`), found by the map's bytes when reading and by the items' devices when writing. The
 memory is bounded, since a peer may send any map; and a map's flat layout is compiled only once
 the map has come back a few times, so that a peer sending new maps costs no more than the slots.
 """
@@ -33,7 +33,7 @@ COMPILE_AT = 8
 _MISSING = object()
 
 
-class _Plan:
+class MapPlan:
     """What follows one Device Map: the slots of its set bits in model order."""
 
     __slots__ = ("device_map", "fixed", "flat", "id_length", "slots", "uses")
@@ -95,8 +95,8 @@ class MapCodec:
         self.size = len(model.devices)
         self._slots = tuple(Slot(model, d, bit(d.kind, packet)) for d in model.devices)
         #: Plans by Device Map, and by the devices of the items written with them.
-        self._plans: dict[bytes, _Plan] = {}
-        self._by_devices: dict[tuple[int, ...], _Plan] = {}
+        self._plans: dict[bytes, MapPlan] = {}
+        self._by_devices: dict[tuple[int, ...], MapPlan] = {}
 
     # -- reading -------------------------------------------------------------------------------
 
@@ -122,7 +122,7 @@ class MapCodec:
             plan.use()
         return plan.pull(data, end)
 
-    def _new_plan(self, data: bytes, start: int) -> _Plan:
+    def _new_plan(self, data: bytes, start: int) -> MapPlan:
         """The plan of the Device Map at `start`, checked (D-RSP-14, R-RSP-17) and kept."""
         device_map = data[start : start + self.map_size]
         if len(device_map) < self.map_size:
@@ -153,8 +153,8 @@ class MapCodec:
             positions.append(position)
         return self._keep(device_map, positions)
 
-    def _keep(self, device_map: bytes, positions: list[int]) -> _Plan:
-        plan = _Plan(device_map, [self._slots[i] for i in positions], self.id_length)
+    def _keep(self, device_map: bytes, positions: list[int]) -> MapPlan:
+        plan = MapPlan(device_map, [self._slots[i] for i in positions], self.id_length)
         if len(self._plans) >= MAX_PLANS:
             self._plans.clear()
             self._by_devices.clear()
