@@ -16,6 +16,7 @@ from __future__ import annotations
 import asyncio
 
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.picks import RW, Named
 from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
@@ -27,8 +28,6 @@ from rcmlconf.rctp.targets import parse_target
 from rcmlconf.values import Value
 
 from .rctp_nodes import (
-    RW,
-    Named,
     acquire,
     check_values,
     other_values,
@@ -193,24 +192,53 @@ class _Watcher:
             self.ctx.expect(not listed, f"no WRITE of {named.node.name} {when}", shown, rule)
 
 
-async def _change(by: ControlProbe, named: Named, value: Value) -> None:
-    """The writer writes `value` (a precondition: the rctp/node cases check WRITE)."""
-    answer = await write(by, named, {named.node.name: value})
-    if answer.status != 200:
-        raise Inconclusive(f"WRITE {named.path} was answered {answer.status} {answer.reason}")
+class _Scene:
+    """What an event case changes and watches: a readable and writable node of an event access
+    (`_changing`), a session that writes it (`by`, holding its privilege unless not `hold`), its
+    value before the case and `count` others to write, and the watchers where the access plays
+    (the first started with the scene, `watch` starts more)."""
 
+    def __init__(
+        self, ctx: Context, named: Named, by: ControlProbe, before: Value, values: list[Value]
+    ) -> None:
+        self.ctx, self.named, self.by = ctx, named, by
+        self.before, self.values = before, values
+        self.watchers: list[_Watcher] = []
 
-async def _setting(ctx: Context, count: int) -> tuple[Named, ControlProbe, Value, list[Value]]:
-    """The node, a session holding it, its value now and `count` others to write."""
-    named = _changing(ctx, count)
-    by = await writer(ctx, named)
-    before = (await read(ctx, by, named))[named.node.name]
-    return named, by, before, other_values(named.node, before, count)
+    @classmethod
+    async def open(cls, ctx: Context, count: int, *, hold: bool = True) -> _Scene:
+        named = _changing(ctx, count)
+        by = await writer(ctx, named) if hold else (await sessions(ctx, 1))[0]
+        before = (await read(ctx, by, named))[named.node.name]
+        scene = cls(ctx, named, by, before, other_values(named.node, before, count))
+        await scene.watch()
+        return scene
 
+    @property
+    def watcher(self) -> _Watcher:
+        return self.watchers[0]
 
-def _expect_value(ctx: Context, values: dict[str, Value], node: str, value: Value) -> None:
-    pushed = values.get(node)
-    ctx.expect(pushed == value, f"{node} = {value!r}", f"{node} = {pushed!r}", "R-RCTP-32")
+    async def watch(self) -> None:
+        self.watchers.append(await _Watcher.start(self.ctx, self.named))
+
+    async def change(self, value: Value) -> None:
+        """`by` writes `value` (a precondition: the rctp/node cases check WRITE)."""
+        named = self.named
+        answer = await write(self.by, named, {named.node.name: value})
+        if answer.status != 200:
+            raise Inconclusive(f"WRITE {named.path} was answered {answer.status} {answer.reason}")
+
+    def expect_value(self, values: dict[str, Value], value: Value) -> None:
+        """The values of a pushed WRITE give the node `value`."""
+        node = self.named.node.name
+        pushed = values.get(node)
+        self.ctx.expect(pushed == value, f"{node} = {value!r}", f"{node} = {pushed!r}", "R-RCTP-32")
+
+    async def end(self) -> None:
+        """Close the watchers, then write back the value found."""
+        for watcher in self.watchers:
+            watcher.probe.close()
+        await put_back(self.ctx, self.by, self.named, {self.named.node.name: self.before})
 
 
 @case(
@@ -220,13 +248,12 @@ def _expect_value(ctx: Context, values: dict[str, Value], node: str, value: Valu
     serial=True,
 )
 async def push(ctx: Context) -> None:
-    named, by, before, (value,) = await _setting(ctx, 1)
-    watcher = await _Watcher.start(ctx, named)
-    await _change(by, named, value)
-    values = await watcher.push()
-    watcher.probe.close()
-    await put_back(ctx, by, named, {named.node.name: before})
-    _expect_value(ctx, values, named.node.name, value)
+    scene = await _Scene.open(ctx, 1)
+    (value,) = scene.values
+    await scene.change(value)
+    values = await scene.watcher.push()
+    await scene.end()
+    scene.expect_value(values, value)
 
 
 @case(
@@ -236,14 +263,11 @@ async def push(ctx: Context) -> None:
     serial=True,
 )
 async def push_numbering(ctx: Context) -> None:
-    named, by, before, values = await _setting(ctx, 3)
-    watcher = await _Watcher.start(ctx, named)
-    for value in values:
-        await _change(by, named, value)
-        _expect_value(ctx, await watcher.push(), named.node.name, value)
-    watcher.probe.close()
-    await put_back(ctx, by, named, {named.node.name: before})
-    ctx.expect(len(watcher.seen) >= 3, "three WRITEs", f"{len(watcher.seen)}", "R-RCTP-32")
+    scene = await _Scene.open(ctx, 3)
+    for value in scene.values:  # each WRITE's CSeq is checked as it comes (_Watcher)
+        await scene.change(value)
+        scene.expect_value(await scene.watcher.push(), value)
+    await scene.end()
 
 
 @case(
@@ -253,13 +277,13 @@ async def push_numbering(ctx: Context) -> None:
     serial=True,
 )
 async def push_sessions(ctx: Context) -> None:
-    named, by, before, (value,) = await _setting(ctx, 1)
-    watchers = [await _Watcher.start(ctx, named), await _Watcher.start(ctx, named)]
-    await _change(by, named, value)
-    for watcher in watchers:
-        _expect_value(ctx, await watcher.push(), named.node.name, value)
-        watcher.probe.close()
-    await put_back(ctx, by, named, {named.node.name: before})
+    scene = await _Scene.open(ctx, 1)
+    (value,) = scene.values
+    await scene.watch()
+    await scene.change(value)
+    for watcher in scene.watchers:
+        scene.expect_value(await watcher.push(), value)
+    await scene.end()
 
 
 @case(
@@ -269,16 +293,16 @@ async def push_sessions(ctx: Context) -> None:
     serial=True,
 )
 async def push_refused(ctx: Context) -> None:
-    named, by, before, (first, second) = await _setting(ctx, 2)
-    watcher = await _Watcher.start(ctx, named)
-    await _change(by, named, first)
+    scene = await _Scene.open(ctx, 2)
+    first, second = scene.values
+    watcher = scene.watcher
+    await scene.change(first)
     await watcher.push(455, "Method Not Valid in This State")
-    await _change(by, named, second)
+    await scene.change(second)
     values = await watcher.push()
     answer, _ = await watcher.ask("READ")
-    watcher.probe.close()
-    await put_back(ctx, by, named, {named.node.name: before})
-    _expect_value(ctx, values, named.node.name, second)
+    await scene.end()
+    scene.expect_value(values, second)
     ctx.expect_status(answer, 200, "R-RCTP-32")
 
 
@@ -289,22 +313,22 @@ async def push_refused(ctx: Context) -> None:
     serial=True,
 )
 async def pause(ctx: Context) -> None:
-    named, by, before, (first, second) = await _setting(ctx, 2)
-    watcher = await _Watcher.start(ctx, named)
+    scene = await _Scene.open(ctx, 2)
+    first, second = scene.values
+    watcher = scene.watcher
     paused, _ = await watcher.ask("PAUSE")
     if paused.status != 200:
         raise Inconclusive(f"PAUSE was answered {paused.status} {paused.reason}")
-    await _change(by, named, first)
+    await scene.change(first)
     seen = await watcher.quiet()
     again, late = await watcher.ask("GO")
     watcher.none_listing(seen + late, "R-RCTP-32", "while paused")
     if again.status != 200:
         raise Inconclusive(f"GO after PAUSE was answered {again.status} {again.reason}")
-    await _change(by, named, second)
+    await scene.change(second)
     values = await watcher.push()
-    watcher.probe.close()
-    await put_back(ctx, by, named, {named.node.name: before})
-    _expect_value(ctx, values, named.node.name, second)
+    await scene.end()
+    scene.expect_value(values, second)
 
 
 @case(
@@ -314,16 +338,15 @@ async def pause(ctx: Context) -> None:
     serial=True,
 )
 async def stop(ctx: Context) -> None:
-    named, by, before, (value,) = await _setting(ctx, 1)
-    watcher = await _Watcher.start(ctx, named)
+    scene = await _Scene.open(ctx, 1)
+    watcher = scene.watcher
     stopped, _ = await watcher.ask("STOP")
     if stopped.status != 200:
         raise Inconclusive(f"STOP was answered {stopped.status} {stopped.reason}")
-    await _change(by, named, value)
+    await scene.change(scene.values[0])
     seen = await watcher.quiet()
     go, late = await watcher.ask("GO")
-    watcher.probe.close()
-    await put_back(ctx, by, named, {named.node.name: before})
+    await scene.end()
     watcher.none_listing(seen + late, "R-RCTP-32", "after STOP")
     ctx.expect_status(go, 455, "R-RCTP-20")
 
@@ -335,11 +358,9 @@ async def stop(ctx: Context) -> None:
     serial=True,
 )
 async def no_echo(ctx: Context) -> None:
-    named = _changing(ctx, 2)
-    (by,) = await sessions(ctx, 1)
-    before = (await read(ctx, by, named))[named.node.name]
-    first, second = other_values(named.node, before, 2)
-    watcher = await _Watcher.start(ctx, named)
+    scene = await _Scene.open(ctx, 2, hold=False)  # the watcher writes first
+    first, second = scene.values
+    named, watcher = scene.named, scene.watcher
     acquired, early = await watcher.ask("ACQUIRE")
     if acquired.status != 200:
         raise Inconclusive(f"ACQUIRE {named.path} was answered {acquired.status}")
@@ -351,12 +372,11 @@ async def no_echo(ctx: Context) -> None:
     watcher.none_listing(seen + late, "R-RCTP-54", "after the session's own WRITE")
     if released.status != 200:
         raise Inconclusive(f"RELEASE was answered {released.status} {released.reason}")
-    await acquire(ctx, by, named.path)
-    await _change(by, named, second)
+    await acquire(ctx, scene.by, named.path)
+    await scene.change(second)
     values = await watcher.push()
-    watcher.probe.close()
-    await put_back(ctx, by, named, {named.node.name: before})
-    _expect_value(ctx, values, named.node.name, second)
+    await scene.end()
+    scene.expect_value(values, second)
 
 
 @case(
@@ -366,10 +386,10 @@ async def no_echo(ctx: Context) -> None:
     serial=True,
 )
 async def at_most_four(ctx: Context) -> None:
-    named, by, before, values = await _setting(ctx, _FLOOD)
-    watcher = await _Watcher.start(ctx, named)
+    scene = await _Scene.open(ctx, _FLOOD)
+    named, watcher, values = scene.named, scene.watcher, scene.values
     for value in values:
-        await _change(by, named, value)
+        await scene.change(value)
         await asyncio.sleep(_GAP * ctx.scale)
     unanswered: list[Request] = []
     while (request := await watcher.next(_SETTLE * ctx.scale)) is not None:
@@ -387,8 +407,7 @@ async def at_most_four(ctx: Context) -> None:
         more = len(watcher.seen) - len(unanswered)
         ctx.expect(more <= _FLOOD, f"{named.node.name} = {newest!r}", f"{last!r}", "R-RCTP-32")
         last = (await watcher.push()).get(named.node.name)
-    watcher.probe.close()
-    await put_back(ctx, by, named, {named.node.name: before})
+    await scene.end()
 
 
 @case(
@@ -398,11 +417,10 @@ async def at_most_four(ctx: Context) -> None:
     serial=True,
 )
 async def server_methods(ctx: Context) -> None:
-    named, by, before, values = await _setting(ctx, 3)
-    watcher = await _Watcher.start(ctx, named)
-    for value in values:
-        await _change(by, named, value)
-    methods = [r.method for r in await watcher.quiet()]  # each checked by `_Watcher._take`
-    watcher.probe.close()
-    await put_back(ctx, by, named, {named.node.name: before})
-    ctx.expect("WRITE" in methods, f"a WRITE of {named.target}", "no request", "R-RCTP-32")
+    scene = await _Scene.open(ctx, 3)
+    for value in scene.values:
+        await scene.change(value)
+    methods = [r.method for r in await scene.watcher.quiet()]  # each checked by `_Watcher._take`
+    await scene.end()
+    target = scene.named.target
+    ctx.expect("WRITE" in methods, f"a WRITE of {target}", "no request", "R-RCTP-32")

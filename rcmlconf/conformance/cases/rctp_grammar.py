@@ -11,11 +11,12 @@ from collections.abc import AsyncIterator
 from dataclasses import dataclass
 
 from rcmlconf.conformance.context import Context, expect_answer
+from rcmlconf.conformance.picks import RW, STRANGER, first, read_target, unknown_target, writable
 from rcmlconf.conformance.probes.control import ControlProbe, Fields, describe
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
 from rcmlconf.errors import ProtocolError
-from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, Permission
+from rcmlconf.rcml.model import AccessNode, AccessType, DataNode
 from rcmlconf.rctp.bodies import ValuesCodec
 from rcmlconf.rctp.fields import format_nodes
 from rcmlconf.rctp.messages import TEXT_TYPE, VALUES_TYPE, VERSION, Message, Request, Response
@@ -39,13 +40,12 @@ INNER_REQUEST = b"FROBNICATE * RCTP/2.0\r\nCSeq: 99\r\n\r\n"
     ["R-RCTP-8"],
 )
 async def bare_lf(ctx: Context) -> None:
-    site = ctx.target.site_path.encode()
-    for data in (
-        b"CONNECT " + site + b" RCTP/2.0\nCSeq: 1\n\n",
-        b"CONNECT " + site + b" RCTP/2.0\r\nCSeq: 1\nUser-Agent: rcmlconf\r\n\r\n",
-        b"CONNECT " + site + b" RCTP/2.0\r\nCSeq: 1\rUser-Agent: rcmlconf\r\n\r\n",
-    ):
-        await _refused_and_closed(ctx, await ctx.control(), data, 400)
+    await _broken_connect(
+        ctx,
+        b" RCTP/2.0\nCSeq: 1\n\n",
+        b" RCTP/2.0\r\nCSeq: 1\nUser-Agent: rcmlconf\r\n\r\n",
+        b" RCTP/2.0\r\nCSeq: 1\rUser-Agent: rcmlconf\r\n\r\n",
+    )
 
 
 @case(
@@ -54,11 +54,9 @@ async def bare_lf(ctx: Context) -> None:
     ["R-RCTP-8"],
 )
 async def obs_fold(ctx: Context) -> None:
-    site = ctx.target.site_path.encode()
-    data = (
-        b"CONNECT " + site + b" RCTP/2.0\r\nCSeq: 1\r\nUser-Agent: rcmlconf\r\n conformance\r\n\r\n"
+    await _broken_connect(
+        ctx, b" RCTP/2.0\r\nCSeq: 1\r\nUser-Agent: rcmlconf\r\n conformance\r\n\r\n"
     )
-    await _refused_and_closed(ctx, await ctx.control(), data, 400)
 
 
 @case(
@@ -67,9 +65,7 @@ async def obs_fold(ctx: Context) -> None:
     ["R-RCTP-8"],
 )
 async def space_before_colon(ctx: Context) -> None:
-    site = ctx.target.site_path.encode()
-    data = b"CONNECT " + site + b" RCTP/2.0\r\nCSeq: 1\r\nUser-Agent : rcmlconf\r\n\r\n"
-    await _refused_and_closed(ctx, await ctx.control(), data, 400)
+    await _broken_connect(ctx, b" RCTP/2.0\r\nCSeq: 1\r\nUser-Agent : rcmlconf\r\n\r\n")
 
 
 @case(
@@ -105,16 +101,16 @@ async def cseq_not_number(ctx: Context) -> None:
 async def repeated_fields(ctx: Context) -> None:
     probe = await ctx.session()
     assert probe.session is not None
-    readable = _readable(ctx)
+    readable = read_target(ctx)
     once: list[tuple[str, str, tuple[str, str], bytes]] = [
         ("READ", readable, ("Session", probe.session), b""),
-        ("WRITE", _missing(ctx), ("Content-Type", VALUES_TYPE), b"\0"),
+        ("WRITE", unknown_target(ctx), ("Content-Type", VALUES_TYPE), b"\0"),
     ]
-    event = _first(ctx, AccessType.EVENT)
+    event = first(ctx, AccessType.EVENT)
     if event is not None and event.readable():
         nodes = ("Nodes", format_nodes([event.readable()[0].name]))
         once.append(("READ", format_target(event.path), nodes, b""))
-    stream = _first(ctx, AccessType.STREAM)
+    stream = first(ctx, AccessType.STREAM)
     if stream is not None:
         once.append(("SETUP", format_target(stream.path), ("Transport", "udp;client_port=9"), b""))
     cseq = probe.cseq + 1
@@ -139,7 +135,7 @@ async def repeated_fields(ctx: Context) -> None:
     ["R-RCTP-8"],
 )
 async def content_length_invalid(ctx: Context) -> None:
-    head = f"WRITE {_missing(ctx)} {VERSION}\r\nCSeq: 1\r\n".encode()
+    head = f"WRITE {unknown_target(ctx)} {VERSION}\r\nCSeq: 1\r\n".encode()
     values = ("abc", "-3", "+3", "0x3", "3 3", "3, 3", "3.0", "1e3", "")
     lengths = [[b"Content-Length: " + v.encode()] for v in values]
     lengths.append([b"Content-Length: 3", b"Content-Length: 4"])
@@ -156,7 +152,7 @@ async def content_length_invalid(ctx: Context) -> None:
 )
 async def body_split_everywhere(ctx: Context) -> None:
     probe = await ctx.session()
-    missing = _missing(ctx)
+    missing = unknown_target(ctx)
     cut = 0
     while True:
         cut += 1
@@ -181,10 +177,10 @@ async def body_split_everywhere(ctx: Context) -> None:
 )
 async def write_without_content_length(ctx: Context) -> None:
     probe = await ctx.session()
-    target, held, fields = _writable(ctx)
-    typed = [*fields, ("Content-Type", "application/rctp-values")]
-    async with _holding(ctx, probe, held):
-        await probe.send(_request(probe, "WRITE", target, typed))
+    named = writable(ctx)
+    typed = [*named.fields(), ("Content-Type", "application/rctp-values")]
+    async with _holding(ctx, probe, named.path):
+        await probe.send(_request(probe, "WRITE", named.target, typed))
         expect_answer(ctx, await probe.response(), 411, "WRITE without Content-Length")
 
 
@@ -196,11 +192,11 @@ async def write_without_content_length(ctx: Context) -> None:
 )
 async def unsupported_content_type(ctx: Context) -> None:
     probe = await ctx.session()
-    target, held, fields = _writable(ctx)
-    async with _holding(ctx, probe, held):
+    named = writable(ctx)
+    async with _holding(ctx, probe, named.path):
         for media in ("text/plain; charset=utf-8", "application/octet-stream"):
-            typed = [*fields, ("Content-Type", media)]
-            answer = await probe.request("WRITE", target, typed, b"\0\0\0\0")
+            typed = [*named.fields(), ("Content-Type", media)]
+            answer = await probe.request("WRITE", named.target, typed, b"\0\0\0\0")
             expect_answer(ctx, answer, 415, f"WRITE with Content-Type {media}")
 
 
@@ -210,11 +206,9 @@ async def unsupported_content_type(ctx: Context) -> None:
     ["R-RCTP-8"],
 )
 async def transfer_encoding(ctx: Context) -> None:
-    site = ctx.target.site_path.encode()
-    data = (
-        b"CONNECT " + site + b" RCTP/2.0\r\nCSeq: 1\r\nTransfer-Encoding: chunked\r\n\r\n0\r\n\r\n"
+    await _broken_connect(
+        ctx, b" RCTP/2.0\r\nCSeq: 1\r\nTransfer-Encoding: chunked\r\n\r\n0\r\n\r\n"
     )
-    await _refused_and_closed(ctx, await ctx.control(), data, 400)
 
 
 @case(
@@ -292,7 +286,7 @@ async def header_section_limit(ctx: Context) -> None:
 )
 async def content_length_limit(ctx: Context) -> None:
     probe = await ctx.session()
-    missing = _missing(ctx)
+    missing = unknown_target(ctx)
     await probe.send(_request(probe, "WRITE", missing, (), bytes(BODY)))
     answer = await probe.response()
     expect_answer(ctx, answer, 404, "WRITE of a path that names no node, 4194304-byte body")
@@ -309,7 +303,7 @@ async def content_length_limit(ctx: Context) -> None:
 )
 async def bad_targets(ctx: Context) -> None:
     probe = await ctx.session()
-    readable = _readable(ctx)
+    readable = read_target(ctx)
     targets = (
         b"foo",
         b"**",
@@ -349,7 +343,7 @@ async def bad_targets(ctx: Context) -> None:
 )
 async def percent_encoded_target(ctx: Context) -> None:
     probe = await ctx.session()
-    path = _readable(ctx, encoded=False)
+    path = read_target(ctx, encoded=False)
     for hexes in ("%{:02X}", "%{:02x}"):
         encoded = "".join(
             "/" + "".join(hexes.format(byte) for byte in name.encode())
@@ -365,16 +359,16 @@ async def percent_encoded_target(ctx: Context) -> None:
 )
 async def answers_echo_cseq(ctx: Context) -> None:
     probe = await ctx.session()
-    normal = _readable(ctx)
+    normal = read_target(ctx)
     requests: list[tuple[bytes, int]] = [
         (_request(probe, "READ", normal), 200),
-        (_request(probe, "READ", _missing(ctx)), 404),
+        (_request(probe, "READ", unknown_target(ctx)), 404),
         (_request(probe, "FROBNICATE", "*"), 501),
         (_request(probe, "READ", normal, version="RCTP/2.1"), 505),
         (_request(probe, "READ", "/1abc"), 400),
         (_request(probe, "READ", "*"), 405),
-        (_request(probe, "GO", _missing(ctx)), 455),
-        (_request(probe, "READ", normal, [("Session", "rcmlconf-not-a-session")]), 454),
+        (_request(probe, "GO", unknown_target(ctx)), 455),
+        (_request(probe, "READ", normal, [("Session", STRANGER)]), 454),
         (_request(probe, "CONNECT", ctx.target.site_path), 200),
     ]
     for cseq, (data, status) in enumerate(requests, start=2):
@@ -393,10 +387,10 @@ async def answers_echo_cseq(ctx: Context) -> None:
 )
 async def answers_well_formed(ctx: Context) -> None:
     probe = await ctx.session()
-    readable = _readable(ctx)
+    readable = read_target(ctx)
     for method, target in (
         ("READ", readable),
-        ("READ", _missing(ctx)),
+        ("READ", unknown_target(ctx)),
         ("READ", "*"),
         ("FROBNICATE", "*"),
         ("CONNECT", ctx.target.site_path),
@@ -424,8 +418,8 @@ async def answers_well_formed(ctx: Context) -> None:
 )
 async def pipelined_mixed(ctx: Context) -> None:
     probe = await ctx.session()
-    normal = _readable(ctx)
-    missing = _missing(ctx)
+    normal = read_target(ctx)
+    missing = unknown_target(ctx)
     site = ctx.target.site_path
     expected: list[tuple[str, int, int | None]] = []
     data = b""
@@ -439,7 +433,7 @@ async def pipelined_mixed(ctx: Context) -> None:
             (_request(probe, "READ", "/1abc"), 400),
             (_request(probe, "READ", "*"), 405),
             (_request(probe, "GO", missing), 455),
-            (_request(probe, "READ", normal, [("Session", "rcmlconf-not-a-session")]), 454),
+            (_request(probe, "READ", normal, [("Session", STRANGER)]), 454),
             (_request(probe, "CONNECT", site), 200),
             (_request(probe, "CONNECT", site.rstrip("/") + "/rcmlconf-no-robot"), 404),
             (_request(probe, "SETUP", missing), 404),
@@ -497,7 +491,7 @@ async def not_rctp_version(ctx: Context) -> None:
 async def field_syntax_variants(ctx: Context) -> None:
     probe = await ctx.control()
     site = ctx.target.site_path
-    normal = _readable(ctx)
+    normal = read_target(ctx)
     await probe.send(
         f"CONNECT {site} {VERSION}\r\ncseq:1\r\nuser-agent: \t rcmlconf \t\r\n\r\n".encode()
     )
@@ -593,44 +587,9 @@ def _request(
     return data
 
 
-def _missing(ctx: Context) -> str:
-    """A path that is an XML Name but names no node of the robot."""
-    path = "/rcmlconfNoSuchNode"
-    while ctx.robot.node(path) is not None:
-        path += "X"
-    return path
-
-
-def _readable(ctx: Context, *, encoded: bool = True) -> str:
-    """A READ target: a readable data node of a normal access, else a readable event access."""
-    try:
-        path = ctx.data(AccessType.NORMAL, Permission.READ).path
-    except NotApplicable:
-        path = ctx.access(AccessType.EVENT, where=lambda access: bool(access.readable())).path
-    return format_target(path) if encoded else path
-
-
-def _first(ctx: Context, kind: AccessType) -> AccessNode | None:
-    return next((a for a in ctx.robot.access_nodes() if a.type is kind), None)
-
-
 def _filler(size: int) -> str:
     """`size` characters of an XML Name that names nothing."""
     return ("rcmlconf" + "x" * size)[:size]
-
-
-def _writable(ctx: Context) -> tuple[str, str, Fields]:
-    """A WRITE target (a normal access's writable data node, else an event access with a
-    writable node), the path to ACQUIRE for it, and the fields a WRITE of it needs."""
-    for access in ctx.robot.access_nodes():
-        if access.type is AccessType.NORMAL:
-            for data in access.writable():
-                return format_target(data.path), data.path, []
-    for access in ctx.robot.access_nodes():
-        if access.type is AccessType.EVENT and access.writable():
-            nodes = [("Nodes", format_nodes([access.writable()[0].name]))]
-            return format_target(access.path), access.path, nodes
-    raise NotApplicable("the robot has no data node a WRITE may write")
 
 
 @contextlib.asynccontextmanager
@@ -658,6 +617,14 @@ async def _refused_and_closed(
     expect_answer(ctx, answer, status, f"the answer to {what!r}", requirement)
     closed = await probe.closes()
     ctx.expect(closed, "the connection closed after the answer", "it stayed open", requirement)
+
+
+async def _broken_connect(ctx: Context, *rests: bytes) -> None:
+    """CONNECT of the site path and each of `rests`, which breaks the grammar, on a connection of
+    its own: answered 400, then the connection closed."""
+    site = ctx.target.site_path.encode()
+    for rest in rests:
+        await _refused_and_closed(ctx, await ctx.control(), b"CONNECT " + site + rest, 400)
 
 
 async def _answer(probe: ControlProbe, requirement: str) -> Response:
@@ -733,10 +700,9 @@ def _changeable(ctx: Context) -> tuple[AccessNode, DataNode]:
         if access.type is not AccessType.EVENT:
             continue
         for node in access.data:
-            both = Permission.READ | Permission.WRITE
             kind = node.type.base.kind
             ranged = kind in (Kind.INTEGER, Kind.FLOAT) and None not in (node.minimum, node.maximum)
-            if both in node.permission and node.type.count == 1 and (kind is Kind.BOOL or ranged):
+            if RW in node.permission and node.type.count == 1 and (kind is Kind.BOOL or ranged):
                 return access, node
     raise NotApplicable("the robot has no event access with a writable bool or ranged number")
 

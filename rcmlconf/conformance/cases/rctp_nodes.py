@@ -2,11 +2,11 @@
 target that cannot be read or written (specs/rctp-2.0.md §3 D-RCTP-25, D-RCTP-26, §5 D-RCTP-17,
 R-RCTP-26 to R-RCTP-31).
 
-The helpers at the top (what a READ or WRITE names, valid and invalid values of a node, checked
-bodies) are shared with `rctp_privilege` and `rctp_events`. Nodes are picked from the robot's
-RCML by kind and permission, never by name; a robot without the kind of node a case needs makes
-it not applicable. A WRITE needs the privilege before its body is judged (D-RCTP-25), and the
-privilege is the whole server's: every case here that ACQUIREs runs alone (`serial`).
+The helpers at the top (valid and invalid values of a node, checked bodies, READ, WRITE and the
+privilege as preconditions) are shared with `rctp_privilege` and `rctp_events`; the nodes are
+picked from the robot's RCML (`conformance.picks`). A WRITE needs the privilege before its body
+is judged (D-RCTP-25), and the privilege is the whole server's: every case here that ACQUIREs
+runs alone (`serial`).
 """
 
 from __future__ import annotations
@@ -15,10 +15,18 @@ import asyncio
 import contextlib
 import math
 import struct
-from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Iterator, Mapping, Sequence
 
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.picks import (
+    MISSING,
+    RW,
+    Named,
+    event_access,
+    missing_path,
+    pick,
+    writable,
+)
 from rcmlconf.conformance.probes.control import ControlProbe, Fields
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
@@ -31,9 +39,6 @@ from rcmlconf.rctp.messages import TEXT_TYPE, VALUES_TYPE, Message, Response
 from rcmlconf.rctp.targets import ROOT, format_target
 from rcmlconf.values import Kind, Scalar, Value
 
-RW = Permission.READ | Permission.WRITE
-#: A name no RCML node of a sane robot has; the cases check the model anyway.
-MISSING = "rcmlconfNoSuchNode"
 _FLOAT32 = struct.Struct(">f")
 #: Distinct values `values_for` offers at most.
 _VARIETY = 16
@@ -62,78 +67,6 @@ ALLOW: dict[TargetKind, tuple[str, ...]] = {
 }
 
 # -- what a READ or WRITE names ----------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Named:
-    """The target of a READ or WRITE and the data nodes its body holds (D-RCTP-17): one data node
-    of a normal access, or an event access with `Nodes`."""
-
-    #: The decoded path of the target: the data node, or the event access.
-    path: str
-    #: Canonical order (D-RCML-4).
-    nodes: tuple[DataNode, ...]
-    event: bool
-
-    @property
-    def target(self) -> str:
-        return format_target(self.path)
-
-    @property
-    def node(self) -> DataNode:
-        return self.nodes[0]
-
-    def fields(self) -> list[tuple[str, str]]:
-        return [("Nodes", format_nodes([n.name for n in self.nodes]))] if self.event else []
-
-    def codec(self, rule: str) -> ValuesCodec[DataNode]:
-        return ValuesCodec(self.nodes, self.path, rule)
-
-    def encode(self, values: Mapping[str, Value]) -> bytes:
-        return self.codec("R-RCTP-28").encode(values)
-
-
-def pick(
-    ctx: Context,
-    fits: Callable[[DataNode], bool],
-    kinds: Sequence[AccessType] = (AccessType.NORMAL, AccessType.EVENT),
-    what: str = "data node",
-) -> Named:
-    """One data node that `fits`, named as READ and WRITE name it: a data node of a normal
-    access if the robot has one, else one of an event access (`kinds`, in that order)."""
-    accesses = list(ctx.robot.access_nodes())
-    for kind in kinds:
-        for access in accesses:
-            node = next((d for d in access.data if fits(d)), None)
-            if access.type is kind and node is not None:
-                if kind is AccessType.NORMAL:
-                    return Named(node.path, (node,), event=False)
-                return Named(access.path, (node,), event=True)
-    where = " or ".join(k.value for k in kinds)
-    raise NotApplicable(f"the robot has no {what} of a {where} access")
-
-
-def event_access(ctx: Context, fits: Callable[[AccessNode], bool], what: str) -> AccessNode:
-    found = next(
-        (a for a in ctx.robot.access_nodes() if a.type is AccessType.EVENT and fits(a)), None
-    )
-    if found is None:
-        raise NotApplicable(f"the robot has no event access {what}")
-    return found
-
-
-def missing_path(ctx: Context) -> str:
-    """A path below an existing access that names no node."""
-    access = next(iter(ctx.robot.access_nodes()), None)
-    base = access.path if access is not None else ""
-    path = f"{base}/{MISSING}"
-    if ctx.robot.node(path) is not None:
-        raise NotApplicable(f"the robot has a node {path}")
-    return path
-
-
-def parent_of(path: str) -> str:
-    return path.rsplit("/", 1)[0] or ROOT
 
 
 def percent_encoded(path: str) -> str:
@@ -601,18 +534,21 @@ async def write_stream_data(ctx: Context) -> None:
 # -- the permission: 403 (R-RCTP-27) -----------------------------------------------------------
 
 
+async def _unwritable(ctx: Context, kind: AccessType) -> None:
+    """A WRITE of a node without w of an access of `kind`, not holding it, is answered 403."""
+    named = pick(ctx, lambda d: Permission.WRITE not in d.permission, (kind,), "read-only node")
+    probe = await ctx.session()
+    answer = await write(probe, named, {named.node.name: values_for(named.node)[0]})
+    ctx.expect_status(answer, 403)
+
+
 @case(
     "rctp/node/write-unwritable",
     "WRITE of a data node without w is answered 403, not 470: the permission is checked first",
     ["R-RCTP-27", "R-RCML-31"],
 )
 async def write_unwritable(ctx: Context) -> None:
-    named = pick(
-        ctx, lambda d: Permission.WRITE not in d.permission, (AccessType.NORMAL,), "read-only node"
-    )
-    probe = await ctx.session()
-    answer = await write(probe, named, {named.node.name: values_for(named.node)[0]})
-    ctx.expect_status(answer, 403)
+    await _unwritable(ctx, AccessType.NORMAL)
 
 
 @case(
@@ -621,19 +557,16 @@ async def write_unwritable(ctx: Context) -> None:
     ["R-RCTP-27", "R-RCML-31"],
 )
 async def write_event_unwritable(ctx: Context) -> None:
-    named = pick(
-        ctx, lambda d: Permission.WRITE not in d.permission, (AccessType.EVENT,), "read-only node"
-    )
-    probe = await ctx.session()
-    answer = await write(probe, named, {named.node.name: values_for(named.node)[0]})
-    ctx.expect_status(answer, 403)
+    await _unwritable(ctx, AccessType.EVENT)
 
 
 # -- WRITE bodies: 411, 415, 422, 400 (serial: they hold the privilege) ------------------------
 
 
-def _writable(ctx: Context) -> Named:
-    return pick(ctx, lambda d: Permission.WRITE in d.permission, what="writable data node")
+def _valid_write(ctx: Context) -> tuple[Named, bytes]:
+    """A writable node, and a valid body of a WRITE of it."""
+    named = writable(ctx)
+    return named, named.encode({named.node.name: values_for(named.node)[-1]})
 
 
 async def _refused(
@@ -660,8 +593,7 @@ async def _refused(
     serial=True,
 )
 async def write_short(ctx: Context) -> None:
-    named = _writable(ctx)
-    body = named.encode({named.node.name: values_for(named.node)[-1]})
+    named, body = _valid_write(ctx)
     await _refused(ctx, named, body[:-1], 422)
 
 
@@ -672,8 +604,7 @@ async def write_short(ctx: Context) -> None:
     serial=True,
 )
 async def write_long(ctx: Context) -> None:
-    named = _writable(ctx)
-    body = named.encode({named.node.name: values_for(named.node)[-1]})
+    named, body = _valid_write(ctx)
     await _refused(ctx, named, body + b"\x00", 422)
 
 
@@ -720,8 +651,7 @@ async def write_out_of_range(ctx: Context) -> None:
     serial=True,
 )
 async def write_media_type(ctx: Context) -> None:
-    named = _writable(ctx)
-    body = named.encode({named.node.name: values_for(named.node)[-1]})
+    named, body = _valid_write(ctx)
     await _refused(ctx, named, body, 415, [("Content-Type", TEXT_TYPE)])
 
 
@@ -732,7 +662,7 @@ async def write_media_type(ctx: Context) -> None:
     serial=True,
 )
 async def write_no_length(ctx: Context) -> None:
-    named = _writable(ctx)
+    named = writable(ctx)
     await _refused(ctx, named, b"", 411, [("Content-Type", VALUES_TYPE)])
 
 

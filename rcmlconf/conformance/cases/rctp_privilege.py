@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import asyncio
 import socket
+from typing import NamedTuple
 
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.picks import RW, Named, missing_path, parent_of, pick
 from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
@@ -22,18 +24,7 @@ from rcmlconf.rctp.fields import Transport
 from rcmlconf.rctp.messages import Response
 from rcmlconf.rctp.targets import ROOT, STAR, format_target
 
-from .rctp_nodes import (
-    RW,
-    Named,
-    acquire,
-    check_allow,
-    missing_path,
-    parent_of,
-    pick,
-    read,
-    sessions,
-    write,
-)
+from .rctp_nodes import acquire, check_allow, read, sessions, write
 
 #: How long a case waits for a closed connection to end its session on the server.
 _CLOSE_WAIT = 1.0
@@ -48,11 +39,24 @@ def _writable(ctx: Context) -> Named:
     return pick(ctx, lambda d: RW in d.permission, what="readable and writable data node")
 
 
-def _paths(ctx: Context) -> tuple[str, str, str]:
-    """A data node, its access and the group above that (or `/`): (node, access, above)."""
+class _Paths(NamedTuple):
+    """A data node, its access and the group above that (or `/`)."""
+
+    node: str
+    access: str
+    above: str
+
+
+def _paths(ctx: Context) -> _Paths:
     access = ctx.access(where=lambda a: bool(a.data))
-    node = access.data[0].path
-    return node, access.path, parent_of(access.path)
+    return _Paths(access.data[0].path, access.path, parent_of(access.path))
+
+
+async def _held(ctx: Context, path: str) -> tuple[ControlProbe, ControlProbe]:
+    """Two sessions, once no session holds anything: the first (the holder) holding `path`."""
+    holder, other = await sessions(ctx, 2)
+    await acquire(ctx, holder, path)
+    return holder, other
 
 
 async def _ask(probe: ControlProbe, method: str, path: str) -> Response:
@@ -62,6 +66,21 @@ async def _ask(probe: ControlProbe, method: str, path: str) -> Response:
 async def _same_value(ctx: Context, probe: ControlProbe, named: Named) -> Response:
     """WRITE of the value the node holds: allowed or refused, it changes nothing."""
     return await write(probe, named, await read(ctx, probe, named))
+
+
+async def _overlapping(ctx: Context, held: str, *asked: str) -> None:
+    """While one session holds `held`, another's ACQUIRE of each path of `asked`, all
+    overlapping it, is answered 471."""
+    _, other = await _held(ctx, held)
+    for path in dict.fromkeys(asked):  # the group above an access may be `/` itself
+        ctx.expect_status(await _ask(other, "ACQUIRE", path), 471)
+
+
+async def _bye(probe: ControlProbe) -> None:
+    """BYE as a precondition: inconclusive if refused (the rctp/session cases check it)."""
+    bye = await probe.request("BYE", STAR)
+    if bye.status != 200:
+        raise Inconclusive(f"BYE was answered {bye.status} {bye.reason}")
 
 
 # -- the privilege and WRITE (R-RCTP-34) -------------------------------------------------------
@@ -113,8 +132,7 @@ async def acquire_above_write(ctx: Context) -> None:
 )
 async def write_held_by_other(ctx: Context) -> None:
     named = _writable(ctx)
-    holder, other = await sessions(ctx, 2)
-    await acquire(ctx, holder, named.path)
+    _, other = await _held(ctx, named.path)
     ctx.expect_status(await _same_value(ctx, other, named), 471)
 
 
@@ -126,8 +144,7 @@ async def write_held_by_other(ctx: Context) -> None:
 )
 async def read_not_acquired(ctx: Context) -> None:
     named = pick(ctx, lambda d: Permission.READ in d.permission)
-    holder, reader = await sessions(ctx, 2)
-    await acquire(ctx, holder, ROOT)
+    _, reader = await _held(ctx, ROOT)
     answer = await reader.request("READ", named.target, named.fields())
     ctx.expect_status(answer, 200)
 
@@ -142,10 +159,8 @@ async def read_not_acquired(ctx: Context) -> None:
     serial=True,
 )
 async def acquire_busy(ctx: Context) -> None:
-    _, access, _ = _paths(ctx)
-    holder, other = await sessions(ctx, 2)
-    await acquire(ctx, holder, access)
-    ctx.expect_status(await _ask(other, "ACQUIRE", access), 471)
+    paths = _paths(ctx)
+    await _overlapping(ctx, paths.access, paths.access)
 
 
 @case(
@@ -155,11 +170,8 @@ async def acquire_busy(ctx: Context) -> None:
     serial=True,
 )
 async def acquire_below_held(ctx: Context) -> None:
-    node, access, above = _paths(ctx)
-    holder, other = await sessions(ctx, 2)
-    await acquire(ctx, holder, above)
-    ctx.expect_status(await _ask(other, "ACQUIRE", access), 471)
-    ctx.expect_status(await _ask(other, "ACQUIRE", node), 471)
+    paths = _paths(ctx)
+    await _overlapping(ctx, paths.above, paths.access, paths.node)
 
 
 @case(
@@ -169,11 +181,8 @@ async def acquire_below_held(ctx: Context) -> None:
     serial=True,
 )
 async def acquire_above_held(ctx: Context) -> None:
-    node, access, above = _paths(ctx)
-    holder, other = await sessions(ctx, 2)
-    await acquire(ctx, holder, node)
-    for path in dict.fromkeys((access, above, ROOT)):
-        ctx.expect_status(await _ask(other, "ACQUIRE", path), 471)
+    paths = _paths(ctx)
+    await _overlapping(ctx, paths.node, paths.access, paths.above, ROOT)
 
 
 @case(
@@ -187,8 +196,7 @@ async def acquire_disjoint(ctx: Context) -> None:
     if len(accesses) < 2:
         raise NotApplicable("the robot has fewer than two access nodes")
     first, second = accesses[:2]
-    holder, other = await sessions(ctx, 2)
-    await acquire(ctx, holder, first)
+    _, other = await _held(ctx, first)
     ctx.expect_status(await _ask(other, "ACQUIRE", second), 200)
 
 
@@ -200,8 +208,7 @@ async def acquire_disjoint(ctx: Context) -> None:
 )
 async def acquire_again(ctx: Context) -> None:
     _, access, above = _paths(ctx)
-    holder, other = await sessions(ctx, 2)
-    await acquire(ctx, holder, above)
+    holder, other = await _held(ctx, above)
     ctx.expect_status(await _ask(holder, "ACQUIRE", above), 200)
     ctx.expect_status(await _ask(holder, "ACQUIRE", access), 200)
     # Changed nothing: one RELEASE of the path acquired gives back everything below it.
@@ -265,7 +272,7 @@ async def acquire_race(ctx: Context) -> None:
     serial=True,
 )
 async def release_not_acquired(ctx: Context) -> None:
-    _, access, _ = _paths(ctx)
+    access = _paths(ctx).access
     (probe,) = await sessions(ctx, 1)
     ctx.expect_status(await _ask(probe, "RELEASE", access), 470)
 
@@ -277,9 +284,8 @@ async def release_not_acquired(ctx: Context) -> None:
     serial=True,
 )
 async def release_other(ctx: Context) -> None:
-    _, access, _ = _paths(ctx)
-    holder, other = await sessions(ctx, 2)
-    await acquire(ctx, holder, access)
+    access = _paths(ctx).access
+    _, other = await _held(ctx, access)
     ctx.expect_status(await _ask(other, "RELEASE", access), 470)
     ctx.expect_status(await _ask(other, "ACQUIRE", access), 471, "R-RCTP-33")
 
@@ -292,8 +298,7 @@ async def release_other(ctx: Context) -> None:
 )
 async def release(ctx: Context) -> None:
     named = _writable(ctx)
-    holder, other = await sessions(ctx, 2)
-    await acquire(ctx, holder, named.path)
+    holder, other = await _held(ctx, named.path)
     ctx.expect_status(await _ask(holder, "RELEASE", named.path), 200)
     ctx.expect_status(await _same_value(ctx, holder, named), 470, "R-RCTP-34")
     ctx.expect_status(await _ask(other, "ACQUIRE", named.path), 200, "R-RCTP-33")
@@ -355,12 +360,9 @@ async def release_writing_stream(ctx: Context) -> None:
     serial=True,
 )
 async def bye_releases(ctx: Context) -> None:
-    _, access, _ = _paths(ctx)
-    holder, other = await sessions(ctx, 2)
-    await acquire(ctx, holder, access)
-    bye = await holder.request("BYE", STAR)
-    if bye.status != 200:
-        raise Inconclusive(f"BYE was answered {bye.status} {bye.reason}")
+    access = _paths(ctx).access
+    holder, other = await _held(ctx, access)
+    await _bye(holder)
     ctx.expect_status(await _ask(other, "ACQUIRE", access), 200)
 
 
@@ -371,9 +373,8 @@ async def bye_releases(ctx: Context) -> None:
     serial=True,
 )
 async def close_releases(ctx: Context) -> None:
-    _, access, _ = _paths(ctx)
-    holder, other = await sessions(ctx, 2)
-    await acquire(ctx, holder, access)
+    access = _paths(ctx).access
+    holder, other = await _held(ctx, access)
     holder.close()
     # The server learns of the close when it reads it: ask again for a moment.
     deadline = asyncio.get_running_loop().time() + _CLOSE_WAIT * ctx.scale
@@ -393,9 +394,6 @@ async def close_releases(ctx: Context) -> None:
 )
 async def write_after_bye(ctx: Context) -> None:
     named = _writable(ctx)
-    holder, other = await sessions(ctx, 2)
-    await acquire(ctx, holder, named.path)
-    bye = await holder.request("BYE", STAR)
-    if bye.status != 200:
-        raise Inconclusive(f"BYE was answered {bye.status} {bye.reason}")
+    holder, other = await _held(ctx, named.path)
+    await _bye(holder)
     ctx.expect_status(await _same_value(ctx, other, named), 470)

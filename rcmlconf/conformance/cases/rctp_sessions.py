@@ -9,10 +9,11 @@ import itertools
 import re
 
 from rcmlconf.conformance.context import Context, expect_answer
+from rcmlconf.conformance.picks import STRANGER, read_target
 from rcmlconf.conformance.probes.control import ControlProbe, Fields, describe
 from rcmlconf.conformance.registry import case
-from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
-from rcmlconf.rcml.model import AccessType, Permission
+from rcmlconf.conformance.verdicts import Failed, Inconclusive
+from rcmlconf.rcml.model import Permission
 from rcmlconf.rctp.messages import VERSION, Request, Response
 from rcmlconf.rctp.targets import format_target
 
@@ -22,8 +23,6 @@ SESSION = re.compile(r"([A-Za-z0-9$\-_.+]{8,64})(?:;[ \t]*timeout=([0-9]{1,5}))?
 LONGEST_TIMEOUT = 5
 #: R-RCTP-23: how long the sender of BYE waits for its answer.
 BYE_WAIT = 5.0
-#: A session ID no server hands out, of the right form.
-STRANGER = "rcmlconf-not-a-session"
 
 
 @case(
@@ -68,13 +67,8 @@ async def ids_differ(ctx: Context) -> None:
     ["R-RCTP-17"],
 )
 async def session_before_connect(ctx: Context) -> None:
-    other = await ctx.session()
-    assert other.session is not None
     probe = await ctx.control()
-    normal = _readable(ctx)
-    for session in (STRANGER, other.session):
-        answer = await probe.request("READ", normal, [("Session", session)])
-        expect_answer(ctx, answer, 454, f"READ before CONNECT, with Session: {session}")
+    await _foreign_sessions(ctx, probe, "READ before CONNECT")
     expect_answer(ctx, await probe.connect(ctx.target.site_path), 200, "CONNECT afterwards")
 
 
@@ -85,14 +79,10 @@ async def session_before_connect(ctx: Context) -> None:
     ["R-RCTP-19"],
 )
 async def wrong_session(ctx: Context) -> None:
-    other = await ctx.session()
-    assert other.session is not None
     probe = await ctx.session()
-    normal = _readable(ctx)
-    for session in (STRANGER, other.session):
-        answer = await probe.request("READ", normal, [("Session", session)])
-        expect_answer(ctx, answer, 454, f"READ with Session: {session}")
-    expect_answer(ctx, await probe.request("READ", normal), 200, "READ with the session")
+    await _foreign_sessions(ctx, probe, "READ")
+    answer = await probe.request("READ", read_target(ctx))
+    expect_answer(ctx, answer, 200, "READ with the session")
 
 
 @case(
@@ -102,7 +92,7 @@ async def wrong_session(ctx: Context) -> None:
 )
 async def missing_session(ctx: Context) -> None:
     probe = await ctx.session()
-    normal = _readable(ctx)
+    normal = read_target(ctx)
     await probe.send(_sessionless(probe, "READ", normal))
     expect_answer(ctx, await probe.response(), 454, "READ without Session")
     expect_answer(ctx, await probe.request("READ", normal), 200, "READ with the session")
@@ -132,7 +122,7 @@ async def second_connect(ctx: Context) -> None:
     site = ctx.target.site_path
     await probe.send(_sessionless(probe, "CONNECT", site))
     expect_answer(ctx, await probe.response(), 455, "a second CONNECT without Session")
-    normal = _readable(ctx)
+    normal = read_target(ctx)
     expect_answer(ctx, await probe.request("READ", normal), 200, "READ with the first session")
 
 
@@ -146,7 +136,7 @@ async def connect_unknown_site(ctx: Context) -> None:
     site = ctx.target.site_path
     nowhere = site.rstrip("/") + "/rcmlconf-no-robot"
     expect_answer(ctx, await probe.connect(nowhere), 404, f"CONNECT {nowhere}", "R-RCTP-26")
-    normal = _readable(ctx)
+    normal = read_target(ctx)
     answer = await probe.request("READ", normal, [("Session", STRANGER)])
     expect_answer(ctx, answer, 454, "READ after the refused CONNECT", "R-RCTP-17")
     expect_answer(ctx, await probe.connect(site), 200, f"CONNECT {site}")
@@ -226,7 +216,7 @@ async def timeout_bye(ctx: Context) -> None:
 )
 async def keepalive(ctx: Context) -> None:
     probe, timeout, _ = await _timed_session(ctx)
-    normal = _readable(ctx)
+    normal = read_target(ctx)
     for method, target in (("READ", normal), ("CONNECT", ctx.target.site_path)):
         outcome = await probe.outcome(0.6 * timeout)
         ctx.expect(outcome == "silent", "nothing before the timeout", outcome, "R-RCTP-21")
@@ -377,13 +367,15 @@ async def _acquired_soon(ctx: Context, probe: ControlProbe, path: str, when: str
     await probe.request("RELEASE", path)
 
 
-def _readable(ctx: Context) -> str:
-    """A READ target: a readable data node of a normal access, else a readable event access."""
-    try:
-        path = ctx.data(AccessType.NORMAL, Permission.READ).path
-    except NotApplicable:
-        path = ctx.access(AccessType.EVENT, where=lambda access: bool(access.readable())).path
-    return format_target(path)
+async def _foreign_sessions(ctx: Context, probe: ControlProbe, what: str) -> None:
+    """READs naming a session no server hands out, then another connection's, are answered 454
+    (`what` says which READ)."""
+    other = await ctx.session()
+    assert other.session is not None
+    normal = read_target(ctx)
+    for session in (STRANGER, other.session):
+        answer = await probe.request("READ", normal, [("Session", session)])
+        expect_answer(ctx, answer, 454, f"{what} with Session: {session}")
 
 
 def _sessionless(probe: ControlProbe, method: str, target: str, fields: Fields = ()) -> bytes:

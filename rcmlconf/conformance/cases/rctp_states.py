@@ -7,6 +7,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from rcmlconf.conformance.context import Context, expect_answer
+from rcmlconf.conformance.picks import STRANGER, first, read_target, unknown_target
 from rcmlconf.conformance.probes.control import ControlProbe, Fields
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
@@ -24,8 +25,6 @@ STREAM_ROW = ("ACQUIRE", "RELEASE", "SETUP", "GO", "PAUSE", "STOP")
 INNER_DATA_ROW = ("ACQUIRE", "RELEASE")
 #: The longest session timeout rctp/state/closing-methods waits for.
 LONGEST_TIMEOUT = 5
-#: A session ID no server hands out, of the right form.
-STRANGER = "rcmlconf-not-a-session"
 
 
 @case(
@@ -48,13 +47,13 @@ async def idle_methods(ctx: Context) -> None:
 )
 async def open_methods(ctx: Context) -> None:
     probe = await ctx.session()
-    missing = _missing(ctx)
+    missing = unknown_target(ctx)
     event = format_target(_event(ctx).path)
     steps: list[tuple[str, str, Fields, bytes, int]] = [
         ("CONNECT", ctx.target.site_path, [], b"", 200),
         ("ACQUIRE", missing, [], b"", 404),
         ("RELEASE", "*", [], b"", 200),
-        ("READ", _readable(ctx), [], b"", 200),
+        ("READ", read_target(ctx), [], b"", 200),
         ("WRITE", missing, [], b"\0", 404),
         ("SETUP", event, [], b"", 200),
         ("GO", event, [], b"", 200),
@@ -108,7 +107,7 @@ async def closing_methods(ctx: Context) -> None:
 async def closed_nothing_sent(ctx: Context) -> None:
     probe = await ctx.session()
     ctx.expect_status(await probe.request("BYE", "*"), 200)
-    normal = _readable(ctx)
+    normal = read_target(ctx)
     await probe.send(probe.request_bytes("READ", normal))
     try:
         found = await probe.message(ctx.scale)
@@ -239,7 +238,7 @@ async def stream_state_per_session(ctx: Context) -> None:
 )
 async def order_before_session(ctx: Context) -> None:
     probe = await ctx.control()
-    normal = _readable(ctx)
+    normal = read_target(ctx)
     # A request without CSeq does not count: the numbering goes on from the last readable one.
     steps: list[tuple[bytes, int, str, str]] = [
         (b"FROBNICATE * RCTP/3.0\r\n\r\n", 501, "R-RCTP-9", "before the version and CSeq"),
@@ -269,7 +268,7 @@ async def order_before_session(ctx: Context) -> None:
 )
 async def order_state_before_node(ctx: Context) -> None:
     probe = await ctx.session()
-    missing = _missing(ctx)
+    missing = unknown_target(ctx)
     for method, status, requirement in (
         ("GO", 455, "R-RCTP-20"),
         ("PAUSE", 455, "R-RCTP-20"),
@@ -306,7 +305,7 @@ async def order_after_session(ctx: Context) -> None:
     probe = await ctx.session()
     text = [("Content-Type", "text/plain; charset=utf-8")]
     steps: list[tuple[str, Fields, tuple[int, ...], str]] = [
-        (_missing(ctx), text, (404,), "R-RCTP-26"),
+        (unknown_target(ctx), text, (404,), "R-RCTP-26"),
         ("/", text, (405,), "R-RCTP-26"),
     ]
     refused = _unwritable(ctx)
@@ -335,7 +334,7 @@ async def allow_session_and_tree(ctx: Context) -> None:
     group = next((n for n in ctx.robot.nodes.values() if isinstance(n, GroupNode)), None)
     if group is not None:
         steps.append(("READ", format_target(group.path), TREE_ROW))
-    normal = _first(ctx, AccessType.NORMAL)
+    normal = first(ctx, AccessType.NORMAL)
     if normal is not None:
         steps.append(("SETUP", format_target(normal.path), TREE_ROW))
     for method, target, row in steps:
@@ -374,8 +373,8 @@ async def allow_data_nodes(ctx: Context) -> None:
 )
 async def allow_accesses(ctx: Context) -> None:
     probe = await ctx.session()
-    event = _first(ctx, AccessType.EVENT)
-    stream = _first(ctx, AccessType.STREAM)
+    event = first(ctx, AccessType.EVENT)
+    stream = first(ctx, AccessType.STREAM)
     if event is None and stream is None:
         raise NotApplicable("the robot has no event or stream access")
     if event is not None:
@@ -397,13 +396,13 @@ def _every_method(ctx: Context, *, connect: bool = True) -> list[tuple[str, str,
     write: tuple[str, str, Fields, bytes] = (
         ("WRITE", target, [("Nodes", format_nodes([writable[0].name]))], b"\0")
         if writable
-        else ("WRITE", _missing(ctx), [], b"\0")
+        else ("WRITE", unknown_target(ctx), [], b"\0")
     )
     methods: list[tuple[str, str, Fields, bytes]] = [
         ("CONNECT", ctx.target.site_path, [], b""),
         ("ACQUIRE", target, [], b""),
         ("RELEASE", "*", [], b""),
-        ("READ", _readable(ctx), [], b""),
+        ("READ", read_target(ctx), [], b""),
         write,
         ("SETUP", target, [], b""),
         ("GO", target, [], b""),
@@ -459,29 +458,8 @@ def _timeout(answer: Response) -> int:
     return int(text)
 
 
-def _readable(ctx: Context) -> str:
-    """A READ target: a readable data node of a normal access, else a readable event access."""
-    try:
-        path = ctx.data(AccessType.NORMAL, Permission.READ).path
-    except NotApplicable:
-        path = ctx.access(AccessType.EVENT, where=lambda access: bool(access.readable())).path
-    return format_target(path)
-
-
 def _event(ctx: Context) -> AccessNode:
     return ctx.access(AccessType.EVENT, Permission.READ)
-
-
-def _missing(ctx: Context) -> str:
-    """A path that is an XML Name but names no node of the robot."""
-    path = "/rcmlconfNoSuchNode"
-    while ctx.robot.node(path) is not None:
-        path += "X"
-    return path
-
-
-def _first(ctx: Context, kind: AccessType) -> AccessNode | None:
-    return next((a for a in ctx.robot.access_nodes() if a.type is kind), None)
 
 
 def _inner_data(ctx: Context, kind: AccessType) -> DataNode | None:

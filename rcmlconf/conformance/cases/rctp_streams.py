@@ -28,6 +28,7 @@ import time
 from collections.abc import Callable, Mapping
 
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.picks import RW
 from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.probes.stream import (
     Datagram,
@@ -72,8 +73,6 @@ from rcmlconf.rctp.messages import Request
 from rcmlconf.rctp.targets import format_target
 from rcmlconf.values import Kind, Scalar, Value
 
-READ, WRITE = Permission.READ, Permission.WRITE
-RW = READ | WRITE
 #: Seconds after a PAUSE or STOP is answered in which DATA sent before it may still arrive.
 GRACE = 0.05
 #: Seconds in which nothing may arrive (at least five intervals of the stream).
@@ -112,7 +111,7 @@ def _writable(ctx: Context, where: Callable[[AccessNode], bool] = lambda _: True
     """A stream access with writable nodes and a `writeInterval` (and `where`)."""
     return ctx.access(
         AccessType.STREAM,
-        WRITE,
+        Permission.WRITE,
         where=lambda a: bool(a.writable()) and bool(a.write_interval) and where(a),
     )
 
@@ -260,6 +259,17 @@ async def _reading(
     return control, probe, set_up
 
 
+async def _set_up_writing(
+    ctx: Context, access: AccessNode, mode: str
+) -> tuple[ControlProbe, StreamProbe, StreamSetUp]:
+    """A session holding the privilege of `access` (R-RCTP-34), set up with mode `mode` (write
+    or both) on a socket of the case's."""
+    control = await ctx.session()
+    await _acquire(ctx, control, access.path)
+    probe = await open_stream(ctx, control)
+    return control, probe, await probe.setup(control, access, mode)
+
+
 async def _request(ctx: Context, control: ControlProbe, method: str, set_up: StreamSetUp) -> None:
     """GO, PAUSE or STOP of the set-up stream, answered 200 (the rctp/state cases check them).
     A GO of a stream slower than `SLOWEST` makes the case not applicable: its DATA would not
@@ -287,6 +297,20 @@ async def _first_data(
             f"none within {probe.wait:g} s",
         )
     return found
+
+
+async def _silenced(ctx: Context, method: str) -> tuple[ControlProbe, StreamProbe, StreamSetUp]:
+    """A stream set up for reading, played, then `method` (PAUSE or STOP): past what was in
+    flight, no DATA of it comes (R-RCTP-44)."""
+    control, probe, set_up = await _reading(ctx)
+    await _request(ctx, control, "GO", set_up)
+    await _first_data(ctx, probe, set_up)
+    await _request(ctx, control, method, set_up)
+    await asyncio.sleep(GRACE)
+    probe.drain()
+    late = [d for d in await probe.packets(_quiet(set_up)) if _has_data(d, set_up)]
+    ctx.expect(not late, f"no DATA after {method}", f"{len(late)} packets with DATA", "R-RCTP-44")
+    return control, probe, set_up
 
 
 def _setter(direction: Direction, interval: int) -> Callable[[int], FlowMessage]:
@@ -333,6 +357,19 @@ async def _release(control: ControlProbe, set_up: StreamSetUp) -> None:
         await control.request("RELEASE", "*")
 
 
+async def _only_heartbeat(
+    ctx: Context, probe: StreamProbe, payloads: list[Payload], wanted: int, what: str
+) -> None:
+    """`payloads` and then a heartbeat request `wanted`, in one packet: the heartbeat is answered,
+    and nothing else is (`what` names the payloads)."""
+    probe.send_packet([*payloads, FlowPayload(0, _heartbeat(wanted))])
+    got = await probe.answer(wanted)
+    ctx.expect(got is not None, f"the heartbeat after {what} answered", "no answer")
+    await probe.packets(QUIET)
+    others = [f for d in probe.history for f in answers(d) if f.request_id != wanted]
+    ctx.expect(not others, f"no answer to {what}", repr(others[:1]))
+
+
 def _nack(
     ctx: Context, answer: FlowMessage, operation: int, reason: NackReason, requirement: str
 ) -> None:
@@ -372,11 +409,7 @@ class _Writing:
 
     @classmethod
     async def open(cls, ctx: Context) -> _Writing:
-        access = _writable(ctx, _observable)
-        control = await ctx.session()
-        await _acquire(ctx, control, access.path)
-        probe = await open_stream(ctx, control)
-        set_up = await probe.setup(control, access, "both")
+        control, probe, set_up = await _set_up_writing(ctx, _writable(ctx, _observable), "both")
         writing = cls(ctx, control, probe, set_up)
         await _request(ctx, control, "GO", set_up)
         first = await writing.readback()
@@ -753,14 +786,7 @@ async def data_values(ctx: Context) -> None:
     ["R-RCTP-44", "R-RCTP-41"],
 )
 async def pause(ctx: Context) -> None:
-    control, probe, set_up = await _reading(ctx)
-    await _request(ctx, control, "GO", set_up)
-    await _first_data(ctx, probe, set_up)
-    await _request(ctx, control, "PAUSE", set_up)
-    await asyncio.sleep(GRACE)
-    probe.drain()
-    late = [d for d in await probe.packets(_quiet(set_up)) if _has_data(d, set_up)]
-    ctx.expect(not late, "no DATA while paused", f"{len(late)} packets with DATA", "R-RCTP-44")
+    control, probe, set_up = await _silenced(ctx, "PAUSE")
     last = probe.history[-1].packet
     assert last is not None
     await _request(ctx, control, "GO", set_up)
@@ -781,14 +807,7 @@ async def pause(ctx: Context) -> None:
     ["R-RCTP-44", "R-RCTP-20"],
 )
 async def stop(ctx: Context) -> None:
-    control, probe, set_up = await _reading(ctx)
-    await _request(ctx, control, "GO", set_up)
-    await _first_data(ctx, probe, set_up)
-    await _request(ctx, control, "STOP", set_up)
-    await asyncio.sleep(GRACE)
-    probe.drain()
-    late = [d for d in await probe.packets(_quiet(set_up)) if _has_data(d, set_up)]
-    ctx.expect(not late, "no DATA after STOP", f"{len(late)} packets with DATA", "R-RCTP-44")
+    control, _, set_up = await _silenced(ctx, "STOP")
     ctx.expect_status(await control.request("GO", set_up.target), 455, "R-RCTP-20")
 
 
@@ -932,7 +951,12 @@ async def drop_wrong_source(ctx: Context) -> None:
     stray = other.drain()
     ctx.expect(not stray, "nothing sent to the other port", f"{len(stray)} datagrams")
     answer = await probe.ask(_heartbeat)
-    ctx.expect(isinstance(answer, HeartbeatAck), "an ACK of a good heartbeat", repr(answer))
+    ctx.expect(
+        isinstance(answer, HeartbeatAck),
+        "an ACK of a good heartbeat after the packet from another port",
+        repr(answer),
+        "R-RCTP-46",
+    )
 
 
 @case(
@@ -962,12 +986,7 @@ async def skip_unknown_payload(ctx: Context) -> None:
     decoy, wanted = probe.next_request_id(), probe.next_request_id()
     # The unknown body looks like a FLOW heartbeat: answered, it was not skipped.
     unknown = UnknownPayload(UNKNOWN_TYPE, 0, encode_flow(_heartbeat(decoy)))
-    probe.send_packet([unknown, FlowPayload(0, _heartbeat(wanted))])
-    got = await probe.answer(wanted)
-    ctx.expect(got is not None, "the heartbeat after the unknown payload answered", "no answer")
-    await probe.packets(QUIET)
-    wrong = [f for d in probe.history for f in answers(d) if f.request_id == decoy]
-    ctx.expect(not wrong, "the unknown payload's body left unread", repr(wrong[:1]))
+    await _only_heartbeat(ctx, probe, [unknown], wanted, "the unknown payload")
 
 
 # -- FLOW -----------------------------------------------------------------------------------------
@@ -1151,13 +1170,7 @@ async def broken_body_ignored(ctx: Context) -> None:
         bytes([2, Operation.HEARTBEAT]) + (wanted ^ 0x4000).to_bytes(2, "big") + b"\x09",
     ]
     payloads: list[Payload] = [MalformedFlowPayload(0, body, "sent broken", 0) for body in broken]
-    payloads.append(FlowPayload(0, _heartbeat(wanted)))
-    probe.send_packet(payloads)
-    got = await probe.answer(wanted)
-    ctx.expect(got is not None, "the heartbeat after the broken bodies answered", "no answer")
-    await probe.packets(QUIET)
-    others = [f for d in probe.history for f in answers(d) if f.request_id != wanted]
-    ctx.expect(not others, "no answer to the broken bodies", repr(others[:1]))
+    await _only_heartbeat(ctx, probe, payloads, wanted, "the broken bodies")
 
 
 @case(
@@ -1390,12 +1403,9 @@ async def out_of_range_data_ignored(ctx: Context) -> None:
 )
 async def receive_timeout(ctx: Context) -> None:
     access = _writable(ctx)
-    control = await ctx.session()
-    await _acquire(ctx, control, access.path)
-    probe = await open_stream(ctx, control)
     readable = {n.name for n in access.readable()}
     mode = "both" if {n.name for n in access.writable()} <= readable else "write"
-    set_up = await probe.setup(control, access, mode)
+    control, probe, set_up = await _set_up_writing(ctx, access, mode)
     assert set_up.write_interval is not None
     timeout = set_up.write_timeout
     if timeout > 1.0:  # shortened, so that the case is quick
@@ -1464,11 +1474,7 @@ async def receive_timeout(ctx: Context) -> None:
     serial=True,
 )
 async def timeout_too_short(ctx: Context) -> None:
-    access = _writable(ctx)
-    control = await ctx.session()
-    await _acquire(ctx, control, access.path)
-    probe = await open_stream(ctx, control)
-    set_up = await probe.setup(control, access, "write")
+    control, probe, set_up = await _set_up_writing(ctx, _writable(ctx), "write")
     interval = set_up.micros(set_up.write_interval)
     too_short = 2 * interval - 1
     answer = await probe.ask(lambda i: TimeoutSet(i, Direction.WRITE, too_short), set_up.stream)
