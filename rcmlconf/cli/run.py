@@ -119,7 +119,9 @@ def _address(default_port: int) -> Any:
 @click.option(
     "--impair",
     metavar="SPEC",
-    help="Impair every UDP flow: loss=5%,burst=3,delay=40ms,jitter=10ms,reorder=2%,...",
+    help="Impair the UDP flows of every case with no impairment of its own: "
+    "loss=5%,burst=3,delay=40ms,jitter=10ms,reorder=2%,... A failure the impairment can "
+    "explain is inconclusive.",
 )
 @click.option(
     "--concurrency",
@@ -193,7 +195,7 @@ def run(
       rcmlconf run                                   # the embedded reference
       rcmlconf run --target robot.local --rcml rover.rcml --junit report.xml
       rcmlconf run --rsp-target 10.0.0.7 --model cubo.rmodel --only 'rsp/*'
-      rcmlconf run --only 'rctp/msg/*' --repeat 20 --impair loss=5%,reorder=2% --seed 7
+      rcmlconf run --only 'rsp/*' --repeat 20 --impair loss=5%,reorder=2% --seed 7
       rcmlconf run --role client --listen 7330 --timeout-scale 3   # then start your client
       rcmlconf run --role local --listen 7340 --model cubo.rmodel  # then your local system
       rcmlconf run --fault acquire-not-exclusive     # watch the suite catch a bug

@@ -14,15 +14,19 @@ from rcmlconf.conformance.registry import Case
 from rcmlconf.conformance.targets import Target
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
-from rcmlconf.impair.channel import derive_seed
+from rcmlconf.impair.channel import Counts, ImpairedChannel, derive_seed
 from rcmlconf.impair.spec import Impairment, parse_impairment
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, Permission, RcmlDocument
 from rcmlconf.rctp.messages import Request, Response
 
 if TYPE_CHECKING:
+    from rcmlconf.conformance.loopwatch import LoopWatch
     from rcmlconf.conformance.probes.locals import LocalProbe
 
 T = TypeVar("T")
+#: A hold of the harness's loop this long (seconds, times --timeout-scale) makes a failed timing
+#: check inconclusive: its ticks are due every 5 ms, and the timing checks allow tens of ms.
+LATE = 0.02
 _ANY = Permission(0)
 
 
@@ -36,10 +40,16 @@ class Context:
     seed: int = 0
     #: The run's free RSP robots (`Target.rsp`), shared by its cases.
     robots: asyncio.Queue[Address] | None = None
-    #: --impair: the impairment of every UDP flow of the run, over the case's own.
+    #: --impair: the impairment of the UDP flows of every case that declares none of its own.
     impair: Impairment | None = None
     transcript: Transcript = field(default_factory=Transcript)
     _closers: list[Callable[[], None]] = field(default_factory=list)
+    #: The impairment channels of the case's probes (`watch`), for `excuse`.
+    _channels: list[ImpairedChannel] = field(default_factory=list)
+    #: How late the harness's loop ran (the run's), for `expect(..., timing=True)`.
+    loop_watch: LoopWatch | None = None
+    #: When the case started, in loop time.
+    started: float = field(default_factory=lambda: asyncio.get_running_loop().time())
 
     @property
     def wait(self) -> float:
@@ -48,14 +58,42 @@ class Context:
 
     @property
     def impairment(self) -> Impairment:
-        """What the case's UDP flows go through: --impair's, else the case's, else nothing."""
-        if self.impair is not None:
-            return self.impair
-        return parse_impairment(self.case.impairment or "none")
+        """What the case's UDP flows go through: the case's own (it needs that loss or
+        reordering to check what it checks), else --impair's, else nothing."""
+        if self.case.impairment:
+            return parse_impairment(self.case.impairment)
+        return self.impair or parse_impairment("none")
 
     def impairment_seed(self, *path: int | str) -> int:
         """A seed of its own for each flow of the case, from --seed (same seed, same run)."""
         return derive_seed(self.seed, self.case.id, *path)
+
+    def watch(self, *channels: ImpairedChannel | None) -> None:
+        """Count what these impairment channels of a probe of the case do (`excuse`)."""
+        self._channels.extend(c for c in channels if c is not None)
+
+    def excuse(self) -> str:
+        """Why a failure may be the run's impairment and not the target: what --impair did to
+        the flows of a case written for a clean path, or "" when it did nothing to them. Such a
+        failure is inconclusive: loss, reordering or duplication the case did not plan for can
+        explain it. A case that declares an impairment runs under its own, written to tell its
+        effects from the target's faults: its failure stands."""
+        if self.impair is None or self.case.impairment:
+            return ""
+        counts = Counts()
+        for channel in self._channels:
+            counts += channel.counts
+        done = [
+            f"{number} {what}"
+            for number, what in (
+                (counts.lost, "lost"),
+                (counts.corrupted, "corrupted"),
+                (counts.duplicated, "duplicated"),
+                (counts.reordered, "held back"),
+            )
+            if number
+        ]
+        return f"--impair {self.impair}: datagrams {', '.join(done)}" if done else ""
 
     # -- the target ----------------------------------------------------------------------------
 
@@ -136,7 +174,14 @@ class Context:
         listener = self.target.locals
         if listener is None:
             raise NotApplicable("no RSP local system under test (--role local)")
-        probe = await listener.accept(self.transcript, self.wait, summon=not again)
+        probe = await listener.accept(
+            self.transcript,
+            self.wait,
+            summon=not again,
+            impairment=self.impairment,
+            seed=self.impairment_seed("local", "forward"),
+        )
+        self.watch(probe.channel)
         probe.quiet *= self.scale
         self._closers.append(probe.close)
         return probe
@@ -169,9 +214,23 @@ class Context:
         expected: str | tuple[str, ...],
         actual: str,
         requirement: str | None = None,
+        *,
+        timing: bool = False,
     ) -> None:
-        if not holds:
-            raise Failed(self.requirement(requirement), expected, actual)
+        """Fail the case unless `holds`. A check of `timing` read off the harness's clock that
+        fails while the harness's event loop was held LATE or longer during the case is
+        inconclusive instead: the datagrams were read late, so the gaps measured are the
+        harness's, not the target's."""
+        if holds:
+            return
+        held = self.loop_watch.held(self.started) if timing and self.loop_watch else 0.0
+        if held >= LATE * self.scale:
+            wanted = " or ".join((expected,) if isinstance(expected, str) else expected)
+            raise Inconclusive(
+                f"expected {wanted}; got {actual}; but the harness's event loop was held"
+                f" {held * 1000:.0f} ms during the case: its clock cannot judge the target's timing"
+            )
+        raise Failed(self.requirement(requirement), expected, actual)
 
     def expect_status(
         self,

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.loopwatch import LoopWatch
 from rcmlconf.conformance.registry import Case, Role
 from rcmlconf.conformance.targets import Target
 from rcmlconf.conformance.transcript import Address
@@ -28,7 +29,7 @@ class RunOptions:
     #: Cases in flight at once.
     concurrency: int = 16
     repeat: int = 1
-    #: --impair: applied to every UDP flow of every case.
+    #: --impair: applied to every UDP flow of every case that declares no impairment of its own.
     impair: Impairment | None = None
     #: --capture: a pcap of each case's traffic is written here.
     capture: Path | None = None
@@ -59,9 +60,11 @@ async def run_case(
     options: RunOptions,
     run: int = 1,
     robots: asyncio.Queue[Address] | None = None,
+    watch: LoopWatch | None = None,
 ) -> Result:
     pool = robots or robot_pool(target)
     ctx = Context(case, target, options.timeout_scale, options.seed, pool, options.impair)
+    ctx.loop_watch = watch
     started = time.monotonic()
     try:
         missing = [f for f in case.features if f not in target.features]
@@ -69,11 +72,12 @@ async def run_case(
             return _result(case, ctx, started, run, Verdict.NOT_APPLICABLE, _lacks(missing))
         await asyncio.wait_for(case.run(ctx), case.timeout * options.timeout_scale)
     except Failed as failed:
+        excuse = ctx.excuse()
         return Result(
             case.id,
-            Verdict.FAIL,
+            Verdict.INCONCLUSIVE if excuse else Verdict.FAIL,
             time.monotonic() - started,
-            failed.reason,
+            f"{failed.reason}; but {excuse}" if excuse else failed.reason,
             failed.requirement,
             failed.expected,
             failed.actual,
@@ -132,10 +136,11 @@ async def run_cases(
     results: list[Result] = []
     gate = asyncio.Semaphore(max(1, options.concurrency))
     robots = robot_pool(target)
+    watch = LoopWatch()
 
     async def one(case: Case, run: int) -> None:
         async with gate:
-            result = await run_case(case, target, options, run, robots)
+            result = await run_case(case, target, options, run, robots, watch)
         results.append(result)
         done(result)
 
@@ -149,12 +154,16 @@ async def run_cases(
     for case in cases:
         if case.serial:
             lanes.setdefault(case.role, []).append(case)
-    for run in range(1, options.repeat + 1):
-        # The longest first: a case that must wait out a protocol timer should not also wait
-        # for a free slot (the suite takes as long as its slowest case at best).
-        longest_first = sorted((c for c in cases if not c.serial), key=lambda c: -c.timeout)
-        concurrent = [one(c, run) for c in longest_first]
-        await asyncio.gather(*concurrent, *(lane(serial, run) for serial in lanes.values()))
+    watch.start()
+    try:
+        for run in range(1, options.repeat + 1):
+            # The longest first: a case that must wait out a protocol timer should not also
+            # wait for a free slot (the suite takes as long as its slowest case at best).
+            longest_first = sorted((c for c in cases if not c.serial), key=lambda c: -c.timeout)
+            concurrent = [one(c, run) for c in longest_first]
+            await asyncio.gather(*concurrent, *(lane(serial, run) for serial in lanes.values()))
+    finally:
+        watch.stop()
     order = {c.id: i for i, c in enumerate(cases)}
     return sorted(results, key=lambda r: (r.run, order[r.case]))
 

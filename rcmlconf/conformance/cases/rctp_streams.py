@@ -26,11 +26,14 @@ import math
 import struct
 import time
 from collections.abc import Callable, Mapping
+from functools import partial
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.picks import RW
 from rcmlconf.conformance.probes.control import ControlProbe
+from rcmlconf.conformance.probes.datagrams import ANSWER_TRIES
 from rcmlconf.conformance.probes.stream import (
+    REPEAT,
     Datagram,
     StreamProbe,
     StreamSetUp,
@@ -362,8 +365,9 @@ async def _only_heartbeat(
 ) -> None:
     """`payloads` and then a heartbeat request `wanted`, in one packet: the heartbeat is answered,
     and nothing else is (`what` names the payloads)."""
-    probe.send_packet([*payloads, FlowPayload(0, _heartbeat(wanted))])
-    got = await probe.answer(wanted)
+    got = await probe.answer_to(
+        lambda: probe.send_packet([*payloads, FlowPayload(0, _heartbeat(wanted))]), wanted
+    )
     ctx.expect(got is not None, f"the heartbeat after {what} answered", "no answer")
     await probe.packets(QUIET)
     others = [f for d in probe.history for f in answers(d) if f.request_id != wanted]
@@ -1072,8 +1076,8 @@ async def repeated_id(ctx: Context) -> None:
     request_id = probe.next_request_id()
     answered: list[FlowMessage] = []
     for interval in (3 * shortest, 4 * shortest):
-        probe.send_flow(IntervalSet(request_id, Direction.READ, interval), set_up.stream)
-        got = await probe.answer(request_id)
+        request = IntervalSet(request_id, Direction.READ, interval)
+        got = await probe.answer_to(partial(probe.send_flow, request, set_up.stream), request_id)
         if got is None:
             raise Failed("R-RCTP-46", f"an answer to request {request_id}", "none")
         answered.append(got[1])
@@ -1148,9 +1152,8 @@ async def malformed_request(ctx: Context) -> None:
     ]
     for on, operation, body in bodies:
         request_id = probe.next_request_id()
-        data = body(request_id)
-        probe.send_packet([MalformedFlowPayload(on, data, "sent broken", 0)])
-        got = await probe.answer(request_id)
+        broken = MalformedFlowPayload(on, body(request_id), "sent broken", 0)
+        got = await probe.answer_to(partial(probe.send_packet, [broken]), request_id)
         if got is None:
             raise Failed("R-RCTP-53", f"NACK 5 of request {request_id}", "no answer")
         _nack(ctx, got[1], operation, NackReason.MALFORMED, "R-RCTP-53")
@@ -1185,8 +1188,10 @@ async def stale_packet_answered(ctx: Context) -> None:
     newest = probe.last_sequence
     for sequence, what in ((newest, "duplicate"), ((newest - 1) % MODULO, "late")):
         request_id = probe.next_request_id()
-        probe.send_flow(_heartbeat(request_id), sequence=sequence)
-        got = await probe.answer(request_id)
+        heartbeat = _heartbeat(request_id)
+        got = await probe.answer_to(
+            partial(probe.send_flow, heartbeat, sequence=sequence), request_id
+        )
         ctx.expect(
             got is not None and isinstance(got[1], HeartbeatAck),
             f"ACK of a heartbeat in a {what} packet ({sequence})",
@@ -1246,9 +1251,14 @@ async def reordered_duplicated(ctx: Context) -> None:
 async def _clock(ctx: Context, probe: StreamProbe) -> tuple[HeartbeatAck, ClockSample]:
     """A heartbeat's ACK, which must echo T1 and carry T2 <= T3 (R-RCTP-48), and its sample."""
     unix = time.time() - asyncio.get_running_loop().time()
-    request = _heartbeat(probe.next_request_id())
-    probe.send_flow(request)
-    got = await probe.answer(request.request_id)
+    # Under an impairment, again until answered: each time a new request, so that the round
+    # trip is measured from the T1 of the one answered.
+    for _ in range(ANSWER_TRIES if probe.impairment is not None else 1):
+        request = _heartbeat(probe.next_request_id())
+        probe.send_flow(request)
+        got = await probe.answer(request.request_id, REPEAT if probe.impairment else None)
+        if got is not None:
+            break
     if got is None:
         raise Failed("R-RCTP-46", f"an ACK of heartbeat {request.request_id}", "none")
     datagram, ack = got

@@ -33,10 +33,11 @@ from rcmlconf.conformance.probes.rsp import (
     fresh_uplink,
     newer,
     of_kind,
-    open_probe,
+    raw_session,
     reported,
     sequence_of,
     summary,
+    taken,
     value_item,
     values_of,
     zero_values,
@@ -68,10 +69,6 @@ KEEPALIVE = 5
 #: ACK packets sent for one acknowledgement: the robot must have lost them all to send the
 #: occurrence again once it has a later packet (a false failure under 20 % loss: 1 in 125).
 ACK_COPIES = 3
-#: D-RSP-12: HELLOs a local system sends, one every 250 ms, until one is answered.
-HELLOS = 5
-HELLO_INTERVAL = 0.25
-_ANSWERS = (PacketType.WELCOME, PacketType.REFUSED)
 _SEQUENCE = 1 << 16
 _HALF = _SEQUENCE // 2
 
@@ -108,17 +105,8 @@ class _Beat:
 
 
 async def _requesting(ctx: Context, *devices: Device) -> tuple[RspProbe, RawSession]:
-    """A session by hand whose DOWNLINKs request `devices`. HELLO is repeated every 250 ms until
-    answered, as D-RSP-12 has a local system do, so that one lost datagram does not end the case."""
-    probe = await open_probe(ctx)
-    raw = probe.raw()
-    for _ in range(HELLOS - 1):
-        start = probe.mark()
-        raw.hello()
-        if await probe.next(_ANSWERS, after=start, wait=HELLO_INTERVAL * ctx.scale) is not None:
-            break
-    if raw.welcome is None:
-        await raw.open()  # the last HELLO, or REFUSED: inconclusive
+    """A session by hand whose DOWNLINKs request `devices`."""
+    probe, raw = await raw_session(ctx)
     raw.standing = flags(probe.model, *devices)
     _Beat(ctx, raw)
     return probe, raw
@@ -625,7 +613,7 @@ async def _listening(ctx: Context) -> tuple[RspProbe, RawSession, Device, Device
     fragment is played (D-RSP-23)."""
     effector, monitor = _audio(ctx.target.rsp_model)
     probe, raw = await _requesting(ctx, monitor, effector)
-    first = await fresh_uplink(probe, sequence_of(raw.downlink()))
+    first = await taken(probe, raw)
     if first is None:
         raise Inconclusive(f"no UPLINK reporting {monitor.name}")
     before = values_of(first, monitor)

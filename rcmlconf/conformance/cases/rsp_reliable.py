@@ -24,6 +24,7 @@ from rcmlconf.conformance.probes.rsp import (
     RawSession,
     RspProbe,
     ack_of,
+    acked,
     close_to,
     dropped_then_taken,
     first,
@@ -39,6 +40,7 @@ from rcmlconf.conformance.probes.rsp import (
     raw_session,
     reported,
     sequence_of,
+    taken,
     visible,
     zero_values,
 )
@@ -94,10 +96,8 @@ async def _take(
     ctx: Context, probe: RspProbe, raw: RawSession, found: Device, ident: int, *, buffer: int = 0
 ) -> Datagram:
     """Send memory command or command `ident` and return the robot's ACK of it (R-RSP-26)."""
-    start = probe.mark()
     values = keyframe(found) if found.kind is DeviceKind.MEMORY_COMMAND else None
-    raw.downlink([occurrence(found, ident, values)], buffer=buffer)
-    ack = await ack_of(probe, found, ident, after=start)
+    ack = await acked(probe, raw, found, ident, values, buffer=buffer)
     if ack is None:
         raise Failed("R-RSP-26", f"ACK of {found.name} #{ident}", f"none within {probe.wait:.2g} s")
     return ack
@@ -108,14 +108,19 @@ async def _busy(ctx: Context) -> tuple[RspProbe, RawSession, Device, int]:
     probe, raw = await raw_session(ctx)
     memory = first(probe.model, DeviceKind.MEMORY_COMMAND)
     raw.standing = flags(probe.model, reported(probe.model, 1)[0])  # an UPLINK every T
-    await _take(ctx, probe, raw, memory, 0)
-    await probe.listen(4 * raw.period)
+    taken_at = (await _take(ctx, probe, raw, memory, 0)).header.buffer
+    # #0 leaves the buffer when the robot starts to execute it, at a control tick of its own
+    # (D-RSP-19): wait for an UPLINK that says so, not a fixed time a loaded machine overruns.
+    await probe.next(
+        PacketType.UPLINK, where=lambda d: d.header.buffer > taken_at, wait=probe.quiet
+    )
+    await probe.listen(2 * raw.period)
     return probe, raw, memory, probe.received[-1].header.buffer
 
 
-async def _free(probe: RspProbe, sent: bytes) -> int:
-    """The free buffers of the first UPLINK sent after the robot took `sent`."""
-    found = await fresh_uplink(probe, sequence_of(sent))
+async def _free(probe: RspProbe, raw: RawSession, buffer: int = 0) -> int:
+    """The free buffers of the first UPLINK sent after the robot took a DOWNLINK with `buffer`."""
+    found = await taken(probe, raw, buffer=buffer)
     if found is None:
         raise Inconclusive("no UPLINK to read the free buffers from")
     return found.header.buffer
@@ -212,7 +217,10 @@ async def two_reliable_at_once(ctx: Context) -> None:
     command = first(probe.model, DeviceKind.COMMAND)
     memory = first(probe.model, DeviceKind.MEMORY_COMMAND)
     start = probe.mark()
-    raw.downlink([occurrence(command, 0), occurrence(memory, 0, keyframe(memory))])
+    await probe.answer_to(
+        lambda: raw.downlink([occurrence(command, 0), occurrence(memory, 0, keyframe(memory))]),
+        PacketType.ACK,
+    )
     for found in (command, memory):
         ack = await ack_of(probe, found, 0, after=start)
         ctx.expect(ack is not None, f"ACK of {found.name} #0", "none")
@@ -265,7 +273,7 @@ async def full_buffer(ctx: Context) -> None:
     await probe.listen(probe.quiet)
     acks = [d for d in probe.packets(PacketType.ACK, after=start) if d.acks(memory.position)]
     ctx.expect(not acks, f"no ACK of {memory.name} #{ident} (no free buffer)", "an ACK", "R-RSP-31")
-    cleared = await _free(probe, raw.downlink(buffer=CLEAR_BUFFER))
+    cleared = await _free(probe, raw, CLEAR_BUFFER)
     ctx.expect(
         cleared >= free,
         f"{free} or more free buffers after Clear Buffer",
@@ -283,7 +291,7 @@ async def full_buffer(ctx: Context) -> None:
 )
 async def clear_buffer(ctx: Context) -> None:
     probe, raw, memory, _ = await _busy(ctx)
-    empty = await _free(probe, raw.downlink(buffer=CLEAR_BUFFER))
+    empty = await _free(probe, raw, CLEAR_BUFFER)
     for ident in (1, 2, 3):
         held = (await _take(ctx, probe, raw, memory, ident)).header.buffer
     if held != empty - 3:
@@ -294,9 +302,9 @@ async def clear_buffer(ctx: Context) -> None:
         f"{empty - 1} free in the ACK: the three dropped, then #4 taken",
         str(ack.header.buffer),
     )
-    kept = await _free(probe, raw.downlink())
+    kept = await _free(probe, raw)
     ctx.expect(kept == empty - 1, f"{empty - 1} free: #4 kept", str(kept))
-    after = await _free(probe, raw.downlink(buffer=CLEAR_BUFFER))
+    after = await _free(probe, raw, CLEAR_BUFFER)
     ctx.expect(after == empty, f"{empty} free once #4 is cleared too", str(after))
 
 
@@ -428,10 +436,8 @@ async def _sealed(ctx: Context, encryption: Encryption) -> tuple[RspProbe, RawSe
     """A sealed session by hand; its WELCOME's MAC checked (R-RSP-38)."""
     probe = await open_probe(ctx)
     raw = probe.raw(encryption)
-    start = probe.mark()
-    raw.hello()
-    answer = await probe.expect(
-        (PacketType.WELCOME, PacketType.REFUSED), "R-RSP-37", after=start, expected="WELCOME"
+    answer = await probe.expect_answer_to(
+        raw.hello, (PacketType.WELCOME, PacketType.REFUSED), "R-RSP-37", expected="WELCOME"
     )
     if isinstance(answer.body, Refused):
         raise Failed(
@@ -458,11 +464,10 @@ def _session_case(encryption: Encryption) -> Callable[[Context], Awaitable[None]
         model = probe.model
         command = first(model, DeviceKind.COMMAND)
         sensor = reported(model, 1)[0]
-        start = probe.mark()
-        sent = raw.downlink([*flags(model, sensor), occurrence(command, 0)])
-        ack = await ack_of(probe, command, 0, after=start)
+        raw.standing = flags(model, sensor)
+        ack = await acked(probe, raw, command, 0)
         ctx.expect(ack is not None, f"a sealed ACK of {command.name} #0", "none", "R-RSP-37")
-        uplink = await fresh_uplink(probe, sequence_of(sent))
+        uplink = await fresh_uplink(probe, sequence_of(raw.last))
         ctx.expect(
             uplink is not None and sensor.name in uplink.devices(model),
             f"sealed UPLINKs reporting {sensor.name}",
@@ -513,10 +518,12 @@ for _encryption, _feature, _slug in _AEADS:
 async def wrong_key(ctx: Context) -> None:
     probe = await open_probe(ctx)
     raw = probe.raw(Encryption.AES_256_GCM)
-    start = probe.mark()
-    raw.hello(psk=os.urandom(32))
-    answer = await probe.expect(
-        (PacketType.WELCOME, PacketType.REFUSED), "R-RSP-38", after=start, expected="REFUSED"
+    key = os.urandom(32)
+    answer = await probe.expect_answer_to(
+        lambda: raw.hello(psk=key),
+        (PacketType.WELCOME, PacketType.REFUSED),
+        "R-RSP-38",
+        expected="REFUSED",
     )
     body = answer.body
     ctx.expect(
@@ -531,9 +538,9 @@ async def _no_session_left(ctx: Context, probe: RspProbe) -> None:
     """Another local system gets a session: the refused HELLO opened none."""
     other = await open_probe(ctx, robot=probe.robot, name="second")
     second = other.raw()
-    start = other.mark()
-    second.hello()
-    answer = await other.expect((PacketType.WELCOME, PacketType.REFUSED), "R-RSP-38", after=start)
+    answer = await other.expect_answer_to(
+        second.hello, (PacketType.WELCOME, PacketType.REFUSED), "R-RSP-38"
+    )
     ctx.expect(
         answer.type is PacketType.WELCOME,
         "WELCOME to another local system (no session was opened)",
@@ -571,10 +578,9 @@ async def unsigned_hello(ctx: Context) -> None:
 async def replayed_sealed(ctx: Context) -> None:
     probe, raw = await _sealed(ctx, Encryption.AES_256_GCM)
     command = first(probe.model, DeviceKind.COMMAND)
-    start = probe.mark()
-    original = raw.downlink([occurrence(command, 5)])
-    if await ack_of(probe, command, 5, after=start) is None:
+    if await acked(probe, raw, command, 5) is None:
         raise Inconclusive(f"no ACK of {command.name} #5 in the first place")
+    original = raw.last
     await dropped_then_taken(ctx, probe, raw, lambda _: original, "R-RSP-18", "the replay")
 
 

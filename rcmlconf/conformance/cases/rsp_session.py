@@ -19,6 +19,7 @@ from rcmlconf.conformance.probes.rsp import (
     raw_session,
     reported,
     sequence_of,
+    taken,
 )
 from rcmlconf.conformance.registry import Role, case
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
@@ -87,9 +88,7 @@ async def welcome(ctx: Context) -> None:
     probe = await open_probe(ctx)
     model = probe.model
     raw = probe.raw()
-    start = probe.mark()
-    raw.hello()
-    answer = await probe.expect(_ANSWERS, "R-RSP-20", after=start)
+    answer = await probe.expect_answer_to(raw.hello, _ANSWERS, "R-RSP-20")
     if isinstance(answer.body, Refused):
         raise Failed("R-RSP-20", "WELCOME", f"REFUSED {answer.body.reason.name}")
     raw.accept(answer)
@@ -105,9 +104,10 @@ async def welcome(ctx: Context) -> None:
     ctx.expect(
         header.sequence == 0, "sequence 0 (its first packet)", str(header.sequence), "R-RSP-14"
     )
+    hello = sequence_of(raw.last)  # 0, or 1, 2, ... if the impairment spoiled HELLO
     ctx.expect(
-        header.last_received == 0,
-        "last received 0 (HELLO's)",
+        header.last_received == hello,
+        f"last received {hello} (HELLO's)",
         str(header.last_received),
         "R-RSP-15",
     )
@@ -138,7 +138,7 @@ async def fresh_session_ids(ctx: Context) -> None:
         raw = probe.raw()
         answer = await raw.open()
         seen.append(answer.header.session_id)
-        raw.send(PacketType.BYE, Bye(ByeReason.CLOSED))
+        raw.bye()
         await probe.listen(0.02)
     ctx.expect(
         0 not in seen and len(set(seen)) == len(seen),
@@ -156,9 +156,10 @@ async def fresh_session_ids(ctx: Context) -> None:
 async def unknown_model(ctx: Context) -> None:
     probe = await open_probe(ctx)
     other = _other_model(probe.model.model_id)
-    start = probe.mark()
-    probe.send(hello_packet(other, 0, os.urandom(NONCE_SIZE), round(probe.model.period * 1000)))
-    answer = await probe.expect(_ANSWERS, "R-RSP-21", after=start, expected="REFUSED")
+    hello = hello_packet(other, 0, os.urandom(NONCE_SIZE), round(probe.model.period * 1000))
+    answer = await probe.expect_answer_to(
+        lambda: probe.send(hello), _ANSWERS, "R-RSP-21", expected="REFUSED"
+    )
     _refused(ctx, answer, RefusedReason.UNKNOWN_MODEL, "R-RSP-21")
     _echoes(ctx, answer, other, 0, "R-RSP-21")
 
@@ -174,10 +175,10 @@ async def unknown_model_encrypted(ctx: Context) -> None:
     other = _other_model(probe.model.model_id)
     encryption = int(Encryption.CHACHA20_POLY1305)
     period = round(probe.model.period * 1000)
-    start = probe.mark()
     hello = hello_packet(other, encryption, os.urandom(NONCE_SIZE), period, psk=probe.psk)
-    probe.send(hello)
-    answer = await probe.expect(_ANSWERS, "R-RSP-21", after=start, expected="REFUSED")
+    answer = await probe.expect_answer_to(
+        lambda: probe.send(hello), _ANSWERS, "R-RSP-21", expected="REFUSED"
+    )
     _refused(ctx, answer, RefusedReason.UNKNOWN_MODEL, "R-RSP-21")
     _echoes(ctx, answer, other, encryption, "R-RSP-21")
 
@@ -196,14 +197,15 @@ async def encryption_not_offered(ctx: Context) -> None:
     probe = await open_probe(ctx)
     encryption = lacking[0]
     raw = probe.raw(encryption) if probe.psk is not None else None
-    start = probe.mark()
-    if raw is not None:
-        raw.hello()
-    else:  # no key to sign with: a MAC of zeros (the robot need not check it to refuse)
-        period = round(probe.model.period * 1000)
-        nonce = os.urandom(NONCE_SIZE)
-        probe.send(hello_packet(probe.model.model_id, encryption, nonce, period))
-    answer = await probe.expect(_ANSWERS, "R-RSP-20", after=start, expected="REFUSED")
+    period = round(probe.model.period * 1000)
+    # Without a key to sign with: a MAC of zeros (the robot need not check it to refuse).
+    unsigned = hello_packet(probe.model.model_id, encryption, os.urandom(NONCE_SIZE), period)
+    answer = await probe.expect_answer_to(
+        raw.hello if raw is not None else lambda: probe.send(unsigned),
+        _ANSWERS,
+        "R-RSP-20",
+        expected="REFUSED",
+    )
     if answer.type is PacketType.WELCOME:
         if raw is not None:
             raw.accept(answer)  # closed with BYE at the end
@@ -251,9 +253,9 @@ async def busy(ctx: Context) -> None:
     sensor = reported(model, 1)[0]
     other = await open_probe(ctx, robot=probe.robot, name="second")
     second = other.raw()
-    start = other.mark()
-    second.hello()
-    answer = await other.expect(_ANSWERS, "R-RSP-20", after=start, expected="REFUSED BUSY")
+    answer = await other.expect_answer_to(
+        second.hello, _ANSWERS, "R-RSP-20", expected="REFUSED BUSY"
+    )
     if answer.type is PacketType.WELCOME:
         second.accept(answer)  # a robot may serve two sessions: not with one ID
         ctx.expect(
@@ -264,8 +266,7 @@ async def busy(ctx: Context) -> None:
     else:
         _refused(ctx, answer, RefusedReason.BUSY, "R-RSP-20")
         _echoes(ctx, answer, model.model_id, 0)
-    sent = raw.downlink(flags(model, sensor))
-    uplink = await fresh_uplink(probe, sequence_of(sent))
+    uplink = await taken(probe, raw, flags(model, sensor))
     ctx.expect(
         uplink is not None and uplink.header.session_id == raw.session_id,
         "the first session's UPLINKs going on",
@@ -285,10 +286,8 @@ async def repeated_hello(ctx: Context) -> None:
     first = raw.welcome
     assert first is not None
     assert isinstance(first.body, Welcome)
-    start = probe.mark()
-    raw.hello()  # sequence 1, the same nonce (D-RSP-12)
-    again = await probe.expect(
-        PacketType.WELCOME, "R-RSP-20", after=start, expected="WELCOME again"
+    again = await probe.expect_answer_to(  # sequence 1, the same nonce (D-RSP-12)
+        raw.hello, PacketType.WELCOME, "R-RSP-20", expected="WELCOME again"
     )
     assert isinstance(again.body, Welcome)
     same = (
@@ -303,8 +302,7 @@ async def repeated_hello(ctx: Context) -> None:
         f"session {again.header.session_id:#x}, robot nonce {again.body.robot_nonce.hex()}",
     )
     sensor = reported(probe.model, 1)[0]
-    sent = raw.downlink(flags(probe.model, sensor))
-    uplink = await fresh_uplink(probe, sequence_of(sent))
+    uplink = await taken(probe, raw, flags(probe.model, sensor))
     ctx.expect(
         uplink is not None and sensor.name in uplink.devices(probe.model),
         f"the session going on, reporting {sensor.name}",
@@ -321,11 +319,9 @@ async def repeated_hello(ctx: Context) -> None:
 async def bye(ctx: Context) -> None:
     probe, raw = await raw_session(ctx)
     sensor = reported(probe.model, 1)[0]
-    sent = raw.downlink(flags(probe.model, sensor))
-    if await fresh_uplink(probe, sequence_of(sent)) is None:
+    if await taken(probe, raw, flags(probe.model, sensor)) is None:
         raise Inconclusive("the robot sent no UPLINK before BYE")
-    goodbye = raw.send(PacketType.BYE, Bye(ByeReason.CLOSED))
-    sequence = sequence_of(goodbye)
+    sequence = sequence_of(raw.bye())
     start = probe.mark()
     await probe.listen(probe.quiet)
     late = [
@@ -336,9 +332,7 @@ async def bye(ctx: Context) -> None:
     ctx.expect(not late, "no UPLINK after the robot took BYE", f"{len(late)} UPLINKs")
     other = await open_probe(ctx, robot=probe.robot, name="second")
     second = other.raw()
-    mark = other.mark()
-    second.hello()
-    answer = await other.expect(_ANSWERS, "R-RSP-22", after=mark)
+    answer = await other.expect_answer_to(second.hello, _ANSWERS, "R-RSP-22")
     if answer.type is PacketType.WELCOME:
         second.accept(answer)
     ctx.expect(
@@ -374,6 +368,7 @@ def _paced(ctx: Context, arrivals: list[float], period: float) -> None:
         0.7 * period <= median <= 1.4 * period,
         f"UPLINKs {period * 1000:g} ms apart",
         f"a median of {median * 1000:.1f} ms between {len(arrivals)} UPLINKs",
+        timing=True,
     )
 
 
@@ -427,6 +422,7 @@ async def keep_alive(ctx: Context) -> None:
         f"UPLINKs {keep * 1000:g} ms apart",
         ", ".join(f"{gap * 1000:.0f}" for gap in gaps) + " ms",
         "R-RSP-22",
+        timing=True,
     )
 
 

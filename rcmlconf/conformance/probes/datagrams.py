@@ -1,28 +1,35 @@
 """What the RSP probes share, whichever side the harness plays (`rsp.RspProbe` the local
 system, `locals.LocalProbe` the robot): the datagrams received so far, in order, decoded, and
-bounded waits for the next one of some types."""
+bounded waits for the next one of some types; `answer_to` sends again what the case's impairment
+spoiled."""
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING
 
-from rcmlconf.conformance.verdicts import Failed
+from rcmlconf.conformance.verdicts import Failed, Inconclusive
 from rcmlconf.rsp.codec import PacketType
 
 if TYPE_CHECKING:
     from rcmlconf.conformance.probes.rsp import Datagram, Where
 
+#: Packets `answer_to` sends at most while the impairment spoils them: HELLO's five repeats
+#: (D-RSP-12) and one; at 20 % loss all six are lost once in 15,000.
+ANSWER_TRIES = 6
+
 
 class DatagramLog:
     """Mixed into a probe that keeps `received` (decoded, in arrival order), sets `_arrival` on
-    each, keeps the first undecodable datagram's failure in `fault`, and has `wait` and `now`."""
+    each, keeps the first undecodable datagram's failure in `fault`, has `wait` and `now`, and
+    counts in `spoiled` the datagrams it sent of which its impairment let no intact copy through."""
 
     received: list[Datagram]
     fault: Failed | None
     wait: float
+    spoiled: int
     _arrival: asyncio.Event
 
     @property
@@ -84,10 +91,56 @@ class DatagramLog:
         """As `next`, but Failed (`requirement`) when nothing comes."""
         found = await self.next(kinds, after=after, wait=wait, where=where)
         if found is None:
-            names = "/".join(k.name for k in sorted(_kinds(kinds) or ()))
-            seconds = self.wait if wait is None else wait
-            raise Failed(requirement, expected or names, f"nothing within {seconds:.2g} s")
+            raise self._nothing(kinds, requirement, wait, expected)
         return found
+
+    async def answer_to(
+        self,
+        send: Callable[[], object],
+        kinds: Iterable[PacketType] | PacketType,
+        *,
+        where: Where | None = None,
+        wait: float | None = None,
+    ) -> Datagram | None:
+        """Call `send` (it sends one new packet) and return the first answer of `kinds` for which
+        `where` holds, or None if none came within `wait`. While the case's impairment spoils
+        what `send` sent, `send` is called again at once, as a local system repeats a HELLO or
+        a reliable item that went unanswered (D-RSP-12, D-RSP-16), up to ANSWER_TRIES times in
+        all; Inconclusive if it spoiled them all. Without an impairment: one packet, one wait."""
+        start = self.mark()
+        for _ in range(ANSWER_TRIES):
+            spoiled = self.spoiled
+            send()
+            if self.spoiled == spoiled:
+                return await self.next(kinds, after=start, where=where, wait=wait)
+        raise Inconclusive(f"the impairment lost or corrupted all {ANSWER_TRIES} packets sent")
+
+    async def expect_answer_to(
+        self,
+        send: Callable[[], object],
+        kinds: Iterable[PacketType] | PacketType,
+        requirement: str,
+        *,
+        where: Where | None = None,
+        wait: float | None = None,
+        expected: str = "",
+    ) -> Datagram:
+        """As `answer_to`, but Failed (`requirement`) when no answer comes."""
+        found = await self.answer_to(send, kinds, where=where, wait=wait)
+        if found is None:
+            raise self._nothing(kinds, requirement, wait, expected)
+        return found
+
+    def _nothing(
+        self,
+        kinds: Iterable[PacketType] | PacketType,
+        requirement: str,
+        wait: float | None,
+        expected: str,
+    ) -> Failed:
+        names = "/".join(k.name for k in sorted(_kinds(kinds) or ()))
+        seconds = self.wait if wait is None else wait
+        return Failed(requirement, expected or names, f"nothing within {seconds:.2g} s")
 
     async def listen(self, seconds: float) -> None:
         """Let `seconds` pass (the probe keeps receiving, and answering what it answers)."""

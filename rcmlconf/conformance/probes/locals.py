@@ -29,10 +29,12 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from rcmlconf.conformance.probes.datagrams import DatagramLog
+from rcmlconf.conformance.probes.impaired import ImpairedPath
 from rcmlconf.conformance.probes.rsp import Datagram, summary
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Failed, HarnessError, Inconclusive
 from rcmlconf.errors import ProtocolError
+from rcmlconf.impair import ImpairedChannel, Impairment
 from rcmlconf.rctp.datastream.order import SequenceTracker
 from rcmlconf.rsp.codec import (
     Bye,
@@ -189,10 +191,17 @@ class LocalListener:
         return None
 
     async def accept(
-        self, transcript: Transcript, wait: float, *, summon: bool = True
+        self,
+        transcript: Transcript,
+        wait: float,
+        *,
+        summon: bool = True,
+        impairment: Impairment | None = None,
+        seed: int = 0,
     ) -> LocalProbe:
         """The next new session's HELLO, as a probe; `summon` starts a local system (the embedded
-        reference) when none is waiting. Inconclusive if no HELLO comes within `wait`."""
+        reference) when none is waiting. Inconclusive if no HELLO comes within `wait`. What the
+        probe sends goes through `impairment` (seeded with `seed`)."""
         deadline = self.now + wait
         summoned = not summon or self._summon is None
         while (entry := self._next_live()) is None:
@@ -214,6 +223,9 @@ class LocalListener:
         del self._pending[key]
         self._taken.add(key)
         probe = LocalProbe(self, entry.source, entry.nonce, transcript, wait)
+        if impairment is not None and not impairment.is_none:
+            channel = ImpairedChannel(impairment, seed)
+            probe._forward = ImpairedPath(channel, probe._leave, asyncio.get_running_loop())
         self._bound[entry.source] = probe
         host, port = entry.source
         transcript.note(f"a local system at {host}:{port} opens a session (nonce {key[1].hex()})")
@@ -283,10 +295,19 @@ class LocalProbe(DatagramLog):
         self._opener: Sealer | None = None
         self._tracker = SequenceTracker()
         self._beat: asyncio.TimerHandle | None = None
+        #: The WELCOME or REFUSED given, sent again to a repeat of the HELLO (D-RSP-12).
+        self._answer = b""
+        self._forward: ImpairedPath | None = None
+        self.spoiled = 0
 
     @property
     def now(self) -> float:
         return self.listener.now
+
+    @property
+    def channel(self) -> ImpairedChannel | None:
+        """The impairment's channel of what the probe sends (None without one)."""
+        return self._forward.channel if self._forward is not None else None
 
     @property
     def session_id(self) -> int:
@@ -362,10 +383,15 @@ class LocalProbe(DatagramLog):
     def _handle(self, found: Datagram) -> None:
         """What a robot does at once: its last received sequence number, and ACKs (R-RSP-26)."""
         wire = self.wire
-        if wire is None or self.state != "open" or found.header.session_id != wire.session_id:
+        repeated = isinstance(found.body, Hello) and found.body.client_nonce == self.nonce
+        if repeated and self._answer:  # the answer to it was lost: the same again (D-RSP-12)
+            self.send(self._answer, f"{self.state}: the same answer to the repeated HELLO")
             return
-        if found.type is not PacketType.HELLO:
-            wire.tracker.see(found.header.sequence)
+        if wire is None or self.state != "open" or found.type is PacketType.HELLO:
+            return
+        if found.header.session_id != wire.session_id:
+            return
+        wire.tracker.see(found.header.sequence)
         if found.type is PacketType.DOWNLINK:
             acks = [Item(i.device, i.id) for i in found.items if i.id is not None and self._acks(i)]
             if acks:
@@ -384,12 +410,26 @@ class LocalProbe(DatagramLog):
     # -- sending -------------------------------------------------------------------------------
 
     def send(self, data: bytes, what: str) -> None:
-        """`data`, one datagram to the local system."""
+        """`data`, one datagram to the local system, through the case's impairment if any."""
+        if self.closed:
+            return
+        if self._forward is None:
+            self._put(data, what)
+            return
+        fate = self._forward.put(data, self.peer)
+        if fate:
+            self.spoiled += 1
+            self.transcript.note(f"-x {what} ({fate} by the impairment)")
+
+    def _leave(self, data: bytes, _: Address, lost: int) -> None:
+        self._put(data)
+
+    def _put(self, data: bytes, what: str = "") -> None:
         if self.closed:
             return
         self.sent.append((self.now, data))
         self.transcript.packet("udp", self.listener.address, self.peer, data)
-        self.transcript.note(f"-> {what}")
+        self.transcript.note(f"-> {what or self._line(data)}")
         self.listener.sendto(data, self.peer)
 
     def welcome(self, period_ms: int | None = None, *, key: bytes | None = None) -> bytes:
@@ -416,6 +456,7 @@ class LocalProbe(DatagramLog):
             data, self._line(data, welcome) + (" (signed with a wrong key)" if forged else "")
         )
         if not forged:
+            self._answer = data
             self.wire = wire
             self.period = period / 1000
             self.state = "open"
@@ -440,6 +481,7 @@ class LocalProbe(DatagramLog):
         data = push_header(header) + self.codec.push_body(header, body)
         self.send(data, summary(self.model, header, body))
         self.state = "refused"
+        self._answer = data
         return data
 
     def packet(self, kind: PacketType, body: Body) -> bytes:
@@ -461,13 +503,28 @@ class LocalProbe(DatagramLog):
         return self.packet(PacketType.ACK, MapBody(found))
 
     def bye(self, reason: ByeReason = ByeReason.SHUTDOWN) -> bytes:
-        """BYE: the session ends (R-RSP-22)."""
-        data = self.packet(PacketType.BYE, Bye(reason))
+        """BYE: the session ends (R-RSP-22). Sent again while the impairment spoils it (the
+        local system answers none, and a case ending the session means it); the last sent."""
+        while True:
+            spoiled = self.spoiled
+            data = self.packet(PacketType.BYE, Bye(reason))
+            if self.spoiled == spoiled:
+                break
         self.state = "ended"
         return data
 
-    def _line(self, data: bytes, body: Body) -> str:
-        return summary(self.model, pull_header(data), body)
+    def _line(self, data: bytes, body: Body | None = None) -> str:
+        """A datagram this probe sends, for the transcript (its body decoded if not given; the
+        impairment may have corrupted it)."""
+        try:
+            header = pull_header(data)
+            if body is None and (
+                header.encryption is Encryption.NONE or header.type in _SEALED_NEVER
+            ):
+                body = self.codec.pull_body(header, data[HEADER_SIZE:])
+        except ProtocolError as error:
+            return f"{len(data)} bytes {data[:24].hex()} ({error.reason})"
+        return summary(self.model, header, body)
 
     def _arm(self) -> None:
         if self._beat is not None:
@@ -500,6 +557,8 @@ class LocalProbe(DatagramLog):
         if self._beat is not None:
             self._beat.cancel()
             self._beat = None
+        if self._forward is not None:
+            self._forward.close()
         self.listener._unbind(self)
 
 

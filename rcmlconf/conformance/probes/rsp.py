@@ -29,6 +29,7 @@ from typing import cast
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.datagrams import DatagramLog
+from rcmlconf.conformance.probes.impaired import ImpairedPath
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Failed, HarnessError, Inconclusive, NotApplicable
 from rcmlconf.errors import EncodeError, ProtocolError
@@ -287,10 +288,13 @@ class RspProbe(DatagramLog):
         self._mutations: list[Callable[[bytes], bytes | None]] = []
         self._timer: asyncio.TimerHandle | None = None
         self._timer_at: float | None = None
-        self._forward: ImpairedChannel | None = None
+        self._forward: ImpairedPath | None = None
         self._backward: ImpairedChannel | None = None
+        #: Datagrams sent of which the impairment let no intact copy through (lost, corrupted).
+        self.spoiled = 0
         if impairment is not None and not impairment.is_none:
-            self._forward = ImpairedChannel(impairment, derive_seed(seed, name, "forward"))
+            forward = ImpairedChannel(impairment, derive_seed(seed, name, "forward"))
+            self._forward = ImpairedPath(forward, self._leave, self._loop)
             self._backward = ImpairedChannel(impairment, derive_seed(seed, name, "backward"))
         self.closed = False
 
@@ -308,6 +312,12 @@ class RspProbe(DatagramLog):
         self.transcript.note(f"{self._who}UDP {self.local[0]}:{self.local[1]} -> robot {robot}")
 
     @property
+    def channels(self) -> tuple[ImpairedChannel | None, ImpairedChannel | None]:
+        """The impairment's channels, forward and backward (None without one), for their counts."""
+        forward = self._forward.channel if self._forward is not None else None
+        return forward, self._backward
+
+    @property
     def _who(self) -> str:
         return f"[{self.name}] " if self.name else ""
 
@@ -319,14 +329,17 @@ class RspProbe(DatagramLog):
 
     def send(self, data: bytes, what: str = "") -> None:
         """`data` exactly as given, one datagram, through the impairment if the case has one."""
-        if self._forward is not None:
-            before = self._forward.counts.lost
-            self._forward.send(data, self.now)
-            if self._forward.counts.lost > before:
-                self.transcript.note(f"{self._who}-x {what or self._describe(data)} (impairment)")
-            self._pump()
+        if self._forward is None:
+            self._put(data, what)
             return
-        self._put(data, what)
+        fate = self._forward.put(data, self.robot)
+        if fate:
+            self.spoiled += 1
+            line = what or self._describe(data)
+            self.transcript.note(f"{self._who}-x {line} ({fate} by the impairment)")
+
+    def _leave(self, data: bytes, _: Address, lost: int) -> None:
+        self._put(data)
 
     def _put(self, data: bytes, what: str = "") -> None:
         if self._transport is None or self._transport.is_closing():
@@ -548,9 +561,6 @@ class RspProbe(DatagramLog):
         if self.closed:
             return
         now = self.now
-        if self._forward is not None:
-            for data in self._forward.due(now):
-                self._put(data)
         if self._backward is not None and self.endpoint is not None:
             for data in self._backward.due(now):
                 self.endpoint.receive_datagram(data, now)
@@ -586,7 +596,6 @@ class RspProbe(DatagramLog):
             t
             for t in (
                 self.endpoint.get_timer() if self.endpoint is not None else None,
-                self._forward.get_timer() if self._forward is not None else None,
                 self._backward.get_timer() if self._backward is not None else None,
             )
             if t is not None
@@ -639,12 +648,12 @@ class RspProbe(DatagramLog):
         for raw in self.raw_sessions:
             if raw.wire.session_id and not raw.ended:
                 with contextlib.suppress(EncodeError):
-                    self._put(
-                        raw.build(PacketType.BYE, Bye(ByeReason.CLOSED)), "BYE (the case ends)"
-                    )
+                    self._put(raw.last_bye(), "BYE (the case ends)")
         self.closed = True
         if self._timer is not None:
             self._timer.cancel()
+        if self._forward is not None:
+            self._forward.close()
         if self._transport is not None:
             self._transport.close()
 
@@ -672,6 +681,8 @@ class RawSession:
         #: Items every `downlink` carries besides its own (the requests a local system repeats in
         #: every DOWNLINK, R-RSP-23): a device the call names itself is not added twice.
         self.standing: list[Item] = []
+        #: The last packet `send` sent (as it went, altered or not).
+        self.last = b""
 
     @property
     def session_id(self) -> int:
@@ -695,15 +706,14 @@ class RawSession:
         body = Hello(self.nonce, self.period_ms, bytes(MAC_SIZE) if signed else b"")
         data = self.wire.build(PacketType.HELLO, body, self.probe.now, 0, psk or self.psk)
         self.probe.send(data)
+        self.last = data
         return data
 
     async def open(self) -> Datagram:
         """HELLO and the robot's WELCOME; Inconclusive when it refuses or does not answer."""
-        start = self.probe.mark()
-        self.hello()
-        answer = await self.probe.next(
+        answer = await self.probe.answer_to(
+            self.hello,
             (PacketType.WELCOME, PacketType.REFUSED),
-            after=start,
             where=lambda d: (
                 d.type is PacketType.REFUSED
                 or (isinstance(d.body, Welcome) and d.body.client_nonce == self.nonce)
@@ -746,6 +756,7 @@ class RawSession:
         if mutate is not None:
             data = mutate(data)
         self.probe.send(data, what)
+        self.last = data
         return data
 
     def downlink(
@@ -761,6 +772,31 @@ class RawSession:
         given.update((item.device, item) for item in items)
         body = MapBody(tuple(given[device] for device in sorted(given)))
         return self.send(PacketType.DOWNLINK, body, buffer=buffer, mutate=mutate, what=what)
+
+    def bye(self, reason: ByeReason = ByeReason.CLOSED) -> bytes:
+        """BYE, sent again while the impairment spoils it (the robot answers none, and a case
+        ending the session means it: the next one must not be refused as busy); the last sent."""
+        while True:
+            spoiled = self.probe.spoiled
+            data = self.send(PacketType.BYE, Bye(reason))
+            if self.probe.spoiled == spoiled:
+                return data
+
+    def last_bye(self) -> bytes:
+        """The BYE that ends the case, numbered after the newest sequence number the robot can
+        have taken: the last it reported (R-RSP-15), or one of ours newer than that. A case that
+        skipped or rewound numbers, or lost some to the impairment, may have left the robot
+        behind our own count, where a BYE would be dropped as stale (D-RSP-15) and the robot
+        kept busy."""
+        mine = [d for d in self.probe.received if d.header.session_id == self.session_id]
+        newest = mine[-1].header.last_received if mine else 0
+        for _, data in self.probe.sent:
+            if int.from_bytes(data[SESSION_AT : SESSION_AT + 6]) == self.session_id:
+                sequence = sequence_of(data)
+                if newer(sequence, newest):
+                    newest = sequence
+        self.wire.sent = newest + 1
+        return self.build(PacketType.BYE, Bye(ByeReason.CLOSED))
 
     def skip(self, packets: int) -> None:
         """Number the next packet `packets` further on, as if that many had been lost."""
@@ -790,6 +826,7 @@ async def open_probe(ctx: Context, *, robot: Address | None = None, name: str = 
         name,
     )
     probe.quiet = QUIET * ctx.scale
+    ctx.watch(*probe.channels)
     await probe._bind()
     ctx.on_close(probe.close)
     return probe
@@ -887,6 +924,45 @@ async def raw_session(
     return probe, raw
 
 
+async def acked(
+    probe: RspProbe,
+    raw: RawSession,
+    found: Device,
+    ident: int,
+    values: Mapping[str, Value] | None = None,
+    *,
+    buffer: int = 0,
+) -> Datagram | None:
+    """Send occurrence `ident` of command or memory command `found` in a DOWNLINK (again while
+    the impairment spoils it) and return the robot's ACK of it (R-RSP-26); None if none came."""
+    return await probe.answer_to(
+        lambda: raw.downlink([occurrence(found, ident, values)], buffer=buffer),
+        PacketType.ACK,
+        where=lambda d: ident in d.acks(found.position),
+    )
+
+
+async def taken(
+    probe: RspProbe,
+    raw: RawSession,
+    items: Iterable[Item] = (),
+    *,
+    buffer: int = 0,
+    where: Where | None = None,
+    wait: float | None = None,
+) -> Datagram | None:
+    """Send a DOWNLINK of `items` (again, a new packet, while the impairment spoils it) and return
+    the first UPLINK the robot sent after it took it (its last received sequence number has
+    reached it, R-RSP-15) for which `where` holds; None if none came within `wait`."""
+
+    def fits(d: Datagram) -> bool:
+        return newer(d.header.last_received, sequence_of(raw.last)) and (where is None or where(d))
+
+    return await probe.answer_to(
+        lambda: raw.downlink(items, buffer=buffer), PacketType.UPLINK, where=fits, wait=wait
+    )
+
+
 async def ack_of(
     probe: RspProbe, found: Device, ident: int, *, after: int, wait: float | None = None
 ) -> Datagram | None:
@@ -958,9 +1034,7 @@ async def dropped_then_taken(
             f"{len(stray)} datagrams",
             requirement,
         )
-    start = probe.mark()
-    raw.downlink([occurrence(command, ident)])
-    ack = await ack_of(probe, command, ident, after=start)
+    ack = await acked(probe, raw, command, ident)
     ctx.expect(
         ack is not None,
         f"the session going on: ACK of {command.name} #{ident} in a well-formed DOWNLINK",

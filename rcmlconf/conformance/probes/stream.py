@@ -21,6 +21,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from rcmlconf.conformance.probes.control import ControlProbe
+from rcmlconf.conformance.probes.datagrams import ANSWER_TRIES
+from rcmlconf.conformance.probes.impaired import ImpairedPath
 from rcmlconf.conformance.transcript import Address, Transcript, show
 from rcmlconf.conformance.verdicts import Failed, HarnessError, Inconclusive
 from rcmlconf.errors import ProtocolError, ValueTextError
@@ -54,6 +56,8 @@ if TYPE_CHECKING:
 LAYOUT = "R-RCTP-39"
 #: What a FLOW request waits for, unless said otherwise (R-RCTP-46).
 ANSWERED = "R-RCTP-46"
+#: Seconds between the sendings of a FLOW request under an impairment (`StreamProbe.ask`).
+REPEAT = 0.25
 
 
 @dataclass(frozen=True, slots=True)
@@ -111,63 +115,6 @@ class StreamSetUp:
         return micros(seconds or 0.0)
 
 
-class _Path:
-    """One direction between the socket and the case: the impairment's channel on a loop
-    timer, or nothing at all. Addresses ride beside the bytes, keyed by a prefix the channel
-    carries (a duplicate keeps its original's)."""
-
-    def __init__(
-        self,
-        channel: ImpairedChannel | None,
-        deliver: Callable[[bytes, Address, int], None],
-        loop: asyncio.AbstractEventLoop,
-    ) -> None:
-        self.channel = channel
-        self._deliver = deliver
-        self._loop = loop
-        self._addresses: dict[int, Address] = {}
-        self._key = 0
-        self._timer: asyncio.TimerHandle | None = None
-        #: Lost since the last delivery.
-        self._lost = 0
-
-    def put(self, data: bytes, address: Address) -> bool:
-        """Into the path; False when the impairment lost it."""
-        channel = self.channel
-        if channel is None:
-            self._deliver(data, address, 0)
-            return True
-        self._key += 1
-        self._addresses[self._key] = address
-        lost = channel.counts.lost
-        channel.send(self._key.to_bytes(4, "big") + data, self._loop.time())
-        gone = channel.counts.lost > lost
-        self._lost += gone
-        self._due()
-        return not gone
-
-    def _due(self) -> None:
-        assert self.channel is not None
-        for item in self.channel.due(self._loop.time()):
-            key = int.from_bytes(item[:4], "big")
-            address = self._addresses.get(key) or self._addresses[self._key]
-            lost, self._lost = self._lost, 0
-            self._deliver(item[4:], address, lost)
-        if self._timer is not None:
-            self._timer.cancel()
-            self._timer = None
-        when = self.channel.get_timer()
-        if when is not None:
-            self._timer = self._loop.call_at(when, self._due)
-
-    def close(self) -> None:
-        if self._timer is not None:
-            self._timer.cancel()
-            self._timer = None
-        if self.channel is not None:
-            self.channel.discard()
-
-
 class _Socket(asyncio.DatagramProtocol):
     def __init__(self) -> None:
         self.probe: StreamProbe | None = None
@@ -202,8 +149,8 @@ class StreamProbe:
         if impairment is not None and not impairment.is_none:
             outward, inward = channel_pair(impairment, seed, flow)
             transcript.note(f"udp {self.local[0]}:{self.local[1]} impaired: {impairment}")
-        self._out = _Path(outward, self._leave, self._loop)
-        self._in = _Path(inward, self._deliver, self._loop)
+        self._out = ImpairedPath(outward, self._leave, self._loop)
+        self._in = ImpairedPath(inward, self._deliver, self._loop)
         #: The next sequence number this side sends (R-RCTP-41: from a random start).
         self.sequence = int.from_bytes(os.urandom(2), "big")
         self._request_id = int.from_bytes(os.urandom(2), "big")
@@ -328,9 +275,9 @@ class StreamProbe:
             raise HarnessError("the stream probe is closed")
         destination = self._destination(to)
         summary = what or self._describe(data, Direction.WRITE)
-        delivered = self._out.put(data, destination)
-        lost = "" if delivered else "  [lost by the impairment]"
-        self.transcript.note(f"-> udp {destination[0]}:{destination[1]} {summary}{lost}")
+        fate = self._out.put(data, destination)
+        spoiled = f"  [{fate} by the impairment]" if fate else ""
+        self.transcript.note(f"-> udp {destination[0]}:{destination[1]} {summary}{spoiled}")
 
     def packet_bytes(
         self,
@@ -383,8 +330,9 @@ class StreamProbe:
         if self.closed:
             return
         self.transcript.packet("udp", source, self.local, data)
-        if not self._in.put(data, source):
-            self.transcript.note(f"<- udp {source[0]}:{source[1]} lost by the impairment")
+        fate = self._in.put(data, source)
+        if fate:
+            self.transcript.note(f"<- udp {source[0]}:{source[1]} {fate} by the impairment")
 
     def _deliver(self, data: bytes, source: Address, lost: int) -> None:
         try:
@@ -498,8 +446,9 @@ class StreamProbe:
         """Send a FLOW request (`build` makes it from the next request id) and return its ACK or
         NACK; none within `wait` fails `requirement`."""
         request = build(self.next_request_id())
-        self.send_flow(request, stream)
-        got = await self.answer(request.request_id, wait)
+        got = await self.answer_to(
+            lambda: self.send_flow(request, stream), request.request_id, wait
+        )
         if got is None:
             seconds = self.wait if wait is None else wait
             raise Failed(
@@ -508,6 +457,24 @@ class StreamProbe:
                 f"nothing within {seconds:g} s",
             )
         return got[1]
+
+    async def answer_to(
+        self, send: Callable[[], object], request_id: int, wait: float | None = None
+    ) -> tuple[Datagram, FlowMessage] | None:
+        """Call `send` (it sends a packet holding request `request_id`) and return the ACK or
+        NACK of that id (`answer`); None when none comes within `wait`. Under an impairment the
+        packet goes again every REPEAT seconds until answered, as a requester whose request or
+        answer was lost sends it again (R-RCTP-46: a repeated id gets the answer already
+        given)."""
+        deadline = self._loop.time() + (self.wait if wait is None else wait)
+        impaired = self._out.channel is not None
+        for _ in range(ANSWER_TRIES):
+            send()
+            left = deadline - self._loop.time()
+            got = await self.answer(request_id, min(left, REPEAT) if impaired else left)
+            if got is not None or not impaired or self._loop.time() >= deadline:
+                return got
+        return None
 
     def _describe(self, data: bytes, direction: Direction) -> str:
         """A datagram in one line: its header and payloads (a DATA payload's values, of the
@@ -575,6 +542,7 @@ async def open_stream(ctx: Context, control: ControlProbe, flow: int = 0) -> Str
         control.local[0], ctx.transcript, ctx.wait, ctx.impairment, ctx.impairment_seed(), flow
     )
     ctx.on_close(probe.close)
+    ctx.watch(*probe.channels)
     return probe
 
 
