@@ -63,23 +63,30 @@ class BeatClock(Generic[T]):
     loop timer per packet, and the loop's heap of them costs more than the packets. Deadlines
     are put in the millisecond they fall in and the millisecond is called back whole, at its
     start: at most 1 ms early, which D-RCTP-20's slack for streams sent together allows
-    (`endpoint.SEND_SLACK`).
+    (`endpoint.SEND_SLACK`). With `late`, at its end instead: at most 1 ms late and never early,
+    for endpoints that act only once their deadline has come (RSP's beats, D-RSP-13); a periodic
+    deadline keeps its place within the millisecond, so the rounding adds no jitter.
     """
 
-    __slots__ = ("_buckets", "_callback", "_keys", "_loop")
+    __slots__ = ("_buckets", "_callback", "_keys", "_loop", "_round")
 
     def __init__(
-        self, loop: asyncio.AbstractEventLoop, callback: Callable[[list[T]], None]
+        self,
+        loop: asyncio.AbstractEventLoop,
+        callback: Callable[[list[T]], None],
+        *,
+        late: bool = False,
     ) -> None:
         self._loop = loop
         self._callback = callback
+        self._round = math.ceil if late else math.floor
         #: Millisecond -> the items due in it (a dict for an ordered set).
         self._buckets: dict[int, dict[T, None]] = {}
         self._keys: dict[T, int] = {}
 
     def set(self, item: T, at: float | None) -> None:
         """Call back with `item` in the millisecond of loop time `at`; None: not at all."""
-        key = None if at is None else math.floor(at * 1000)
+        key = None if at is None else self._round(at * 1000)
         old = self._keys.get(item)
         if old == key:
             return

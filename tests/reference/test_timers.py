@@ -55,3 +55,20 @@ async def test_items_due_in_one_millisecond_are_called_back_together() -> None:
     clock.set("e", base + 0.0023)  # moved on
     await asyncio.sleep(0.05)
     assert calls == [["a", "b"], ["c"], ["e"]]
+
+
+@run
+async def test_a_late_clock_calls_back_at_the_end_of_the_millisecond_never_early() -> None:
+    loop = asyncio.get_running_loop()
+    calls: list[tuple[list[str], float]] = []
+    clock: BeatClock[str] = BeatClock(
+        loop, lambda items: calls.append((items, loop.time())), late=True
+    )
+    base = (int(loop.time() * 1000) + 20) / 1000
+    clock.set("a", base + 0.0001)
+    clock.set("b", base + 0.0009)
+    clock.set("c", base + 0.0015)  # the next millisecond
+    await asyncio.sleep(0.05)
+    assert [items for items, _ in calls] == [["a", "b"], ["c"]]
+    assert calls[0][1] >= base + 0.0009  # never early
+    assert calls[1][1] >= base + 0.0015

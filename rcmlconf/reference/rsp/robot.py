@@ -1,7 +1,8 @@
 """The reference RSP robot on asyncio: one UDP socket and a control loop around `RobotEndpoint`.
 
 Nothing here decides anything about RSP. Each datagram goes to the endpoint; after anything
-reaches it, what it has to send is sent and its timer moved (`LoopTimer`). Every control period
+reaches it, what it has to send is sent and its timer moved (`LoopTimer`; or, for a process that
+hosts many endpoints, a socket and a timer of a `batch.Batch`, `start(batch)`). Every control period
 the body (a simulated CUBO, or a generic body for any other model) gets the motion filter's
 output, moves, and the sensors and monitors the next UPLINK carries go back to the endpoint, with
 the events and memory events that happened (`Body.occurrences`: the endpoint reports those the
@@ -25,6 +26,7 @@ from dataclasses import dataclass
 from typing import cast
 
 from rcmlconf.reference.faults import Fault, describe
+from rcmlconf.reference.rsp.batch import Batch, Datagrams, Timer
 from rcmlconf.reference.rsp.bodies import Body, body_for
 from rcmlconf.reference.timers import LoopTimer
 from rcmlconf.rsp.audio import AudioReceiver
@@ -65,8 +67,8 @@ class ReferenceRobot(asyncio.DatagramProtocol):
             model, encryptions=settings.encryptions, psk=settings.psk, faults=settings.faults
         )
         self.body = body if body is not None else body_for(model, settings.seed)
-        self.transport: asyncio.DatagramTransport | None = None
-        self._timer: LoopTimer | None = None
+        self.transport: Datagrams | None = None
+        self._timer: Timer | None = None
         #: When the control loop ticks next (loop time).
         self._tick_at = 0.0
         #: The memory command being executed, and when it is done (D-RSP-19).
@@ -80,17 +82,22 @@ class ReferenceRobot(asyncio.DatagramProtocol):
 
     # -- lifetime ------------------------------------------------------------------------------
 
-    async def start(self) -> None:
+    async def start(self, batch: Batch | None = None) -> None:
+        """Listen: on a transport and a timer of its own, or on a `Batch`'s, shared with many
+        other endpoints."""
         if self.settings.faults:
             log.warning(
                 "running with faults, to test a conformance harness: %s",
                 describe(self.settings.faults),
             )
         loop = asyncio.get_running_loop()
-        await loop.create_datagram_endpoint(
-            lambda: self, local_addr=(self.settings.host, self.settings.port)
-        )
-        self._timer = LoopTimer(loop, self._timer_fired)
+        local = (self.settings.host, self.settings.port)
+        if batch is None:
+            await loop.create_datagram_endpoint(lambda: self, local_addr=local)
+            self._timer = LoopTimer(loop, self._timer_fired)
+        else:
+            self.transport = batch.open(self.datagram_received, local=local)
+            self._timer = batch.timer(self._timer_fired)
         self._tick_at = loop.time()
         self._timer.set(self._tick_at)
 

@@ -8,7 +8,8 @@
 - *Robot API*: this object is `rcmlconf.rsp.api.DeviceAccess`, which the typed modules of
   `rcmlconf rsp generate` drive.
 
-It runs in an asyncio loop: `await Simulacrum(...).open()` inside one, or
+It runs in an asyncio loop: `await Simulacrum(...).open()` inside one (`open(batch=...)`: on a
+`batch.Batch`'s socket and clock, for a process that hosts many endpoints), or
 `Simulacrum.start(...)` from plain code, which runs the loop in a thread of its own. Every
 DeviceAccess method may be called from any thread: the endpoint is only touched under a lock, and
 listeners are called from the loop's thread.
@@ -24,6 +25,7 @@ from concurrent.futures import Future
 from typing import cast
 
 from rcmlconf.errors import RcmlconfError
+from rcmlconf.reference.rsp.batch import Batch, Datagrams, Timer
 from rcmlconf.reference.timers import LoopTimer
 from rcmlconf.rsp.api import Values
 from rcmlconf.rsp.codec import Encryption
@@ -70,8 +72,8 @@ class Simulacrum:
         self._listeners: dict[str, list[Callable[[Values], None]]] = {}
         self._written: dict[str, Values] = {}
         self._loop: asyncio.AbstractEventLoop | None = None
-        self._transport: asyncio.DatagramTransport | None = None
-        self._timer: LoopTimer | None = None
+        self._transport: Datagrams | None = None
+        self._timer: Timer | None = None
         self._opened: asyncio.Future[events.SessionOpened] | None = None
         self.closed: events.SessionClosed | events.SessionRefused | None = None
         #: Every event except states, for those who watch the session (bounded).
@@ -80,12 +82,19 @@ class Simulacrum:
 
     # -- lifetime ------------------------------------------------------------------------------
 
-    async def open(self, timeout: float = 3.0) -> events.SessionOpened:
-        """Connect, send HELLO and wait for WELCOME (D-RSP-12); NoSession when refused."""
+    async def open(
+        self, timeout: float = 3.0, *, batch: Batch | None = None
+    ) -> events.SessionOpened:
+        """Connect, send HELLO and wait for WELCOME (D-RSP-12); NoSession when refused. On a
+        transport and a timer of its own, or on a `Batch`'s, shared with many other endpoints."""
         loop = self._loop = asyncio.get_running_loop()
         self._opened = loop.create_future()
-        await loop.create_datagram_endpoint(lambda: _Protocol(self), remote_addr=self.robot)
-        self._timer = LoopTimer(loop, self._timer_fired)
+        if batch is None:
+            await loop.create_datagram_endpoint(lambda: _Protocol(self), remote_addr=self.robot)
+            self._timer = LoopTimer(loop, self._timer_fired)
+        else:
+            self._transport = batch.open(self._datagram, remote=self.robot)
+            self._timer = batch.timer(self._timer_fired)
         with self._lock:
             self.endpoint.connect(loop.time())
         self._flush()
@@ -232,6 +241,9 @@ class Simulacrum:
         with self._lock:
             self.endpoint.handle_timer(self._loop.time())
         self._flush()
+
+    def _datagram(self, data: bytes, addr: Address) -> None:
+        self.received(data)  # from the robot: the socket is connected to it
 
     def received(self, data: bytes) -> None:
         assert self._loop is not None
