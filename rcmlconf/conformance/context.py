@@ -57,6 +57,12 @@ class Context:
         return self.case.timeout * self.scale / 3
 
     @property
+    def left(self) -> float:
+        """Seconds left of the case's timeout (scaled): what its waits may still take."""
+        deadline = self.started + self.case.timeout * self.scale
+        return deadline - asyncio.get_running_loop().time()
+
+    @property
     def impairment(self) -> Impairment:
         """What the case's UDP flows go through: the case's own (it needs that loss or
         reordering to check what it checks), else --impair's, else nothing."""

@@ -227,6 +227,41 @@ def _nothing_raised(what: str, seconds: float) -> Inconclusive:
     return Inconclusive(f"the robot raised no {what} within {seconds:.2g} s")
 
 
+@dataclass(frozen=True, slots=True)
+class _Raised:
+    """The events a session requesting every event device saw the robot raise."""
+
+    probe: RspProbe
+    raw: RawSession
+    #: The UPLINKs watched, each once, in the robot's order (`_uplinks`).
+    uplinks: list[Datagram]
+    #: The events' runs in them (never empty).
+    runs: list[_Run]
+    #: How long the case watched at the most.
+    seconds: float
+
+
+async def _events_raised(
+    ctx: Context, enough: Callable[[RspProbe, list[Datagram], list[_Run]], bool]
+) -> _Raised:
+    """A session requesting every event device, watched until `enough` holds of the probe, the
+    UPLINKs received and the events' runs in them, or OCCURS_WITHIN has passed; Inconclusive if
+    the robot raised no event."""
+    model = ctx.target.rsp_model
+    events = _events(model) if model is not None else []
+    probe, raw = await _requesting(ctx, *events)
+    start = probe.mark()
+    kinds = {DeviceKind.EVENT}
+    seconds = OCCURS_WITHIN * ctx.scale
+    uplinks = await _watch(
+        probe, start, seconds, lambda u: enough(probe, u, _runs(probe.model, u, kinds))
+    )
+    runs = _runs(probe.model, uplinks, kinds)
+    if not runs:
+        raise _nothing_raised("event", seconds)
+    return _Raised(probe, raw, uplinks, runs, seconds)
+
+
 def _same_values(ctx: Context, run: _Run) -> None:
     """R-RSP-24: an occurrence is repeated with its ID and its fields; other fields under the
     same ID are another occurrence numbered like the one before."""
@@ -247,23 +282,14 @@ def _same_values(ctx: Context, run: _Run) -> None:
     timeout=6.0,
 )
 async def three_uplinks(ctx: Context) -> None:
-    model = ctx.target.rsp_model
-    events = _events(model) if model is not None else []
-    probe, _ = await _requesting(ctx, *events)
-    start = probe.mark()
-    kinds = {DeviceKind.EVENT}
+    def enough(probe: RspProbe, uplinks: list[Datagram], runs: list[_Run]) -> bool:
+        return sum(_judged(probe, r, uplinks) for r in runs) >= 3
 
-    def enough(uplinks: list[Datagram]) -> bool:
-        return sum(_judged(probe, r, uplinks) for r in _runs(probe.model, uplinks, kinds)) >= 3
-
-    seconds = OCCURS_WITHIN * ctx.scale
-    uplinks = await _watch(probe, start, seconds, enough)
-    runs = _runs(probe.model, uplinks, kinds)
-    done = [r for r in runs if _judged(probe, r, uplinks)]
-    if not runs:
-        raise _nothing_raised("event", seconds)
+    raised = await _events_raised(ctx, enough)
+    uplinks = raised.uplinks
+    done = [r for r in raised.runs if _judged(raised.probe, r, uplinks)]
     if not done:
-        raise Inconclusive(f"{len(runs)} events, each next to a lost UPLINK or still riding")
+        raise Inconclusive(f"{len(raised.runs)} events, each next to a lost UPLINK or still riding")
     for run in done:
         _same_values(ctx, run)
         rode = run.uplinks
@@ -285,30 +311,21 @@ async def three_uplinks(ctx: Context) -> None:
     timeout=6.0,
 )
 async def ids_count(ctx: Context) -> None:
-    model = ctx.target.rsp_model
-    events = _events(model) if model is not None else []
-    probe, raw = await _requesting(ctx, *events)
-    start = probe.mark()
-    kinds = {DeviceKind.EVENT}
-
-    def enough(uplinks: list[Datagram]) -> bool:
+    def enough(_: RspProbe, uplinks: list[Datagram], runs: list[_Run]) -> bool:
         counts: dict[int, int] = {}
-        for run in _runs(probe.model, uplinks, kinds):
+        for run in runs:
             if _complete(run, uplinks):
                 counts[run.device.position] = counts.get(run.device.position, 0) + 1
         return max(counts.values(), default=0) >= 3
 
-    seconds = OCCURS_WITHIN * ctx.scale
-    uplinks = await _watch(probe, start, seconds, enough)
-    runs = _runs(probe.model, uplinks, kinds)
-    if not runs:
-        raise _nothing_raised("event", seconds)
+    raised = await _events_raised(ctx, enough)
+    probe, uplinks = raised.probe, raised.uplinks
     space = _ids(probe.model)
     numbered: dict[str, list[_Run]] = {}
-    for run in runs:
+    for run in raised.runs:
         _same_values(ctx, run)
         numbered.setdefault(run.device.name, []).append(run)
-    welcome = raw.welcome
+    welcome = raised.raw.welcome
     assert welcome is not None
     for name, found in numbered.items():
         ids = [run.id for run in found]
@@ -328,7 +345,7 @@ async def ids_count(ctx: Context) -> None:
         )
     if max(len(runs) for runs in numbered.values()) < 2:
         raise Inconclusive(
-            f"the robot raised one event a device within {seconds:.2g} s"
+            f"the robot raised one event a device within {raised.seconds:.2g} s"
             f" ({', '.join(numbered)}): no second ID to check"
         )
 
@@ -391,16 +408,21 @@ def _carrying(uplinks: Sequence[Datagram], found: Device) -> list[tuple[Datagram
     ]
 
 
-async def _first_memory_event(
-    ctx: Context, probe: RspProbe, found: Device, start: int
-) -> tuple[Datagram, int]:
-    """The first UPLINK carrying an occurrence of `found`, and its ID."""
+async def _memory_event_raised(
+    ctx: Context,
+) -> tuple[RspProbe, RawSession, Device, Datagram, int]:
+    """A session requesting the model's first memory event device, and the first UPLINK carrying
+    an occurrence of it with its ID; Inconclusive if the robot raised none."""
+    found = _memory_event(ctx.target.rsp_model)
+    probe, raw = await _requesting(ctx, found)
+    start = probe.mark()
     seconds = OCCURS_WITHIN * ctx.scale
     uplinks = await _watch(probe, start, seconds, lambda u: bool(_carrying(u, found)))
     carried = _carrying(uplinks, found)
     if not carried:
         raise _nothing_raised(f"{found.name} (memory event)", seconds)
-    return carried[0]
+    sent, ident = carried[0]
+    return probe, raw, found, sent, ident
 
 
 def _rto(period: float, retransmissions: int) -> float:
@@ -436,10 +458,7 @@ def _one_at_a_time(ctx: Context, uplinks: Sequence[Datagram], found: Device, ide
     timeout=6.0,
 )
 async def memory_event_resent(ctx: Context) -> None:
-    memory = _memory_event(ctx.target.rsp_model)
-    probe, raw = await _requesting(ctx, memory)
-    start = probe.mark()
-    sent, ident = await _first_memory_event(ctx, probe, memory, start)
+    probe, raw, memory, sent, ident = await _memory_event_raised(ctx)
     period = raw.period
     begun = probe.received.index(sent)
     sends = [sent]
@@ -503,10 +522,7 @@ async def memory_event_resent(ctx: Context) -> None:
     timeout=7.0,
 )
 async def memory_event_waits(ctx: Context) -> None:
-    memory = _memory_event(ctx.target.rsp_model)
-    probe, raw = await _requesting(ctx, memory)
-    start = probe.mark()
-    sent, ident = await _first_memory_event(ctx, probe, memory, start)
+    probe, raw, memory, sent, ident = await _memory_event_raised(ctx)
     ctx.expect(
         ident == 0, f"{memory.name} #0 first in the session (D-RSP-5)", f"#{ident}", "R-RSP-24"
     )

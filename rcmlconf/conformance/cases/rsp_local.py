@@ -8,12 +8,12 @@ BYE (R-RSP-13 to R-RSP-16, R-RSP-22 to R-RSP-29, R-RSP-32, R-RSP-37, R-RSP-38)."
 from __future__ import annotations
 
 import itertools
-import statistics
 from collections.abc import Callable, Iterable
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.datagrams import ANSWER_TRIES
 from rcmlconf.conformance.probes.locals import REQUESTED, LocalProbe, zeros
+from rcmlconf.conformance.probes.pace import gaps, ms, paced, spaced
 from rcmlconf.conformance.probes.rsp import Datagram, first, newer, of_kind
 from rcmlconf.conformance.registry import CaseFunction, Role, case
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
@@ -49,10 +49,11 @@ async def session(
     slower: int = 1,
     withheld: Iterable[Device] = (),
     beating: bool = True,
+    used: bool = True,
 ) -> LocalProbe:
     """The next run's session, its HELLO answered with WELCOME (D-RSP-24 step 1); `free` buffers
     announced from WELCOME on, the occurrences of `withheld` not acknowledged, T `slower` times
-    the HELLO's."""
+    the HELLO's; `used`: returned once the scenario uses the robot (`running`, step 2)."""
     probe = await ctx.local()
     if probe.encryption is not Encryption.NONE and probe.psk is None:
         probe.refuse(RefusedReason.ENCRYPTION_NOT_OFFERED)
@@ -71,6 +72,8 @@ async def session(
         # The free count in an UPLINK too, at once: a local system that reads it from UPLINKs
         # alone (WELCOME's buffer byte overlooked) is not this helper's to catch.
         probe.uplink()
+    if used:
+        await running(probe)
     return probe
 
 
@@ -119,8 +122,9 @@ def ids(downlinks: Iterable[Datagram], device: Device) -> list[int]:
     return seen
 
 
-def ms(seconds: Iterable[float]) -> str:
-    return ", ".join(f"{s * 1000:.0f}" for s in seconds) + " ms"
+def numbered(device: Device, idents: Iterable[int]) -> str:
+    """Occurrences of `device` by ID, for a failure's text."""
+    return f"{device.name} #{', #'.join(map(str, idents))}"
 
 
 def occurrence(device: Device, ident: int) -> Item:
@@ -190,13 +194,7 @@ async def hello_retries(ctx: Context) -> None:
         "sequence numbers 0, 1, 2, ...: each repeat a new packet",
         ", ".join(map(str, numbers)),
     )
-    gaps = [b.at - a.at for a, b in itertools.pairwise(hellos)]
-    ctx.expect(
-        all(0.6 * HELLO_INTERVAL <= gap <= 1.6 * HELLO_INTERVAL for gap in gaps),
-        f"repeats {HELLO_INTERVAL * 1000:g} ms apart (D-RSP-12)",
-        ms(gaps),
-        timing=True,
-    )
+    spaced(ctx, hellos, HELLO_INTERVAL, "repeats", note=" (D-RSP-12)")
     ctx.expect(
         len(hellos) <= HELLO_RETRIES + 1,
         f"at most {HELLO_RETRIES} repeats (D-RSP-12)",
@@ -225,7 +223,6 @@ async def downlink_header(ctx: Context) -> None:
     probe = await session(ctx, withheld=occurring, beating=False)
     assert probe.wire is not None
     period = probe.period
-    await running(probe)
     ten = probe.wire.sent + 9
     for _ in range(ANSWER_TRIES):  # sequence 10, again while the impairment spoils it
         probe.wire.sent, spoiled = ten, probe.spoiled
@@ -290,7 +287,7 @@ async def downlink_header(ctx: Context) -> None:
 async def every_period(ctx: Context) -> None:
     probe = await session(ctx, slower=2)
     period = probe.period
-    found = await running(probe)
+    found = await running(probe)  # the DOWNLINK session() waited for: at once
     await probe.listen(10 * period)
     downlinks = [found, *probe.packets(PacketType.DOWNLINK, after=probe.after(found))]
     wanted = requested(probe.model)
@@ -301,15 +298,7 @@ async def every_period(ctx: Context) -> None:
             f"every DOWNLINK requesting {names(probe.model, wanted)}",
             f"DOWNLINK #{down.header.sequence} without {names(probe.model, missing)}",
         )
-    gaps = [b.at - a.at for a, b in itertools.pairwise(downlinks)]
-    ctx.expect(len(gaps) >= 4, "a DOWNLINK every period", f"{len(downlinks)} DOWNLINKs")
-    median = statistics.median(gaps)
-    ctx.expect(
-        0.7 * period <= median <= 1.4 * period,
-        f"DOWNLINKs {period * 1000:g} ms apart (WELCOME's T, twice HELLO's)",
-        f"a median of {median * 1000:.1f} ms between {len(downlinks)} DOWNLINKs",
-        timing=True,
-    )
+    paced(ctx, downlinks, PacketType.DOWNLINK, period, " (WELCOME's T, twice HELLO's)")
 
 
 # -- selective retransmission (D-RSP-17) ---------------------------------------------------------
@@ -322,7 +311,7 @@ async def every_period(ctx: Context) -> None:
 )
 async def command_until_acked(ctx: Context) -> None:
     command = first(_model(ctx), DeviceKind.COMMAND)
-    probe = await session(ctx, withheld=[command])
+    probe = await session(ctx, withheld=[command], used=False)
     period = probe.period
     carrying = await probe.next(PacketType.DOWNLINK, after=0, where=carries(command))
     if carrying is None:
@@ -355,11 +344,9 @@ async def command_until_acked(ctx: Context) -> None:
         )
     ack = probe.ack([item])
     ack_at, ack_sequence = probe.now, int.from_bytes(ack[5:7])
-    mark = probe.mark()
-    await probe.listen(6 * period)
     after = [
         d
-        for d in probe.packets(PacketType.DOWNLINK, after=mark)
+        for d in await probe.received_within(6 * period, PacketType.DOWNLINK)
         if newer(d.header.last_received, ack_sequence) or d.at >= ack_at + 2 * period
     ]
     if not after:
@@ -380,7 +367,7 @@ async def command_until_acked(ctx: Context) -> None:
 )
 async def memory_command_resent(ctx: Context) -> None:
     memory = first(_model(ctx), DeviceKind.MEMORY_COMMAND)
-    probe = await session(ctx, withheld=[memory])
+    probe = await session(ctx, withheld=[memory], used=False)
     period = probe.period
     sent = await probe.next(PacketType.DOWNLINK, after=0, where=carries(memory))
     if sent is None:
@@ -404,7 +391,7 @@ async def memory_command_resent(ctx: Context) -> None:
         f"#{', #'.join(map(str, seen))}",
         "R-RSP-29",
     )
-    gaps = [b.at - a.at for a, b in itertools.pairwise(sends)]
+    between = gaps(sends)
     ctx.expect(
         len(sends) >= 3,
         f"{memory.name} #{seen[0]} sent again after each retransmission timeout (at most 2 s)",
@@ -412,14 +399,14 @@ async def memory_command_resent(ctx: Context) -> None:
     )
     floor = 2 * period
     ctx.expect(
-        all(gap >= 0.8 * floor for gap in gaps),
+        all(gap >= 0.8 * floor for gap in between),
         f"no sooner than the retransmission timeout (at least 2 T = {floor * 1000:g} ms)",
-        f"sent again after {ms(gaps)}",
+        f"sent again after {ms(between)}",
     )
     ctx.expect(
-        all(b >= min(1.5 * a - period, 0.9 * MAX_RTO) for a, b in itertools.pairwise(gaps)),
+        all(b >= min(1.5 * a - period, 0.9 * MAX_RTO) for a, b in itertools.pairwise(between)),
         "the timeout doubled after each retransmission (D-RSP-17)",
-        f"sent again after {ms(gaps)}",
+        f"sent again after {ms(between)}",
     )
 
 
@@ -435,7 +422,6 @@ async def next_waits_for_ack(ctx: Context) -> None:
     event = first(model, DeviceKind.EVENT)
     probe = await session(ctx, withheld=[command, memory])
     period = probe.period
-    await running(probe)
     both = await probe.next(
         PacketType.DOWNLINK,
         after=0,
@@ -451,7 +437,7 @@ async def next_waits_for_ack(ctx: Context) -> None:
         ctx.expect(
             len(seen) == 1,
             f"{device.name} #{seen[0]} alone until its ACK",
-            f"{device.name} #{', #'.join(map(str, seen))}",
+            numbered(device, seen),
         )
 
 
@@ -467,7 +453,6 @@ async def occurrence_ids(ctx: Context) -> None:
     events = of_kind(model, DeviceKind.EVENT)
     probe = await session(ctx)
     period = probe.period
-    await running(probe)
     if events:  # each taken, each issues a command (D-RSP-24 step 3)
         probe.uplink([occurrence(events[0], 0)])
         probe.uplink([occurrence(events[0], 1)])
@@ -485,7 +470,7 @@ async def occurrence_ids(ctx: Context) -> None:
         ctx.expect(
             seen == list(range(len(seen))),
             f"{device.name} #0, #1, #2, ...",
-            f"{device.name} #{', #'.join(map(str, seen))}",
+            numbered(device, seen),
         )
 
 
@@ -498,7 +483,6 @@ async def no_free_buffer(ctx: Context) -> None:
     memory = first(_model(ctx), DeviceKind.MEMORY_COMMAND)
     probe = await session(ctx, free=0, withheld=[memory])
     period = probe.period
-    await running(probe)
     await probe.listen(8 * period)
     early = [d for d in probe.packets(PacketType.DOWNLINK) if carries(memory)(d)]
     ctx.expect(
@@ -517,13 +501,12 @@ async def no_free_buffer(ctx: Context) -> None:
     probe.free = 0  # the robot took it: full again, and says so before it acknowledges it
     probe.uplink()
     probe.ack([item])
-    mark = probe.mark()
-    await probe.listen(8 * period)
-    more = [i for i in ids(probe.packets(PacketType.DOWNLINK, after=mark), memory) if i != item.id]
+    later = await probe.received_within(8 * period, PacketType.DOWNLINK)
+    more = [i for i in ids(later, memory) if i != item.id]
     ctx.expect(
         not more,
         f"no {memory.name} after #{item.id} filled the one free buffer",
-        f"{memory.name} #{', #'.join(map(str, more))}",
+        numbered(memory, more),
     )
 
 
@@ -541,7 +524,6 @@ async def event_taken_once(ctx: Context) -> None:
     event = first(model, DeviceKind.EVENT)
     probe = await session(ctx)
     period = probe.period
-    await running(probe)
     start = await probe.next(PacketType.DOWNLINK, after=0, where=carries(command))
     if start is None:
         raise Inconclusive(f"no {command.name} command issued (D-RSP-24 step 2)")
@@ -567,7 +549,7 @@ async def event_taken_once(ctx: Context) -> None:
     ctx.expect(
         len(issued) == 1,
         f"{event.name} #0 taken once: one {command.name} for it",
-        f"{len(issued)} commands: {command.name} #{', #'.join(map(str, issued))}",
+        f"{len(issued)} commands: {numbered(command, issued)}",
     )
 
 
@@ -580,7 +562,6 @@ async def acks_memory_event(ctx: Context) -> None:
     found = first(_model(ctx), DeviceKind.MEMORY_EVENT)
     probe = await session(ctx)
     period = probe.period
-    await running(probe)
     for attempt in ("", "repeated "):
         mark = probe.mark()
         ack = await probe.expect_answer_to(
@@ -619,7 +600,6 @@ async def idle_keep_alive(ctx: Context) -> None:
     found = first(_model(ctx), DeviceKind.MEMORY_EVENT)
     probe = await session(ctx, free=0)  # memory commands held (R-RSP-32): nothing left to send
     period = probe.period
-    await running(probe)
     await probe.listen(3 * period)  # the command acknowledged and gone
     change = await probe.answer_to(  # taken, the scenario goes idle at 2 T (step 4)
         lambda: probe.uplink([occurrence(found, 0)]), PacketType.PERIOD
@@ -662,14 +642,9 @@ async def idle_keep_alive(ctx: Context) -> None:
         len(empty) >= 2,
         f"an empty DOWNLINK every {KEEPALIVE_PERIODS} periods ({keep * 1000:g} ms)",
         f"{len(empty)} in {(probe.now - change.at) * 1000:.0f} ms",
-    )
-    gaps = [b.at - a.at for a, b in itertools.pairwise(empty)]
-    ctx.expect(
-        all(0.6 * keep <= gap <= 1.6 * keep for gap in gaps),
-        f"empty DOWNLINKs {keep * 1000:g} ms apart",
-        ms(gaps),
         timing=True,
     )
+    spaced(ctx, empty, keep, "empty DOWNLINKs")
 
 
 def _empty(downlinks: list[Datagram]) -> list[Datagram]:
@@ -687,14 +662,11 @@ def _empty(downlinks: list[Datagram]) -> list[Datagram]:
 async def bye_ends(ctx: Context) -> None:
     probe = await session(ctx)
     period = probe.period
-    await running(probe)
     bye = probe.bye(ByeReason.SHUTDOWN)
     at, sequence = probe.now, int.from_bytes(bye[5:7])
-    mark = probe.mark()
-    await probe.listen(max(8 * period, probe.quiet))
     late = [
         d
-        for d in probe.packets(after=mark)
+        for d in await probe.received_within(max(8 * period, probe.quiet))
         if d.type is not PacketType.BYE
         and (newer(d.header.last_received, sequence) or d.at > at + 2 * period)
     ]

@@ -18,11 +18,13 @@ from rcmlconf.conformance.probes.rsp import (
     Datagram,
     acked,
     close_to,
+    drive,
     dropped_then_taken,
     first,
     flags,
     flip,
     fresh_uplink,
+    late_acked,
     modules_of,
     monitored,
     newer,
@@ -31,7 +33,9 @@ from rcmlconf.conformance.probes.rsp import (
     open_probe,
     patch,
     raw_session,
+    replay_dropped,
     reported,
+    requested_uplinks,
     sequence_of,
     taken,
     value_item,
@@ -56,11 +60,7 @@ from rcmlconf.rsp.model import DeviceKind
 async def layout(ctx: Context) -> None:
     probe, raw = await raw_session(ctx)
     model = probe.model
-    if await taken(probe, raw, flags(model, *reported(model, 2))) is None:
-        raise Inconclusive("no UPLINK after the request")
-    start = probe.mark()
-    await probe.listen(6 * raw.period)
-    uplinks = probe.packets(PacketType.UPLINK, after=start)
+    uplinks = await requested_uplinks(probe, raw, reported(model, 2), 6)
     ctx.expect(bool(uplinks), "UPLINKs every period", "none")
     for found in uplinks:
         header = found.header
@@ -152,9 +152,8 @@ async def last_received(ctx: Context) -> None:
     jumped = sequence_of(raw.downlink(request))
     raw.rewind(jumped - 4)
     raw.downlink(request)  # late: not newer
-    start = probe.mark()
-    await probe.listen(4 * raw.period)
-    said = [d.header.last_received for d in probe.packets(PacketType.UPLINK, after=start)]
+    later = await probe.received_within(4 * raw.period, PacketType.UPLINK)
+    said = [d.header.last_received for d in later]
     ctx.expect(
         bool(said) and all(s == jumped for s in said[1:]) and said[-1] == jumped,
         f"UPLINKs saying {jumped} (the newest), not {jumped - 4} (the latest)",
@@ -265,11 +264,7 @@ async def encryption_mismatch(ctx: Context) -> None:
 )
 async def replayed(ctx: Context) -> None:
     probe, raw = await raw_session(ctx)
-    command = first(probe.model, DeviceKind.COMMAND)
-    if await acked(probe, raw, command, 3) is None:
-        raise Inconclusive(f"no ACK of {command.name} #3 in the first place")
-    original = raw.last
-    await dropped_then_taken(ctx, probe, raw, lambda _: original, "R-RSP-18", "the replay")
+    await replay_dropped(ctx, probe, raw, 3)
 
 
 @case(
@@ -291,19 +286,13 @@ async def outside_window(ctx: Context) -> None:
     await probe.listen(probe.quiet)
     stale = [d for d in probe.packets(PacketType.ACK, after=start) if d.acks(command.position)]
     ctx.expect(not stale, "a packet 70 behind dropped unread (no ACK)", "an ACK", "R-RSP-18")
-
-    def late() -> None:
-        raw.rewind(newest - 50)
-        raw.downlink([occurrence(command, 0)])
-
-    ack = await probe.answer_to(late, PacketType.ACK, where=lambda d: 0 in d.acks(command.position))
+    ack = await late_acked(probe, raw, command, 0, newest - 50, resume=newest + 1)
     ctx.expect(
         ack is not None,
         "the command of a late packet 50 behind acknowledged (D-RSP-15)",
         "no ACK",
         "R-RSP-26",
     )
-    raw.rewind(newest + 1)
 
 
 @case(
@@ -480,12 +469,8 @@ async def every_state(ctx: Context) -> None:
     states = of_kind(model, DeviceKind.SENSOR, DeviceKind.MONITOR)
     if not states:
         raise NotApplicable("no sensor or monitor")
-    if await taken(probe, raw, flags(model, *states)) is None:
-        raise Inconclusive("no UPLINK after the request")
-    start = probe.mark()
-    await probe.listen(4 * raw.period)
+    uplinks = await requested_uplinks(probe, raw, states, 4)
     names = {d.name for d in states}
-    uplinks = probe.packets(PacketType.UPLINK, after=start)
     ctx.expect(bool(uplinks), "UPLINKs", "none")
     for found in uplinks:
         ctx.expect(
@@ -503,24 +488,11 @@ async def every_state(ctx: Context) -> None:
     role=Role.ROBOT,
 )
 async def effector_applied(ctx: Context) -> None:
-    probe = await open_probe(ctx)
-    model = probe.model
-    effector, monitor = monitored(model)
-    await probe.open_session()
-    wanted = {f.name: visible(f) for f in effector.fields}
-    for module in modules_of(model, effector, monitor):
-        probe.session.set_active(module.name, True)
-    probe.session.write(effector.name, wanted)
-    probe.session.set_active(monitor.name, True)
-    field = effector.fields[0]
-    found = await probe.state(
-        monitor.name, lambda v: close_to(field, v.get(field.name), wanted[field.name])
-    )
-    latest = probe.states.get(monitor.name)
+    driven = await drive(ctx)
     ctx.expect(
-        found is not None,
-        f"{monitor.name} reporting {wanted}",
-        "nothing" if latest is None else dict(latest[1]).__repr__(),
+        await driven.reached(),
+        f"{driven.monitor.name} reporting {driven.wanted}",
+        driven.latest(),
     )
 
 
@@ -531,31 +503,14 @@ async def effector_applied(ctx: Context) -> None:
     role=Role.ROBOT,
 )
 async def effector_held(ctx: Context) -> None:
-    probe = await open_probe(ctx)
-    model = probe.model
-    effector, monitor = monitored(model)
-    await probe.open_session()
-    wanted = {f.name: visible(f) for f in effector.fields}
-    field = effector.fields[0]
-    for module in modules_of(model, effector, monitor):
-        probe.session.set_active(module.name, True)
-    probe.session.write(effector.name, wanted)
-    probe.session.set_active(monitor.name, True)
-    reached = await probe.state(
-        monitor.name, lambda v: close_to(field, v.get(field.name), wanted[field.name])
-    )
-    if reached is None:
-        raise Inconclusive(f"{monitor.name} never reported {wanted}")
-    probe.session.set_active(effector.name, False)
+    driven = await drive(ctx)
+    probe = driven.probe
+    await driven.settled()
+    probe.session.set_active(driven.effector.name, False)
     since = probe.now + 2 * probe.session.period
     await probe.listen(12 * probe.session.period)
-    moved = await probe.state(
-        monitor.name,
-        lambda v: not close_to(field, v.get(field.name), wanted[field.name]),
-        since=since,
-        wait=0,
-    )
-    ctx.expect(moved is None, f"{monitor.name} holding {wanted}", str(moved))
+    moved = await driven.moved(since)
+    ctx.expect(moved is None, f"{driven.monitor.name} holding {driven.wanted}", str(moved))
 
 
 @case(
@@ -593,9 +548,7 @@ async def late_state_ignored(ctx: Context) -> None:
         f"{monitor.name} at {last}",
     )
     raw.downlink(request)  # the link kept alive
-    start = probe.mark()
-    await probe.listen(4 * raw.period)
-    for later in probe.packets(PacketType.UPLINK, after=start):
+    for later in await probe.received_within(4 * raw.period, PacketType.UPLINK):
         if not reports(later):
             ctx.expect(False, f"{monitor.name} staying at {newest}", str(values_of(later, monitor)))
 
@@ -611,13 +564,7 @@ async def late_occurrence_taken(ctx: Context) -> None:
     command = first(probe.model, DeviceKind.COMMAND)
     raw.skip(5)
     top = sequence_of(raw.downlink())
-
-    def late() -> None:
-        raw.rewind(top - 2)
-        raw.downlink([occurrence(command, 0)])
-        raw.rewind(top + 1)
-
-    ack = await probe.answer_to(late, PacketType.ACK, where=lambda d: 0 in d.acks(command.position))
+    ack = await late_acked(probe, raw, command, 0, top - 2, resume=top + 1)
     ctx.expect(ack is not None, f"ACK of {command.name} #0", "no ACK")
 
 
@@ -644,11 +591,10 @@ async def inactive_module(ctx: Context) -> None:
     ctx.expect(
         found is not None, f"{monitor.name} reported once {effector.module} is active", "no UPLINK"
     )
-    start = probe.mark()
-    await probe.listen(4 * raw.period)
+    later = await probe.received_within(4 * raw.period, PacketType.UPLINK)
     target = wanted[field.name]
     assert isinstance(target, int | float)
-    for found in probe.packets(PacketType.UPLINK, after=start)[-3:]:
+    for found in later[-3:]:
         values = values_of(found, monitor)
         actual = values.get(field.name) if values is not None else None
         ctx.expect(

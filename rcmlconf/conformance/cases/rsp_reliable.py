@@ -25,23 +25,24 @@ from rcmlconf.conformance.probes.rsp import (
     RspProbe,
     ack_of,
     acked,
+    another_welcomed,
     close_to,
+    drive,
     dropped_then_taken,
     first,
     flags,
     flip,
     fresh_uplink,
     hello_packet,
-    modules_of,
-    monitored,
     occurrence,
     open_probe,
     patch,
     raw_session,
+    replay_dropped,
     reported,
+    reporting,
     sequence_of,
     taken,
-    visible,
     zero_values,
 )
 from rcmlconf.conformance.registry import Role, case
@@ -56,7 +57,7 @@ from rcmlconf.rsp.codec import (
     pull_header,
 )
 from rcmlconf.rsp.layout import MAC_SIZE, NONCE_SIZE
-from rcmlconf.rsp.model import Device, DeviceKind, OnLoss
+from rcmlconf.rsp.model import Device, DeviceKind, OnLoss, RobotModel
 from rcmlconf.rsp.security import mac
 from rcmlconf.rsp.session import events
 from rcmlconf.values import Value
@@ -118,6 +119,16 @@ async def _busy(ctx: Context) -> tuple[RspProbe, RawSession, Device, int]:
     return probe, raw, memory, probe.received[-1].header.buffer
 
 
+def _acks_only(ctx: Context, model: RobotModel, ack: Datagram, found: Device, ident: int) -> None:
+    """The ACK names occurrence `ident` of `found` and nothing else (R-RSP-26)."""
+    ctx.expect(
+        [(i.device, i.id) for i in ack.items] == [(found.position, ident)],
+        f"ACK [{found.name}#{ident}]",
+        str([(model.devices[i.device].name, i.id) for i in ack.items]),
+        "R-RSP-26",
+    )
+
+
 async def _free(probe: RspProbe, raw: RawSession, buffer: int = 0) -> int:
     """The free buffers of the first UPLINK sent after the robot took a DOWNLINK with `buffer`."""
     found = await taken(probe, raw, buffer=buffer)
@@ -143,11 +154,7 @@ async def command_acked(ctx: Context) -> None:
     delays = []
     for ident in range(7):
         ack = await _take(ctx, probe, raw, command, ident)
-        ctx.expect(
-            [(i.device, i.id) for i in ack.items] == [(command.position, ident)],
-            f"ACK [{command.name}#{ident}]",
-            str([(probe.model.devices[i.device].name, i.id) for i in ack.items]),
-        )
+        _acks_only(ctx, probe.model, ack, command, ident)
         acks.append(ack)
         sent_at, sent = probe.sent[-1]
         ctx.expect(
@@ -199,11 +206,7 @@ async def memory_command_acked(ctx: Context) -> None:
     probe, raw = await raw_session(ctx)
     memory = first(probe.model, DeviceKind.MEMORY_COMMAND)
     ack = await _take(ctx, probe, raw, memory, 0)
-    ctx.expect(
-        [(i.device, i.id) for i in ack.items] == [(memory.position, 0)],
-        f"ACK [{memory.name}#0]",
-        str(ack.items),
-    )
+    _acks_only(ctx, probe.model, ack, memory, 0)
 
 
 @case(
@@ -314,11 +317,8 @@ async def clear_buffer(ctx: Context) -> None:
 async def _issued_once(ctx: Context, count: int) -> None:
     """`count` memory commands through the impaired path, each taken once (R-RSP-25): the free
     buffers drop by exactly `count`."""
-    probe = await open_probe(ctx)
-    model = probe.model
-    memory = first(model, DeviceKind.MEMORY_COMMAND)
-    await probe.open_session()
-    probe.session.set_active(reported(model, 1)[0].name, True)
+    probe, _, _ = await reporting(ctx)
+    memory = first(probe.model, DeviceKind.MEMORY_COMMAND)
     issued = [probe.session.issue(memory.name, keyframe(memory))]
     probe.poke()
     await _acknowledged(ctx, probe, memory, issued)
@@ -352,19 +352,25 @@ def _newest(probe: RspProbe) -> Datagram:
     return next(d for d in session if d.header.sequence == top)
 
 
+#: Seconds a case under loss keeps, of its timeout, for what follows its last ACK.
+FINISH = 0.6
+
+
 async def _acknowledged(ctx: Context, probe: RspProbe, found: Device, ids: list[int]) -> None:
     lossy = found.kind is DeviceKind.MEMORY_COMMAND and not ctx.impairment.is_none
     # Under loss, room for five repeats of a memory command (0.2, 0.4, 0.8, 1.6, 2 s apart)
     # rather than four: each ACK missing after them all is then a few in a thousand.
-    wait = 0.6 * ctx.case.timeout * ctx.scale if lossy else None
+    most = 0.6 * ctx.case.timeout * ctx.scale
     for ident in ids:
+        # Not past the case's own timeout (a fail), and room left to finish.
+        wait = max(min(most, ctx.left - FINISH * ctx.scale), 0.0) if lossy else None
 
-        def acked(event: events.Event, ident: int = ident) -> bool:
+        def acknowledges(event: events.Event, ident: int = ident) -> bool:
             return isinstance(event, events.Acknowledged) and (
                 event.device == found.name and event.id == ident
             )
 
-        if await probe.event(acked, wait=wait) is None:
+        if await probe.event(acknowledges, wait=wait) is None:
             if lossy:
                 # A memory command is repeated only after each retransmission timeout, which
                 # doubles (D-RSP-17): within the wait a few repeats go, and at 20 % loss each
@@ -436,15 +442,7 @@ async def _sealed(ctx: Context, encryption: Encryption) -> tuple[RspProbe, RawSe
     """A sealed session by hand; its WELCOME's MAC checked (R-RSP-38)."""
     probe = await open_probe(ctx)
     raw = probe.raw(encryption)
-    answer = await probe.expect_answer_to(
-        raw.hello, (PacketType.WELCOME, PacketType.REFUSED), "R-RSP-37", expected="WELCOME"
-    )
-    if isinstance(answer.body, Refused):
-        raise Failed(
-            "R-RSP-37",
-            f"WELCOME ({encryption.name} declared)",
-            f"REFUSED {answer.body.reason.name}",
-        )
+    answer = await raw.expect_welcome("R-RSP-37", f"WELCOME ({encryption.name} declared)")
     assert probe.psk is not None
     data = answer.data
     ctx.expect(
@@ -453,8 +451,6 @@ async def _sealed(ctx: Context, encryption: Encryption) -> tuple[RspProbe, RawSe
         data[-MAC_SIZE:].hex(),
         "R-RSP-38",
     )
-    if raw.welcome is None:
-        raw.accept(answer)
     return probe, raw
 
 
@@ -536,15 +532,8 @@ async def wrong_key(ctx: Context) -> None:
 
 async def _no_session_left(ctx: Context, probe: RspProbe) -> None:
     """Another local system gets a session: the refused HELLO opened none."""
-    other = await open_probe(ctx, robot=probe.robot, name="second")
-    second = other.raw()
-    answer = await other.expect_answer_to(
-        second.hello, (PacketType.WELCOME, PacketType.REFUSED), "R-RSP-38"
-    )
-    ctx.expect(
-        answer.type is PacketType.WELCOME,
-        "WELCOME to another local system (no session was opened)",
-        f"REFUSED {getattr(answer.body, 'reason', '')}",
+    await another_welcomed(
+        ctx, probe, "R-RSP-38", "WELCOME to another local system (no session was opened)"
     )
 
 
@@ -577,11 +566,7 @@ async def unsigned_hello(ctx: Context) -> None:
 )
 async def replayed_sealed(ctx: Context) -> None:
     probe, raw = await _sealed(ctx, Encryption.AES_256_GCM)
-    command = first(probe.model, DeviceKind.COMMAND)
-    if await acked(probe, raw, command, 5) is None:
-        raise Inconclusive(f"no ACK of {command.name} #5 in the first place")
-    original = raw.last
-    await dropped_then_taken(ctx, probe, raw, lambda _: original, "R-RSP-18", "the replay")
+    await replay_dropped(ctx, probe, raw, 5)
 
 
 @case(
@@ -613,37 +598,18 @@ async def plaintext_downgrade(ctx: Context) -> None:
     role=Role.ROBOT,
 )
 async def link_loss_stops(ctx: Context) -> None:
-    probe = await open_probe(ctx)
-    model = probe.model
-    effector, monitor = monitored(model, lambda e: e.on_loss is OnLoss.ZERO)
-    field = effector.fields[0]
-    wanted = {f.name: visible(f) for f in effector.fields}
+    driven = await drive(ctx, lambda e: e.on_loss is OnLoss.ZERO)
+    probe, monitor, field = driven.probe, driven.monitor, driven.field
     zero = field.zero()
-    opened = await probe.open_session()
-    for module in modules_of(model, effector, monitor):
-        probe.session.set_active(module.name, True)
-    probe.session.write(effector.name, wanted)
-    probe.session.set_active(monitor.name, True)
-    if (
-        await probe.state(
-            monitor.name, lambda v: close_to(field, v.get(field.name), wanted[field.name])
-        )
-        is None
-    ):
-        raise Inconclusive(f"{monitor.name} never reported {wanted}")
+    await driven.settled()
     probe.muted = True
     silent = probe.now
-    lost = 25 * opened.period
+    lost = 25 * driven.opened.period
     await probe.listen(0.6 * lost)
-    early = await probe.state(
-        monitor.name,
-        lambda v: not close_to(field, v.get(field.name), wanted[field.name]),
-        since=silent,
-        wait=0,
-    )
+    early = await driven.moved(silent)
     ctx.expect(
         early is None,
-        f"{monitor.name} holding {wanted} before the link is lost",
+        f"{monitor.name} holding {driven.wanted} before the link is lost",
         str(early),
         "R-RSP-34",
     )
@@ -653,10 +619,9 @@ async def link_loss_stops(ctx: Context) -> None:
         since=silent,
         wait=lost + 0.5,
     )
-    latest = probe.states.get(monitor.name)
     ctx.expect(
         stopped is not None,
         f"{monitor.name} at {zero!r} within {lost + 0.5:.2g} s of silence",
-        "still " + (str(dict(latest[1])) if latest else "nothing"),
+        "still " + driven.latest(),
         "R-RSP-36",
     )

@@ -147,6 +147,14 @@ class DatagramLog:
         await asyncio.sleep(max(seconds, 0.0))
         self.check()
 
+    async def received_within(
+        self, seconds: float, kinds: Iterable[PacketType] | PacketType | None = None
+    ) -> list[Datagram]:
+        """Let `seconds` pass (as `listen`) and return the datagrams of `kinds` that came."""
+        start = self.mark()
+        await self.listen(seconds)
+        return self.packets(kinds, after=start)
+
 
 def _kinds(kinds: Iterable[PacketType] | PacketType | None) -> frozenset[PacketType] | None:
     if kinds is None:

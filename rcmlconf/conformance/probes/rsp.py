@@ -727,6 +727,22 @@ class RawSession:
             self.accept(answer)
         return answer
 
+    async def expect_welcome(self, requirement: str, expected: str = "WELCOME") -> Datagram:
+        """HELLO and the robot's answer, as `open`, for a case that checks the handshake itself:
+        Failed (`requirement`, `expected`) when it refuses or does not answer, and any WELCOME
+        taken (its nonce is the case's to check)."""
+        answer = await self.probe.expect_answer_to(
+            self.hello,
+            (PacketType.WELCOME, PacketType.REFUSED),
+            requirement,
+            expected=expected,
+        )
+        if isinstance(answer.body, Refused):
+            raise Failed(requirement, expected, f"REFUSED {answer.body.reason.name}")
+        if self.welcome is None:
+            self.accept(answer)
+        return answer
+
     def accept(self, welcome: Datagram) -> None:
         """The robot's WELCOME: the session's ID, and its keys (D-RSP-21)."""
         body = welcome.body
@@ -924,6 +940,18 @@ async def raw_session(
     return probe, raw
 
 
+async def reporting(
+    ctx: Context, *, slower: int = 1
+) -> tuple[RspProbe, events.SessionOpened, Device]:
+    """A session of the core's endpoint, T `slower` times the model's, requesting the sensor or
+    monitor with the smallest payload (`reported`), which the robot then reports every T."""
+    probe = await open_probe(ctx)
+    opened = await probe.open_session(period=slower * probe.model.period)
+    sensor = reported(probe.model, 1)[0]
+    probe.session.set_active(sensor.name, True)
+    return probe, opened, sensor
+
+
 async def acked(
     probe: RspProbe,
     raw: RawSession,
@@ -1041,3 +1069,131 @@ async def dropped_then_taken(
         "no ACK",
         requirement,
     )
+
+
+async def replay_dropped(ctx: Context, probe: RspProbe, raw: RawSession, ident: int) -> None:
+    """A DOWNLINK carrying command `ident` that the robot acknowledged, received again byte for
+    byte, must be dropped without a second ACK, the session going on (R-RSP-18); Inconclusive
+    without the first ACK."""
+    command = first(probe.model, DeviceKind.COMMAND)
+    if await acked(probe, raw, command, ident) is None:
+        raise Inconclusive(f"no ACK of {command.name} #{ident} in the first place")
+    original = raw.last
+    await dropped_then_taken(ctx, probe, raw, lambda _: original, "R-RSP-18", "the replay")
+
+
+async def late_acked(
+    probe: RspProbe, raw: RawSession, found: Device, ident: int, sequence: int, *, resume: int
+) -> Datagram | None:
+    """Send occurrence `ident` of command `found` in a DOWNLINK numbered `sequence`, older than
+    the newest the robot has and never seen (again while the impairment spoils it), number our
+    next packet `resume`, and return the robot's ACK of it: a late packet's occurrences are taken
+    (D-RSP-15, R-RSP-26). None if no ACK came."""
+
+    def late() -> None:
+        raw.rewind(sequence)
+        raw.downlink([occurrence(found, ident)])
+        raw.rewind(resume)
+
+    return await probe.answer_to(
+        late, PacketType.ACK, where=lambda d: ident in d.acks(found.position)
+    )
+
+
+async def requested_uplinks(
+    probe: RspProbe, raw: RawSession, devices: Iterable[Device], periods: int
+) -> list[Datagram]:
+    """Request `devices` (R-RSP-23) and return the UPLINKs of the `periods` periods after the
+    robot took the request; Inconclusive if no UPLINK took it."""
+    if await taken(probe, raw, flags(probe.model, *devices)) is None:
+        raise Inconclusive("no UPLINK after the request")
+    return await probe.received_within(periods * raw.period, PacketType.UPLINK)
+
+
+async def hello_from_another(
+    ctx: Context, probe: RspProbe, requirement: str, *, expected: str = ""
+) -> Datagram:
+    """The robot's answer (WELCOME or REFUSED) to the HELLO of another local system (a probe of
+    its own, "second" in the transcript); Failed (`requirement`) if none comes. A session it
+    opens ends with the case, as every session the robot opens for a probe."""
+    other = await open_probe(ctx, robot=probe.robot, name="second")
+    return await other.expect_answer_to(
+        other.raw().hello,
+        (PacketType.WELCOME, PacketType.REFUSED),
+        requirement,
+        expected=expected,
+    )
+
+
+async def another_welcomed(ctx: Context, probe: RspProbe, requirement: str, expected: str) -> None:
+    """Another local system's HELLO must be answered WELCOME (`expected` says why, in the
+    failure's text): the robot holds no session for `probe`, ended or never opened."""
+    answer = await hello_from_another(ctx, probe, requirement)
+    ctx.expect(
+        answer.type is PacketType.WELCOME,
+        expected,
+        f"REFUSED {getattr(answer.body, 'reason', '')}",
+        requirement,
+    )
+
+
+# -- an effector and its monitor, through the core's endpoint -------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class Driven:
+    """An effector the session's endpoint writes a value to, with every module it needs active
+    and its monitor requested (`drive`): what the monitor reports of it (R-RSP-34)."""
+
+    probe: RspProbe
+    opened: events.SessionOpened
+    effector: Device
+    monitor: Device
+    #: The value written: each field well away from 0 (`visible`).
+    wanted: dict[str, Value]
+
+    @property
+    def field(self) -> Field:
+        """The field the monitor is read by."""
+        return self.effector.fields[0]
+
+    def at_wanted(self, values: Mapping[str, Value]) -> bool:
+        """Whether a report of the monitor has the value written."""
+        return close_to(self.field, values.get(self.field.name), self.wanted[self.field.name])
+
+    async def reached(self) -> bool:
+        """Whether the monitor reports the value written within the probe's wait."""
+        return await self.probe.state(self.monitor.name, self.at_wanted) is not None
+
+    async def settled(self) -> None:
+        """The monitor reporting the value written; Inconclusive if it never does (a case about
+        what follows has nothing to start from)."""
+        if not await self.reached():
+            raise Inconclusive(f"{self.monitor.name} never reported {self.wanted}")
+
+    async def moved(self, since: float) -> Mapping[str, Value] | None:
+        """The first report already received from `since` (loop time) of the monitor away from
+        the value written; None if none."""
+        return await self.probe.state(
+            self.monitor.name, lambda v: not self.at_wanted(v), since=since, wait=0
+        )
+
+    def latest(self) -> str:
+        """The monitor's newest report, for a failure's text."""
+        latest = self.probe.states.get(self.monitor.name)
+        return "nothing" if latest is None else str(dict(latest[1]))
+
+
+async def drive(ctx: Context, where: Callable[[Device], bool] = lambda _: True) -> Driven:
+    """A session of the core's endpoint writing a `visible` value to an effector with a monitor
+    (`monitored`: `where` holds of the effector; NotApplicable when the model has none)."""
+    probe = await open_probe(ctx)
+    model = probe.model
+    effector, monitor = monitored(model, where)
+    opened = await probe.open_session()
+    wanted = {f.name: visible(f) for f in effector.fields}
+    for module in modules_of(model, effector, monitor):
+        probe.session.set_active(module.name, True)
+    probe.session.write(effector.name, wanted)
+    probe.session.set_active(monitor.name, True)
+    return Driven(probe, opened, effector, monitor, wanted)
