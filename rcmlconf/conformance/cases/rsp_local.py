@@ -171,7 +171,7 @@ async def hello(ctx: Context) -> None:
 @local_case(
     "rsp/local/hello-retries",
     "A HELLO without answer is repeated every 250 ms, at most 5 times, each a new packet",
-    ["R-RSP-14"],
+    ["R-RSP-41", "R-RSP-14"],
     timeout=6.0,
 )
 async def hello_retries(ctx: Context) -> None:
@@ -193,8 +193,9 @@ async def hello_retries(ctx: Context) -> None:
         numbers == list(range(len(numbers))),
         "sequence numbers 0, 1, 2, ...: each repeat a new packet",
         ", ".join(map(str, numbers)),
+        "R-RSP-14",
     )
-    spaced(ctx, hellos, HELLO_INTERVAL, "repeats", note=" (D-RSP-12)")
+    spaced(ctx, hellos, HELLO_INTERVAL, "repeats", "R-RSP-41", note=" (D-RSP-12)")
     ctx.expect(
         len(hellos) <= HELLO_RETRIES + 1,
         f"at most {HELLO_RETRIES} repeats (D-RSP-12)",
@@ -282,7 +283,7 @@ async def downlink_header(ctx: Context) -> None:
 @local_case(
     "rsp/local/every-period",
     "A DOWNLINK every T of WELCOME (raised above HELLO's), each requesting all the scenario wants",
-    ["R-RSP-23"],
+    ["R-RSP-23", "R-RSP-42"],
 )
 async def every_period(ctx: Context) -> None:
     probe = await session(ctx, slower=2)
@@ -594,7 +595,7 @@ async def acks_memory_event(ctx: Context) -> None:
 @local_case(
     "rsp/local/idle-keep-alive",
     "Idle, the local system sends PERIOD three periods running, then an empty DOWNLINK every 5 T",
-    ["R-RSP-22", "R-RSP-23"],
+    ["R-RSP-43", "R-RSP-42"],
 )
 async def idle_keep_alive(ctx: Context) -> None:
     found = first(_model(ctx), DeviceKind.MEMORY_EVENT)
@@ -621,14 +622,14 @@ async def idle_keep_alive(ctx: Context) -> None:
         len(periods) == 3 and len(values) == 1,
         f"PERIOD of {slower * 1000:g} ms in each of three periods running (D-RSP-13)",
         f"{len(periods)} PERIODs of {', '.join(map(str, sorted(values)))} ms",
-        "R-RSP-23",
+        "R-RSP-43",
     )
     spread = periods[-1].at - periods[0].at if periods else 0.0
     ctx.expect(
         spread <= 3.5 * slower,
         f"the PERIODs within three periods of {slower * 1000:g} ms",
         f"over {spread * 1000:.0f} ms",
-        "R-RSP-23",
+        "R-RSP-43",
     )
     downlinks = probe.packets(PacketType.DOWNLINK, after=start)
     busy = [d for d in downlinks if d.items and d.at > change.at + 1.5 * slower]
@@ -642,6 +643,7 @@ async def idle_keep_alive(ctx: Context) -> None:
         len(empty) >= 2,
         f"an empty DOWNLINK every {KEEPALIVE_PERIODS} periods ({keep * 1000:g} ms)",
         f"{len(empty)} in {(probe.now - change.at) * 1000:.0f} ms",
+        "R-RSP-42",
         timing=True,
     )
     spaced(ctx, empty, keep, "empty DOWNLINKs")

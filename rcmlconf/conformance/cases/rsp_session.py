@@ -266,7 +266,7 @@ async def busy(ctx: Context) -> None:
 @case(
     "rsp/session/repeated-hello",
     "A HELLO repeated with the same nonce gets the same WELCOME and opens no second session",
-    ["R-RSP-20"],
+    ["R-RSP-41", "R-RSP-20"],
     role=Role.ROBOT,
 )
 async def repeated_hello(ctx: Context) -> None:
@@ -275,7 +275,7 @@ async def repeated_hello(ctx: Context) -> None:
     assert first is not None
     assert isinstance(first.body, Welcome)
     again = await probe.expect_answer_to(  # sequence 1, the same nonce (D-RSP-12)
-        raw.hello, PacketType.WELCOME, "R-RSP-20", expected="WELCOME again"
+        raw.hello, PacketType.WELCOME, "R-RSP-41", expected="WELCOME again"
     )
     assert isinstance(again.body, Welcome)
     same = (
@@ -319,7 +319,7 @@ async def bye(ctx: Context) -> None:
 @case(
     "rsp/session/uplink-pace",
     "The robot sends an UPLINK every period T of WELCOME while a sensor is requested",
-    ["R-RSP-23"],
+    ["R-RSP-42", "R-RSP-23"],
     role=Role.ROBOT,
 )
 async def uplink_pace(ctx: Context) -> None:
@@ -332,7 +332,7 @@ async def uplink_pace(ctx: Context) -> None:
 @case(
     "rsp/session/period",
     "PERIOD changes the pace of the robot's UPLINKs while the session runs",
-    ["R-RSP-23"],
+    ["R-RSP-42", "R-RSP-23"],
     role=Role.ROBOT,
 )
 async def period(ctx: Context) -> None:
@@ -348,7 +348,7 @@ async def period(ctx: Context) -> None:
 @case(
     "rsp/session/keep-alive",
     "With nothing requested the robot sends an empty-map UPLINK every 5 periods, no more",
-    ["R-RSP-22", "R-RSP-23"],
+    ["R-RSP-42", "R-RSP-23"],
     role=Role.ROBOT,
 )
 async def keep_alive(ctx: Context) -> None:
@@ -368,10 +368,10 @@ async def keep_alive(ctx: Context) -> None:
         len(uplinks) >= 3,
         "an UPLINK every 5 periods",
         f"{len(uplinks)} UPLINKs",
-        "R-RSP-22",
+        "R-RSP-42",
         timing=True,
     )
-    spaced(ctx, uplinks, KEEPALIVE_PERIODS * period, "UPLINKs", "R-RSP-22")
+    spaced(ctx, uplinks, KEEPALIVE_PERIODS * period, "UPLINKs")
 
 
 @case(

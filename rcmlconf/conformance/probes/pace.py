@@ -25,7 +25,12 @@ def gaps(found: Sequence[Datagram]) -> list[float]:
 
 
 def paced(
-    ctx: Context, found: Sequence[Datagram], kind: PacketType, period: float, note: str = ""
+    ctx: Context,
+    found: Sequence[Datagram],
+    kind: PacketType,
+    period: float,
+    note: str = "",
+    requirement: str = "R-RSP-42",
 ) -> None:
     """`found`, packets of `kind`, came one every `period`: five at least, their median gap
     within 0.7 to 1.4 periods (one packet the harness read late does not move the median);
@@ -34,13 +39,18 @@ def paced(
     article = "an" if name[0] in "AEIOU" else "a"
     between = gaps(found)
     ctx.expect(
-        len(between) >= 4, f"{article} {name} every period", f"{len(found)} {name}s", timing=True
+        len(between) >= 4,
+        f"{article} {name} every period",
+        f"{len(found)} {name}s",
+        requirement,
+        timing=True,
     )
     median = statistics.median(between)
     ctx.expect(
         0.7 * period <= median <= 1.4 * period,
         f"{name}s {period * 1000:g} ms apart{note}",
         f"a median of {median * 1000:.1f} ms between {len(found)} {name}s",
+        requirement,
         timing=True,
     )
 
@@ -50,7 +60,7 @@ def spaced(
     found: Sequence[Datagram],
     interval: float,
     what: str,
-    requirement: str | None = None,
+    requirement: str = "R-RSP-42",
     *,
     note: str = "",
 ) -> None:
