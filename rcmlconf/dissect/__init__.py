@@ -1,6 +1,7 @@
 """The protocol analyser's fast path: `rcmlconf dissect` without scapy (issue 8).
 
-A capture (`rcmlconf.pcap.reader`) goes frame by frame through the flow table (`dissector`):
+A capture (`rcmlconf.pcap.reader`) goes frame by frame through the flow table (`dissector`),
+each flow's protocol told by `classify` (which the scapy layers' `capture` shares):
 TCP connections of RCTP are put in order (`tcp`) and framed by the core's `MessageReader`
 (`control`), UDP datagrams of the data stream and of RSP are read by the core's codecs
 (`datastream`, `rsp`). Each message becomes a `Record` handed to the caller as it is decoded;

@@ -6,6 +6,7 @@ from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from rcmlconf.dissect.classify import Classifier
 from rcmlconf.dissect.records import Finding, Record, Severity
 from rcmlconf.dissect.streams import Stream
 from rcmlconf.rcml.model import RcmlDocument
@@ -93,6 +94,8 @@ class Context:
         #: Data streams by tag, and the UDP endpoints SETUP named: (address, port) -> session.
         self.data_sessions: dict[int, DataSession] = {}
         self.data_endpoints: dict[tuple[bytes, int], DataSession] = {}
+        #: Which protocol each flow carries; it learns the endpoints SETUP names.
+        self.flows = Classifier(options.decode_as, options.heuristics)
         #: Called when SETUP names new endpoints: the UDP flows already seen are classified again.
         self.learned: Callable[[], None] = lambda: None
 
@@ -106,16 +109,10 @@ class Context:
     def learn(self, session: DataSession) -> None:
         """A SETUP's answer named a data stream's tag and ports."""
         self.data_sessions[session.tag] = session
-        fresh = False
-        for key in (
-            (session.client_address, session.client_port),
-            (session.server_address, session.server_port),
-        ):
-            port = key[1]
-            if port is None:
-                continue
-            if self.data_endpoints.get((key[0], port)) is not session:
-                self.data_endpoints[(key[0], port)] = session
-                fresh = True
-        if fresh:
+        client = (session.client_address, session.client_port)
+        server = (session.server_address, session.server_port)
+        for address, port in (client, server):
+            if port is not None:
+                self.data_endpoints[(address, port)] = session
+        if self.flows.learn(client, server):
             self.learned()

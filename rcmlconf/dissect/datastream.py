@@ -1,10 +1,9 @@
 """The RCTP/2.0 data stream seen from the wire (specs/rctp-2.0.md §6).
 
 Each datagram is decoded by the core's `pull_packet` (D-RCTP-19), which lets only
-`ProtocolError` escape, with the offset and rule of a broken packet (`packet_of` takes a shortcut
-for the one shape nearly every datagram has, checked against it). A stream is one sender's
-packets of one session (its tag): sequence numbers by the rules of D-RCTP-21 (`streams.Stream`
-counts what the core's `SequenceTracker` counts), timestamps into RFC 3550's jitter. Heartbeats
+`ProtocolError` escape, with the offset and rule of a broken packet. A stream is one sender's
+packets of one session (its tag): sequence numbers by the rules of D-RCTP-21 (`streams.Stream`,
+with the core's `SequenceTracker`), timestamps into RFC 3550's jitter. Heartbeats
 are paired by request id, each pair a round trip and a clock sample (`ClockSample.from_times`,
 NTP's filter in `ClockEstimator`, D-RCTP-24); the ACK's arrival stands for T4, so the offset is
 that of the capturing host's clock (the client's, when the capture was made there). With the RCML
@@ -15,7 +14,6 @@ stream id (D-RCTP-20).
 from __future__ import annotations
 
 import statistics
-import struct
 from dataclasses import dataclass
 from typing import Any
 
@@ -33,7 +31,6 @@ from rcmlconf.rctp.datastream.clock import (
 )
 from rcmlconf.rctp.datastream.flow import Direction, HeartbeatAck, HeartbeatRequest, Message, Nack
 from rcmlconf.rctp.datastream.packets import (
-    MAX_DATAGRAM,
     DataPayload,
     FlowPayload,
     MalformedFlowPayload,
@@ -50,39 +47,8 @@ _KIND = {
     MalformedFlowPayload: "FLOW",
     UnknownPayload: "UNKNOWN",
 }
-_new = object.__new__
 _record = tuple.__new__
 _NTP_SECOND = 2.0**-32
-_set_sequence, _set_tag, _set_timestamp, _set_payloads = (
-    Packet.__dict__[name].__set__ for name in ("sequence", "tag", "timestamp", "payloads")
-)
-_set_stream, _set_body = (DataPayload.__dict__[name].__set__ for name in ("stream", "body"))
-#: The header and the first payload's header (D-RCTP-19).
-_ONE_PAYLOAD = struct.Struct(">BBHIQBBH")
-
-
-def packet_of(datagram: bytes) -> Packet:
-    """`pull_packet(datagram)`, with a shortcut for the datagram nearly every one is: one DATA
-    payload that fills it exactly. For that shape the shortcut checks what `pull_packet` checks
-    (version 2, one payload, its length to the datagram's end, the datagram's size) and makes the
-    same `Packet`, a few times faster; every other datagram, and every error, is `pull_packet`'s.
-    tests/dissect check the two agree on any bytes."""
-    size = len(datagram)
-    if 20 <= size <= MAX_DATAGRAM:
-        version, count, sequence, tag, timestamp, kind, stream, length = _ONE_PAYLOAD.unpack_from(
-            datagram
-        )
-        if version == 2 and count == 1 and kind == 1 and length == size - 20:
-            payload = _new(DataPayload)
-            _set_stream(payload, stream)
-            _set_body(payload, datagram[20:])
-            packet: Packet = _new(Packet)
-            _set_sequence(packet, sequence)
-            _set_tag(packet, tag)
-            _set_timestamp(packet, timestamp)
-            _set_payloads(packet, (payload,))
-            return packet
-    return pull_packet(datagram)
 
 
 #: D-RCTP-22: a request is sent five times 250 ms apart before its requester gives up.
@@ -159,16 +125,14 @@ class DataStreamDecoder:
         ctx = self.ctx
         number = ctx.count = ctx.count + 1
         try:
-            packet = packet_of(payload)
+            packet = pull_packet(payload)
         except ProtocolError as error:
             self._malformed(flow, time, frame, number, error, where)
             return
-        tag = packet.tag
+        sequence, tag, timestamp, payloads = packet
         stream = state.stream if tag == state.tag else self._stream(state, tag, frame, time, number)
-        sequence = packet.sequence
         # Seconds since the NTP era's start: the jitter and the plot take only differences.
-        stream.see(time, sequence, packet.timestamp * _NTP_SECOND, len(payload))
-        payloads = packet.payloads
+        stream.see(time, sequence, timestamp * _NTP_SECOND, len(payload))
         extra = None
         if len(payloads) == 1 and type(payloads[0]) is DataPayload:
             kind = "DATA"

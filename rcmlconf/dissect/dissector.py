@@ -1,23 +1,18 @@
 """The flow table: each frame to its conversation, each conversation to its protocol's decoder.
 
-A UDP flow (one direction: source and destination address and port) is classified once, by its
-first datagram: `--decode-as` ports first, then the data-stream ports SETUP named (D-RCTP-18, as
-Wireshark follows RTSP's SETUP to its RTP ports), then the default ports (UDP 7340 RSP, D-RSP-9;
-UDP 7330 the data stream, which the reference server serves on its TCP port's number), then, with
-heuristics on, the datagram itself: a valid data-stream packet (D-RCTP-19) or a valid RSP header
-(D-RSP-10). A TCP connection is RCTP when either port is 7330 (D-RCTP-2), a `--decode-as` port or
-a server endpoint already seen speaking RCTP, or, with heuristics on, when its first bytes are an
-RCTP start line.
+Which protocol a flow carries is `classify.Classifier`'s to say (the scapy layers ask it too): a
+UDP flow is classified once, by its first datagram, and its decoder and state kept in the table; a
+TCP connection is a control connection, not ours, or held until its first bytes tell.
 """
 
 from __future__ import annotations
 
-import re
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from rcmlconf.dissect.classify import FlowKey, Pending, reverse
 from rcmlconf.dissect.context import Context, Options
 from rcmlconf.dissect.control import ControlConnection, ControlReport
 from rcmlconf.dissect.datastream import DataFlow, DataStreamDecoder, HeartbeatReport, stream_label
@@ -32,7 +27,6 @@ from rcmlconf.dissect.records import (
 )
 from rcmlconf.dissect.rsp import RspDecoder, RspFlow, RspSessionReport
 from rcmlconf.dissect.streams import Stream, StreamReport
-from rcmlconf.errors import ProtocolError
 from rcmlconf.pcap.reader import (
     LINKTYPE_IPV4,
     LINKTYPE_RAW,
@@ -44,26 +38,14 @@ from rcmlconf.pcap.reader import (
     FrameError,
     endpoint_text,
 )
-from rcmlconf.rctp.datastream.packets import pull_packet
-from rcmlconf.rctp.messages import METHODS
-from rcmlconf.rsp.codec.header import ANY
 
-#: D-RCTP-2: RCTP's TCP port; D-RSP-9: RSP's UDP port; the reference server's data stream uses
-#: its TCP port's number (D-RCTP-28 leaves it to the server).
-DEFAULT_TCP = {7330: RCTP}
-DEFAULT_UDP = {7340: RSP, 7330: RCTP_DATA}
 #: Frame problems kept; the rest are counted.
 PROBLEMS_KEPT = 100
-_START = re.compile(
-    rb"RCTP/[0-9]|(?:" + b"|".join(m.encode() for m in METHODS) + rb") |"
-    rb"[!#$%&'*+\-.^_`|~0-9A-Za-z]+ [!-~]+ RCTP/[0-9]"
-)
 #: Of an IPv4 header and the UDP header after it: version and length, total length, fragment
-#: field, protocol, UDP length.
-_IPV4_UDP_HEAD = struct.Struct("!BxH2xHxB14xH")
+#: field, protocol, the addresses and ports (12 bytes: a UDP flow's key), UDP length.
+_IPV4_UDP_HEAD = struct.Struct("!BxH2xHxB2x12sH")
+_RAW_IPV4 = frozenset({LINKTYPE_RAW, LINKTYPE_IPV4})
 _KEY = struct.Struct("!4s4sHH")
-#: Bytes of a TCP connection's first payloads looked at to recognise RCTP.
-_LOOK = 16
 
 
 @dataclass(frozen=True, slots=True)
@@ -106,14 +88,9 @@ _UdpEntry = tuple[Callable[..., None] | None, Endpoints | None, Any]
 _IGNORED: _UdpEntry = (None, None, None)
 
 
-class _PendingTcp:
-    """A TCP connection not yet recognised: its segments, to be replayed once it is."""
-
-    __slots__ = ("looked", "segments")
-
-    def __init__(self) -> None:
-        self.segments: list[tuple[int, float, int, int, int, bytes, int]] = []
-        self.looked = [b"", b""]
+#: A segment of a connection held by `Pending`: (side, time, frame, sequence number, flags,
+#: payload, its offset in the file).
+_Held = tuple[int, float, int, int, int, bytes, int]
 
 
 class Dissector:
@@ -123,23 +100,12 @@ class Dissector:
         self.options = options
         self.ctx = Context(options, emit)
         self.ctx.learned = self._forget_ignored
-        tcp_ports = dict(DEFAULT_TCP)
-        udp_ports = dict(DEFAULT_UDP)
-        for protocol, port in options.decode_as:
-            if protocol == RCTP:
-                tcp_ports[port] = protocol
-            else:
-                udp_ports[port] = protocol
-        self._tcp_ports = frozenset(tcp_ports)
-        self._udp_ports = udp_ports
-        self._decode_as_udp = {port: p for p, port in options.decode_as if p != RCTP}
-        self._udp: dict[tuple[bytes, int, bytes, int], _UdpEntry] = {}
+        self._flows = self.ctx.flows
+        self._udp: dict[FlowKey, _UdpEntry] = {}
         #: The same entries, by the 12 bytes of an IPv4 header's addresses and UDP's ports.
         self._udp4: dict[bytes, _UdpEntry] = {}
-        self._tcp: dict[tuple[bytes, int, bytes, int], tuple[Any, int]] = {}
+        self._tcp: dict[FlowKey, tuple[Any, int]] = {}
         self._connections: list[ControlConnection] = []
-        #: Server endpoints seen speaking RCTP: later connections to them are RCTP too.
-        self._rctp_servers: set[tuple[bytes, int]] = set()
         self._datastream = DataStreamDecoder(self.ctx)
         self._rsp = RspDecoder(self.ctx)
         self._names: dict[tuple[bytes, int], str] = {}
@@ -171,6 +137,7 @@ class Dissector:
         decoder = FrameDecoder()
         decode = decoder.decode
         head = _IPV4_UDP_HEAD.unpack_from
+        raw_ipv4 = _RAW_IPV4
         udp = self._udp
         fast = self._udp4
         classify = self._classify_udp
@@ -186,8 +153,8 @@ class Dissector:
                 # The common case inline (FrameDecoder.decode's first branch): raw IPv4 with a
                 # 20-byte header, UDP, no fragment, nothing cut; its flow found by the header's
                 # addresses and ports as they are, 12 bytes.
-                if (linktype in (LINKTYPE_RAW, LINKTYPE_IPV4)) and end - start >= 28:
-                    first_byte, total, fragment, protocol, size = head(data, start)
+                if linktype in raw_ipv4 and end - start >= 28:
+                    first_byte, total, fragment, protocol, key12, size = head(data, start)
                     stop = start + 20 + size
                     if (
                         first_byte == 0x45
@@ -197,16 +164,15 @@ class Dissector:
                         and stop <= end
                         and length <= end - start
                     ):
-                        key12 = data[start + 12 : start + 24]
                         entry = fast.get(key12)
                         payload = data[start + 28 : stop]
                         if entry is None:
                             entry = fast[key12] = classify(_key(key12), payload)
-                        handler = entry[0]
+                        handler, flow, state = entry
                         if handler is None:
                             other += 1
                         else:
-                            handler(entry[1], entry[2], time, frame, payload, start + 28)
+                            handler(flow, state, time, frame, payload, start + 28)
                         continue
                 try:
                     segment = decode(data, start, end, linktype, length)
@@ -293,12 +259,12 @@ class Dissector:
 
     # -- UDP -------------------------------------------------------------------------------------
 
-    def _classify_udp(self, key: tuple[bytes, int, bytes, int], payload: bytes) -> _UdpEntry:
-        source, sport, destination, dport = key
-        protocol = self._udp_protocol(source, sport, destination, dport, payload)
+    def _classify_udp(self, key: FlowKey, payload: bytes) -> _UdpEntry:
+        protocol = self._flows.udp(key, payload)
         if protocol is None:
             entry = _IGNORED
         else:
+            source, sport, destination, dport = key
             src, dst = self._name(source, sport), self._name(destination, dport)
             endpoints = Endpoints(src, dst, protocol)
             if protocol == RSP:
@@ -307,38 +273,6 @@ class Dissector:
                 entry = (self._datastream.datagram, endpoints, DataFlow(src, dst, source, sport))
         self._udp[key] = entry
         return entry
-
-    def _udp_protocol(
-        self, source: bytes, sport: int, destination: bytes, dport: int, payload: bytes
-    ) -> str | None:
-        chosen = self._decode_as_udp
-        if dport in chosen:
-            return chosen[dport]
-        if sport in chosen:
-            return chosen[sport]
-        endpoints = self.ctx.data_endpoints
-        if (destination, dport) in endpoints or (source, sport) in endpoints:
-            return RCTP_DATA
-        ports = self._udp_ports
-        if dport in ports:
-            return ports[dport]
-        if sport in ports:
-            return ports[sport]
-        if not self.options.heuristics or not payload:
-            return None
-        if payload[0] == 2:
-            try:
-                pull_packet(payload)
-            except ProtocolError:
-                return None
-            return RCTP_DATA
-        if payload[0] == 1:
-            try:
-                ANY.pull(payload)
-            except ProtocolError:
-                return None
-            return RSP
-        return None
 
     def _forget_ignored(self) -> None:
         """SETUP named new data-stream ports: flows not recognised yet are looked at again."""
@@ -365,87 +299,55 @@ class Dissector:
         key = (source, sport, destination, dport)
         found = self._tcp.get(key)
         if found is None:
-            found = self._open_tcp(key, payload)
+            found = self._open_tcp(key)
         connection, index = found
         if connection is None:
             self.other += 1
             return
-        if isinstance(connection, _PendingTcp):
-            connection.segments.append((index, time, frame, seq, flags, payload, where))
-            connection.looked[index] += payload
-            decided = self._recognise(connection.looked, len(connection.segments))
+        if isinstance(connection, Pending):
+            held: _Held = (index, time, frame, seq, flags, payload, where)
+            decided = self._flows.look(connection, index, held, payload)
             if decided is None:
                 return
-            segments = connection.segments
+            segments: list[_Held] = connection.segments
             if decided:
-                first = key if index == 0 else _reverse(key)
-                real = self._control(first)
-                for side, data in enumerate(connection.looked):
-                    if _START.match(data) and not data.startswith(b"RCTP/"):
-                        # The side that sent a request line is a client: its peer is a server.
-                        server = first[2:] if side == 0 else first[:2]
-                        self._rctp_servers.add((server[0], server[1]))
-                for side, at, number, sequence, bits, data, where in segments:
-                    real.segment(side, at, number, sequence, bits, data, where)
+                real = self._control(connection.first)
+                for side, at, number, sequence, bits, data, located in segments:
+                    real.segment(side, at, number, sequence, bits, data, located)
             else:
-                self._tcp[key] = self._tcp[_reverse(key)] = (None, 0)
+                self._tcp[key] = self._tcp[reverse(key)] = (None, 0)
                 self.other += len(segments)
             return
         connection.segment(index, time, frame, seq, flags, payload, where)
 
-    def _open_tcp(self, key: tuple[bytes, int, bytes, int], payload: bytes) -> tuple[Any, int]:
-        source, sport, destination, dport = key
-        ports = self._tcp_ports
-        servers = self._rctp_servers
-        if (
-            dport in ports
-            or sport in ports
-            or (destination, dport) in servers
-            or (source, sport) in servers
-        ):
-            connection: Any = self._control(key)
-        elif self.options.heuristics:
-            connection = _PendingTcp()
-            self._tcp[key] = (connection, 0)
-            self._tcp[_reverse(key)] = (connection, 1)
+    def _open_tcp(self, key: FlowKey) -> tuple[Any, int]:
+        rctp = self._flows.tcp(key)
+        if rctp:
+            self._control(key)
+        elif rctp is None:
+            pending: Pending[_Held] = Pending(key)
+            self._tcp[key] = (pending, 0)
+            self._tcp[reverse(key)] = (pending, 1)
         else:
-            self._tcp[key] = self._tcp[_reverse(key)] = (None, 0)
+            self._tcp[key] = self._tcp[reverse(key)] = (None, 0)
         return self._tcp[key]
 
-    def _control(self, key: tuple[bytes, int, bytes, int]) -> ControlConnection:
+    def _control(self, key: FlowKey) -> ControlConnection:
         """A control connection whose side 0 sent from `key`'s source."""
         source, sport, destination, dport = key
         connection = ControlConnection.open(
             self.ctx,
             (source, sport, self._name(source, sport)),
             (destination, dport, self._name(destination, dport)),
-            self._tcp_ports,
+            self._flows.tcp_ports,
         )
         self._connections.append(connection)
         self._tcp[key] = (connection, 0)
-        self._tcp[_reverse(key)] = (connection, 1)
-        if dport in self._tcp_ports:
-            self._rctp_servers.add((destination, dport))
-        elif sport in self._tcp_ports:
-            self._rctp_servers.add((source, sport))
+        self._tcp[reverse(key)] = (connection, 1)
         return connection
 
-    @staticmethod
-    def _recognise(looked: list[bytes], segments: int) -> bool | None:
-        """Whether the first bytes of a connection are RCTP's; None to wait for more."""
-        for data in looked:
-            if _START.match(data):
-                return True
-        if any(len(data) >= _LOOK or b"\n" in data for data in looked) or segments > 32:
-            return False
-        return None
 
-
-def _key(key12: bytes) -> tuple[bytes, int, bytes, int]:
+def _key(key12: bytes) -> FlowKey:
     """(source, source port, destination, destination port) of IPv4's addresses and UDP's ports."""
     source, destination, sport, dport = _KEY.unpack(key12)
     return source, sport, destination, dport
-
-
-def _reverse(key: tuple[bytes, int, bytes, int]) -> tuple[bytes, int, bytes, int]:
-    return key[2], key[3], key[0], key[1]

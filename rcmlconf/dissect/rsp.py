@@ -167,9 +167,9 @@ class RspDecoder:
         codec = self.codec
         try:
             header = self.rules.pull(payload)
-            kind = header.type
+            _, model_id, encryption, kind, sequence, stamp, session_id, _, _ = header
             mapped = kind in _MAPS
-            if header.encryption is not _NONE and kind not in _PLAIN:
+            if encryption is not _NONE and kind not in _PLAIN:
                 value: Any = _new(RspPacket, (header, payload[HEADER_SIZE:]))
             elif codec is not None:
                 value = codec.pull_packet(payload)
@@ -180,20 +180,16 @@ class RspDecoder:
         except ProtocolError as error:
             self._malformed(flow, time, frame, number, error, where, payload)
             return
-        session_id = header.session_id
         stream = state.stream if session_id == state.session else self._stream(state, header)
-        sequence = header.sequence
-        stream.see(time, sequence, header.timestamp / 1000, len(payload))
+        stream.see(time, sequence, stamp / 1000, len(payload))
         if not mapped:
             self._session_packet(state, header, value.body, time, frame, number)
         elif codec is not None and type(value.body) is MapBody:
             self._occurrences(header, value.body, time)
         expected = state.expected
-        if expected is None and session_id:
+        if expected is None and session_id in self.sessions:
             expected = state.expected = self._expected(session_id)
-        if expected is not None and (
-            header.encryption is not expected[0] or header.model_id != expected[1]
-        ):
+        if expected is not None and (encryption is not expected[0] or model_id != expected[1]):
             self._mismatch(state, header, expected, frame, time, number)
         ctx.emit(
             _new(Record, (number, frame, time, flow, _NAMES[kind], sequence, value, None, None))

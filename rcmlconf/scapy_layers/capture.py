@@ -6,9 +6,9 @@ layer, IP (its fragments put back together) and the TCP and UDP headers by `Fram
 `struct` (a scapy packet for those headers costs more than the layers themselves: about 150 µs a
 frame against 50), and each direction of a TCP connection is put in order by `tcp.TcpStream`.
 scapy dissects the RCTP and RSP bytes only; a direction's bytes are cut into messages by
-`rctp.message_length` (Content-Length framing, pipelining, R-RCTP-13). Flows are found as
-`rcmlconf dissect` finds them (`Dissector`): default ports, `--decode-as`, the data-stream
-endpoints of SETUP's answers (D-RCTP-18), and heuristics.
+`rctp.message_length` (Content-Length framing, pipelining, R-RCTP-13). Flows are found by
+`rcmlconf dissect`'s own rules (`dissect.classify.Classifier`): default ports, `--decode-as`, the
+data-stream endpoints of SETUP's answers (D-RCTP-18), and heuristics.
 
 `render` writes a packet as scapy's `show(dump=True)` does, without its color-theme calls per
 field, which cost more than the dissection: `-V` on 10,000 packets takes about 2 s.
@@ -17,7 +17,6 @@ field, which cost more than the dissection: `-V` on 10,000 packets takes about 2
 from __future__ import annotations
 
 import os
-import re
 from collections.abc import Iterable, Iterator
 from datetime import datetime
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -26,21 +25,21 @@ from scapy.config import conf
 from scapy.fields import ConditionalField
 from scapy.packet import Packet
 
+# `rcmlconf sniff` takes RCTP's default ports and name and `parse_decode_as` from here.
+from rcmlconf.dissect.classify import DEFAULT_TCP as DEFAULT_TCP
+from rcmlconf.dissect.classify import Classifier, FlowKey, Pending, reverse
+from rcmlconf.dissect.classify import parse_decode_as as parse_decode_as
+from rcmlconf.dissect.records import RCTP as RCTP
+from rcmlconf.dissect.records import RCTP_DATA, RSP
 from rcmlconf.dissect.tcp import SYN, Piece, TcpStream
+from rcmlconf.errors import ValueTextError
 from rcmlconf.pcap.reader import UDP, Capture, CaptureError, FrameDecoder, FrameError, address_text
+from rcmlconf.rctp.fields import Transport, parse_transport
 from rcmlconf.scapy_layers import rctp, rsp
 
 if TYPE_CHECKING:
     from rcmlconf.rsp.model import RobotModel
 
-#: The protocols, as `--decode-as` names them: RCTP's control connection (TCP) and its data stream
-#: (UDP), and RSP (UDP).
-RCTP, RCTP_DATA, RSP = "rctp", "rctp-data", "rsp"
-PROTOCOLS = (RCTP, RCTP_DATA, RSP)
-#: The default ports: TCP 7330 (D-RCTP-2); UDP 7340 for RSP (D-RSP-9) and UDP 7330 for the data
-#: stream, which the reference server serves on its TCP port's number.
-DEFAULT_TCP = {rctp.RCTP_PORT: RCTP}
-DEFAULT_UDP = {rsp.RSP_PORT: RSP, rctp.RCTP_PORT: RCTP_DATA}
 #: A message's protocol, as a summary line names it.
 PROTOCOL_NAMES = {RCTP: "RCTP", RCTP_DATA: "RCTP-data", RSP: "RSP"}
 
@@ -63,37 +62,7 @@ class Message(NamedTuple):
     packet: Packet
 
 
-def parse_decode_as(text: str) -> tuple[str, int]:
-    """`PROTO=PORT` (`rctp=8000`, `rctp-data=41000`, `rsp=9000`); ValueError for anything else."""
-    proto, equals, port = text.partition("=")
-    proto = proto.strip().lower()
-    if not equals or proto not in PROTOCOLS:
-        raise ValueError(f"{text!r}: give PROTO=PORT with PROTO one of {', '.join(PROTOCOLS)}")
-    if not port.strip().isdigit() or not 0 < int(port) < 65536:
-        raise ValueError(f"{text!r}: the port must be 1 to 65535")
-    return proto, int(port)
-
-
 DecodeAs = Iterable[str | tuple[str, int]]
-
-#: The start of an RCTP message: what makes a connection on another port RCTP (heuristics).
-_START = re.compile(
-    rb"RCTP/[0-9]|(?:" + b"|".join(rctp.RCTP_METHODS) + rb") |"
-    rb"[!#$%&'*+\-.^_`|~0-9A-Za-z]+ [!-~]+ RCTP/[0-9]"
-)
-#: Bytes of each direction looked at before a connection is taken as not RCTP.
-_LOOK = 16
-_TRANSPORT_PORT = re.compile(r"(client|server)_port=([0-9]{1,5})")
-
-
-def _transport_ports(transport: str) -> dict[str, int]:
-    """`client_port` and `server_port` of a Transport field (D-RCTP-18)."""
-    return {
-        f"{side}_port": int(port)
-        for side, port in _TRANSPORT_PORT.findall(transport)
-        if 0 < int(port) < 65536
-    }
-
 
 # -- TCP -------------------------------------------------------------------------------------------
 
@@ -179,54 +148,26 @@ class _Stream:
         return rctp.RCTP(data)
 
 
-FlowKey = tuple[bytes, int, bytes, int]
-
-
-class _Pending:
-    """A TCP connection on ports not known to be RCTP's, until its first bytes tell."""
-
-    __slots__ = ("looked", "segments")
-
-    def __init__(self) -> None:
-        #: The first bytes of each direction: the one that opened it, the other.
-        self.looked = [b"", b""]
-        #: The segments held meanwhile: (frame, time, key, sequence number, flags, payload).
-        self.segments: list[tuple[int, float, FlowKey, int, int, bytes]] = []
+#: A segment of a connection held by `Pending`: (frame, time, key, sequence number, flags, payload).
+_Held = tuple[int, float, FlowKey, int, int, bytes]
 
 
 class Dissector:
-    """Feed frames in capture order; take the RCTP and RSP messages they carry.
-
-    A UDP flow (one direction) is classified by its first datagram: `decode_as` ports first,
-    then the data-stream endpoints a SETUP's answer named (D-RCTP-18), then the default ports,
-    then with `heuristics` the datagram itself: a data-stream packet whose layout holds, or an
-    RSP header (`rsp.header_fits`). A TCP connection is RCTP on port 7330 or a `decode_as` port,
-    to a server endpoint already seen speaking RCTP, or with `heuristics` when its first bytes
-    are an RCTP start line. `rcmlconf dissect` classifies flows the same way.
-    """
+    """Feed frames in capture order; take the RCTP and RSP messages they carry, each flow's
+    protocol found by `Classifier` (`decode_as` ports, SETUP's answers, the default ports, and
+    with `heuristics` a flow's first packet), as `rcmlconf dissect` finds it."""
 
     def __init__(self, decode_as: DecodeAs = (), heuristics: bool = True) -> None:
-        self.heuristics = heuristics
-        self._tcp_ports = set(DEFAULT_TCP)
-        self._udp_ports: dict[int, str] = dict(DEFAULT_UDP)
-        self._decode_as_udp: dict[int, str] = {}
-        for entry in decode_as:
-            proto, port = parse_decode_as(entry) if isinstance(entry, str) else entry
-            if proto == RCTP:
-                self._tcp_ports.add(port)
-            else:
-                self._decode_as_udp[port] = proto
+        chosen = [parse_decode_as(e) if isinstance(e, str) else e for e in decode_as]
+        self._flows = Classifier(chosen, heuristics)
         #: UDP flows classified: the protocol, or None for none of ours.
         self._udp: dict[FlowKey, str | None] = {}
-        #: The data stream's endpoints SETUP's answers named.
-        self._data_endpoints: set[tuple[bytes, int]] = set()
         #: TCP connections (both directions' keys): RCTP, not RCTP, or not known yet.
-        self._tcp: dict[FlowKey, bool | _Pending] = {}
-        self._rctp_servers: set[tuple[bytes, int]] = set()
+        self._tcp: dict[FlowKey, bool | Pending[_Held]] = {}
         self._streams: dict[FlowKey, _Stream] = {}
         self._last: dict[FlowKey, tuple[int, float]] = {}
-        #: The client port of each connection's last SETUP, for its answer (by the answer's key).
-        self._setup: dict[FlowKey, int] = {}
+        #: The Transport of each connection's last SETUP, for its answer (by the answer's key).
+        self._setup: dict[FlowKey, Transport] = {}
         self._frames = FrameDecoder()
 
     def frame(self, number: int, time: float, linktype: int, frame: bytes) -> list[Message]:
@@ -249,47 +190,33 @@ class Dissector:
         if key in self._udp:
             proto = self._udp[key]
         else:
-            proto = self._udp[key] = self._udp_protocol(key, data)
+            proto = self._udp[key] = self._flows.udp(key, data)
         if proto is None:
             return []
         layer = rsp.RSP(data) if proto == RSP else rctp.RCTPStream(data)
         return [Message(number, time, proto, *_ends(key), layer)]
 
-    def _udp_protocol(self, key: FlowKey, data: bytes) -> str | None:
-        source, sport, destination, dport = key
-        chosen = self._decode_as_udp.get(dport) or self._decode_as_udp.get(sport)
-        if chosen is not None:
-            return chosen
-        endpoints = self._data_endpoints
-        if (destination, dport) in endpoints or (source, sport) in endpoints:
-            return RCTP_DATA
-        known = self._udp_ports.get(dport) or self._udp_ports.get(sport)
-        if known is not None or not self.heuristics or not data:
-            return known
-        if data[0] == rctp.RCTP_STREAM_VERSION:
-            return RCTP_DATA if rctp.stream_fits(data) else None
-        if data[0] == rsp.RSP_VERSION:
-            return RSP if rsp.header_fits(data) else None
-        return None
-
     def _learn(self, key: FlowKey, message: Packet) -> None:
-        """D-RCTP-18: a SETUP and its answer name the data stream's endpoints."""
-        transport = message.header("Transport")
-        if transport is None:
+        """D-RCTP-18, D-RCTP-28: a SETUP's 200 names the data stream's endpoints: the client's
+        port (the answer's client_port, else the SETUP's) and the server's; learnt as
+        `rcmlconf dissect` learns them, from a Transport the core reads and that gives a tag."""
+        text = message.header("Transport")
+        is_request = isinstance(message, rctp.RCTPRequest)
+        if text is None or (message.method != b"SETUP" if is_request else message.status != 200):
             return
-        ports = _transport_ports(transport)
-        source, sport, destination, dport = key
-        if isinstance(message, rctp.RCTPRequest):
-            if message.method == b"SETUP" and "client_port" in ports:
-                self._setup[(destination, dport, source, sport)] = ports["client_port"]
+        try:
+            transport = parse_transport(text)
+        except ValueTextError:
+            return  # `rcmlconf dissect` reports it (R-RCTP-38)
+        if is_request:
+            self._setup[reverse(key)] = transport
             return
-        if message.status != 200:
+        if transport.tag is None:
             return
-        client_port = ports.get("client_port", self._setup.get(key))
-        named = ((destination, client_port), (source, ports.get("server_port")))
-        fresh = {(address, port) for address, port in named if port} - self._data_endpoints
-        if fresh:
-            self._data_endpoints |= fresh
+        asked = self._setup.get(key)
+        client_port = transport.client_port or (asked.client_port if asked else None)
+        source, _, destination, _ = key
+        if self._flows.learn((destination, client_port), (source, transport.server_port)):
             # UDP flows not taken yet are looked at again, as `rcmlconf dissect` does
             for flow in [flow for flow, proto in self._udp.items() if proto is None]:
                 del self._udp[flow]
@@ -301,63 +228,25 @@ class Dissector:
     ) -> list[Message]:
         known = self._tcp.get(key)
         if known is None:
-            known = self._open(key)
+            rctp_flow = self._flows.tcp(key)
+            known = Pending(key) if rctp_flow is None else rctp_flow
+            self._tcp[key] = self._tcp[reverse(key)] = known
         if known is True:
             return self._segment(number, time, key, seq, flags, payload)
         if known is False:
             return []
         pending = known
-        pending.segments.append((number, time, key, seq, flags, payload))
-        side = 0 if pending.segments[0][2] == key else 1
-        pending.looked[side] += payload
-        decided = self._recognise(pending)
+        side = 0 if pending.first == key else 1
+        decided = self._flows.look(pending, side, (number, time, key, seq, flags, payload), payload)
         if decided is None:
             return []
-        source, sport, destination, dport = key
-        self._tcp[key] = self._tcp[(destination, dport, source, sport)] = decided
+        self._tcp[key] = self._tcp[reverse(key)] = decided
         if not decided:
             return []
-        first = pending.segments[0][2]
-        for index, looked in enumerate(pending.looked):
-            if _START.match(looked) and not looked.startswith(b"RCTP/"):
-                # the side that sent a request line is a client: its peer is a server
-                server = first[2:] if index == 0 else first[:2]
-                self._rctp_servers.add((server[0], server[1]))
         found = []
         for held in pending.segments:
             found.extend(self._segment(*held))
         return found
-
-    def _open(self, key: FlowKey) -> bool | _Pending:
-        source, sport, destination, dport = key
-        reverse = (destination, dport, source, sport)
-        ports, servers = self._tcp_ports, self._rctp_servers
-        known: bool | _Pending
-        if (
-            dport in ports
-            or sport in ports
-            or (destination, dport) in servers
-            or (source, sport) in servers
-        ):
-            known = True
-            if dport in ports:
-                servers.add((destination, dport))
-            elif sport in ports:
-                servers.add((source, sport))
-        else:
-            known = _Pending() if self.heuristics else False
-        self._tcp[key] = self._tcp[reverse] = known
-        return known
-
-    @staticmethod
-    def _recognise(pending: _Pending) -> bool | None:
-        """Whether a connection's first bytes are RCTP's; None to wait for more."""
-        looked = pending.looked
-        if any(_START.match(data) for data in looked):
-            return True
-        if any(len(data) >= _LOOK or b"\n" in data for data in looked):
-            return False
-        return None if len(pending.segments) <= 32 else False
 
     def _segment(
         self, number: int, time: float, key: FlowKey, seq: int, flags: int, payload: bytes

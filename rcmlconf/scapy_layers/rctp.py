@@ -51,20 +51,6 @@ from scapy.packet import Packet, bind_bottom_up, bind_layers, bind_top_down
 RCTP_PORT = 7330
 RCTP_VERSION = b"RCTP/2.0"
 
-#: D-RCTP-12: the ten methods.
-RCTP_METHODS = (
-    b"CONNECT",
-    b"ACQUIRE",
-    b"RELEASE",
-    b"READ",
-    b"WRITE",
-    b"SETUP",
-    b"GO",
-    b"PAUSE",
-    b"STOP",
-    b"BYE",
-)
-
 #: D-RCTP-15: status codes and their reason phrases.
 RCTP_STATUS_CODES = {
     200: "OK",
@@ -656,20 +642,6 @@ class RCTPMalformedFlowPayload(RCTPPayload):
 
     def mysummary(self) -> str:
         return f"FLOW malformed {len(self.body or b'')}B"
-
-
-def stream_fits(data: bytes) -> bool:
-    """A data-stream packet whose framing holds (R-RCTP-39): version 2, a header, and 1 to 255
-    payloads that fill the datagram exactly. What a receiver reads; the rest it drops."""
-    size = len(data)
-    if size < 16 or size > 65507 or data[0] != RCTP_STREAM_VERSION or not data[1]:
-        return False
-    position = 16
-    for _ in range(data[1]):
-        if position + 4 > size:
-            return False
-        position += 4 + int.from_bytes(data[position + 2 : position + 4], "big")
-    return position == size
 
 
 class RCTPStream(Packet):

@@ -83,10 +83,6 @@ RSP_TAG_SIZE = 16
 #: Who sends each packet type (D-RSP-11), which decides what its buffer byte says.
 _FROM_LOCAL = frozenset({1, 4, 8})
 _FROM_ROBOT = frozenset({2, 3, 5})
-#: HELLO and REFUSED belong to no session: their session ID is 0 (D-RSP-10).
-_WITHOUT_SESSION = frozenset({1, 3})
-#: The robot's free buffers fit in bits 0 to 6 (`commandBuffers` is at most 127).
-_MAX_FREE_BUFFERS = 0x7F
 #: Bodies sent before a session has keys: never sealed (D-RSP-21).
 _NEVER_SEALED = frozenset({1, 2, 3})
 
@@ -475,24 +471,6 @@ class _AllButTagField(StrField):
     def getfield(self, pkt: Packet, s: bytes) -> tuple[bytes, bytes]:
         cut = max(0, len(s) - RSP_TAG_SIZE)
         return s[cut:], s[:cut]
-
-
-def header_fits(data: bytes) -> bool:
-    """A header any model's packet may have (R-RSP-13): version 1, a model ID, a known
-    encryption and type, a session ID that is 0 exactly in HELLO and REFUSED, and a buffer byte
-    of the form its sender gives it (D-RSP-10)."""
-    if len(data) < RSP_HEADER_SIZE or data[0] != RSP_VERSION:
-        return False
-    kind, buffer = data[4], data[19]
-    if not (data[1] or data[2]) or data[3] not in RSP_ENCRYPTIONS or kind not in RSP_TYPES:
-        return False
-    if (not any(data[11:17])) != (kind in _WITHOUT_SESSION):
-        return False
-    if kind in _FROM_LOCAL:
-        return buffer in (0, RSP_CLEAR_BUFFER)
-    if kind in _FROM_ROBOT:
-        return buffer <= _MAX_FREE_BUFFERS
-    return buffer <= _MAX_FREE_BUFFERS or buffer == RSP_CLEAR_BUFFER
 
 
 # -- the header -----------------------------------------------------------------------------------

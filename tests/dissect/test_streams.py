@@ -1,7 +1,5 @@
 """Streams in captures: loss, reordering, duplicates, gaps and jitter of the data stream and of RSP;
-heartbeats and clock offsets; RSP sessions and reliable occurrences; and the two shortcuts of
-the fast path checked against the core (the sequence counts against `SequenceTracker`, a
-one-DATA datagram against `pull_packet`)."""
+heartbeats and clock offsets; RSP sessions and reliable occurrences."""
 
 from __future__ import annotations
 
@@ -10,17 +8,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
 from support.pcaps import dissect, ipv4_udp, pcap
 
 from rcmlconf.dissect import Options, Severity
-from rcmlconf.dissect.datastream import packet_of
-from rcmlconf.dissect.streams import Stream
-from rcmlconf.errors import ProtocolError
 from rcmlconf.rctp.datastream.clock import ntp_from_unix
-from rcmlconf.rctp.datastream.order import SequenceTracker
-from rcmlconf.rctp.datastream.packets import pull_packet
 from rcmlconf.rsp.codec import (
     Encryption,
     Header,
@@ -43,74 +34,8 @@ T0 = 1_800_000_000.0
 TAG = 0x0BADCAFE
 
 
-# -- the shortcuts against the core ------------------------------------------------------------
-
-
-@given(st.lists(st.integers(0, 0xFFFF), max_size=300), st.integers(0, 0xFFFF))
-def test_sequence_counts_are_the_trackers(steps: list[int], start: int) -> None:
-    """Any sequence, mostly consecutive: the stream counts what the core's tracker counts."""
-    tracker = SequenceTracker()
-    stream = Stream("rsp", "a", "b", "s", "R-RSP-14", False)
-    sequence = start
-    for step in steps:
-        # Small steps forward mostly, some back, some far: every case of D-RCTP-21.
-        sequence = (sequence + (1 if step % 3 else step - 0x7FFF)) & 0xFFFF
-        tracker.see(sequence)
-        stream.see(0.0, sequence, 0.0, 1)
-    counts = tracker.counts
-    report = stream.report()
-    assert (report.lost, report.late, report.duplicates, stream.newer) == (
-        counts.lost,
-        counts.late,
-        counts.duplicates,
-        counts.newer,
-    )
-
-
-@given(st.lists(st.integers(0, 0xFFFF), max_size=200))
-def test_sequence_counts_of_any_numbers(numbers: list[int]) -> None:
-    tracker = SequenceTracker()
-    stream = Stream("rsp", "a", "b", "s", "R-RSP-14", False)
-    for number in numbers:
-        tracker.see(number)
-        stream.see(0.0, number, 0.0, 1)
-    counts = tracker.counts
-    assert (stream.lost, stream.late, stream.duplicates) == (
-        counts.lost,
-        counts.late,
-        counts.duplicates,
-    )
-
-
 def one_data(sequence: int, tag: int, stamp: int, stream: int, body: bytes) -> bytes:
     return struct.pack(">BBHIQBBH", 2, 1, sequence, tag, stamp, 1, stream, len(body)) + body
-
-
-@given(st.binary(max_size=80))
-def test_the_one_data_shortcut_is_pull_packet(data: bytes) -> None:
-    for datagram in (data, one_data(7, TAG, 99, 1, data), one_data(7, TAG, 99, 1, data)[:-1]):
-        try:
-            expected = pull_packet(datagram)
-        except ProtocolError as error:
-            failure = (error.offset, error.reason)
-        else:
-            assert packet_of(datagram) == expected
-            continue
-        with pytest.raises(ProtocolError) as caught:
-            packet_of(datagram)
-        assert (caught.value.offset, caught.value.reason) == failure
-
-
-@given(st.integers(0, 255), st.integers(0, 255), st.integers(0, 255), st.binary(max_size=8))
-def test_the_shortcut_on_near_misses(version: int, count: int, kind: int, body: bytes) -> None:
-    datagram = struct.pack(">BBHIQBBH", version, count, 1, 2, 3, kind, 4, len(body)) + body
-    try:
-        expected = pull_packet(datagram)
-    except ProtocolError:
-        with pytest.raises(ProtocolError):
-            packet_of(datagram)
-    else:
-        assert packet_of(datagram) == expected
 
 
 # -- the data stream -------------------------------------------------------------------------------

@@ -27,6 +27,7 @@ from support.pcaps import TCP_ACK, TCP_FIN, TCP_SYN, epb, idb, ipv4_tcp, pcap, s
 from support.rsp_models import robot_model
 from support.scapy_layers import core_messages, layer_message
 
+from rcmlconf.dissect import Dissector, Options, Record
 from rcmlconf.pcap.reader import Capture, CaptureError
 from rcmlconf.pcap.writer import Payload, PcapWriter
 from rcmlconf.scapy_layers import capture, rctp, rsp
@@ -311,6 +312,82 @@ def test_data_stream_endpoints_come_from_setup(tmp_path: Path) -> None:
         ("rctp-data", 3.0),
         ("rctp-data", 3.1),
     ]
+
+
+def mixed_capture(path: Path) -> Path:
+    """Our protocols on other ports, found by their look; a data stream SETUP's answer names, seen
+    first before the SETUP; a SETUP answered without a tag (no endpoint learnt); a server seen
+    speaking RCTP, whose later connection starts with bytes of no message; traffic of others."""
+    server = ("10.0.0.2", 8000)
+    no_tag = (
+        b"RCTP/2.0 200 OK\r\nCSeq: 3\r\nSession: abcdefgh1234\r\nTransport: udp;"
+        b"client_port=42001;mode=read;server_port=42000\r\n\r\n"
+    )
+    stream = rctp_vector("sequence-0")
+    sent: list[tuple[str, tuple[str, int], tuple[str, int], bytes]] = [
+        ("udp", ("10.0.0.1", 5000), ("10.0.0.2", 9000), rsp_vector("hello")),
+        ("udp", ("10.0.0.1", 5000), ("10.0.0.2", 9001), b"\x01 not RSP"),
+        ("udp", ("10.0.0.1", 5002), ("10.0.0.2", 9002), stream),
+        ("udp", ("10.0.0.2", 41000), ("10.0.0.1", 41001), b"before SETUP"),
+        ("udp", ("10.0.0.2", 42000), ("10.0.0.1", 42001), b"never named"),
+        ("tcp", CLIENT, server, CONNECT),
+        ("tcp", server, CLIENT, CONNECTED),
+        ("tcp", CLIENT, server, SETUP),
+        ("tcp", server, CLIENT, SET_UP.replace(b"client_port=41001;", b"")),
+        ("udp", ("10.0.0.2", 41000), ("10.0.0.1", 41001), stream),
+        ("udp", ("10.0.0.1", 41001), ("10.0.0.2", 41000), stream),
+        ("tcp", CLIENT, server, SETUP.replace(b"41001", b"42001")),
+        ("tcp", server, CLIENT, no_tag),
+        ("udp", ("10.0.0.2", 42000), ("10.0.0.1", 42001), stream),
+        ("tcp", ("10.0.0.1", 5003), ("10.0.0.2", 80), b"GET / HTTP/1.1\r\n"),
+        ("tcp", server, ("10.0.0.1", 5004), b"\x00" * 20),
+        ("tcp", ("10.0.0.1", 5005), ("10.0.0.2", 81), b"STOP /x RCTP/2.0\r\n\r\n"),
+        ("udp", ("10.0.0.1", 7777), ("10.0.0.2", 7340), b"\x02 on RSP's port"),
+    ]
+    with path.open("wb") as file:
+        writer = PcapWriter(file)
+        for index, (protocol, source, destination, data) in enumerate(sent):
+            writer.write(Payload(1.0 + index / 100, protocol, source, destination, data))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("decode_as", "heuristics"),
+    [
+        ((), True),
+        ((), False),
+        ((("rsp", 9001),), True),
+        ((("rctp", 8000),), False),
+        ((("rctp", 81), ("rsp", 42000)), False),
+    ],
+)
+def test_the_flows_are_rcmlconf_dissects(
+    tmp_path: Path, decode_as: tuple[tuple[str, int], ...], heuristics: bool
+) -> None:
+    """One rule (`dissect.classify`) for both: the same datagrams taken as the same protocol,
+    the same connections taken as RCTP (how each shows bytes of no message may differ)."""
+    path = mixed_capture(tmp_path / "mixed.pcap")
+    records: list[Record] = []
+    with Capture.open(path) as opened:
+        analysis = Dissector(
+            Options(decode_as=decode_as, heuristics=heuristics), records.append
+        ).run(opened)
+    found = list(capture.messages(path, decode_as=decode_as, heuristics=heuristics))
+
+    def text(address: tuple[str, int]) -> str:
+        return f"{address[0]}:{address[1]}"
+
+    datagrams = [
+        (m.protocol, text(m.source), text(m.destination)) for m in found if m.protocol != "rctp"
+    ]
+    assert datagrams == [
+        (r.protocol, r.source, r.destination) for r in records if r.protocol != "rctp"
+    ]
+    connections = {
+        frozenset((text(m.source), text(m.destination))) for m in found if m.protocol == "rctp"
+    }
+    assert connections == {frozenset((c.client, c.server)) for c in analysis.control}
+    assert datagrams  # the capture has something to find either way
 
 
 @pytest.mark.parametrize("text", ["rsp", "http=80", "rsp=0", "rsp=70000", "rctp=x", "data=1"])

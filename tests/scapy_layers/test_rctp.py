@@ -412,24 +412,3 @@ def test_a_message_built_with_the_layer_is_read_by_the_core() -> None:
     assert stopped is None
     assert [layer_message(rctp.RCTP(data))] == expected
     assert expected[0]["headers"][1] == ("Allow", "WRITE, STOP, BYE")
-
-
-def _core_reads(data: bytes) -> bool:
-    try:
-        pull_packet(data)
-    except ProtocolError:
-        return False
-    return True
-
-
-@pytest.mark.parametrize("vector", VALID + MALFORMED + MALFORMED_FLOW)
-def test_stream_fits_is_the_core_framing_check(vector: dict[str, Any]) -> None:
-    """What `rcmlconf dissect`'s heuristics take as a data stream on another port."""
-    data = bytes.fromhex(vector["hex"])
-    assert rctp.stream_fits(data) == _core_reads(data)
-
-
-@given(st.binary(max_size=60), st.integers(0, 4))
-def test_stream_fits_any_datagram_as_the_core(body: bytes, count: int) -> None:
-    data = bytes([2, count]) + bytes(14) + body
-    assert rctp.stream_fits(data) == _core_reads(data)

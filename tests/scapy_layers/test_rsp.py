@@ -30,7 +30,6 @@ from rcmlconf.rsp.codec import (
     MapBody,
     PacketType,
     RspCodec,
-    pull_header,
 )
 from rcmlconf.rsp.codec import Packet as CorePacket
 from rcmlconf.rsp.layout import Bit, MapPacket, bit
@@ -371,45 +370,3 @@ def test_any_map_packet_the_core_writes_the_layer_reads(name: str, data: st.Data
         assert bytes(rebuilt) == wire
     finally:
         rsp.use_model(before)
-
-
-def _core_header_ok(data: bytes) -> bool:
-    try:
-        pull_header(data)
-    except ProtocolError:
-        return False
-    return True
-
-
-@pytest.mark.parametrize("vector", VALID + MALFORMED)
-def test_header_fits_is_the_core_header_check(vector: dict[str, Any]) -> None:
-    """What `rcmlconf dissect`'s heuristics take as RSP on another port."""
-    data = bytes.fromhex(vector["hex"])
-    assert rsp.header_fits(data) == _core_header_ok(data)
-
-
-@given(
-    st.sampled_from([0, 1, 2]),
-    st.sampled_from([0, 1, 42, 65535]),
-    st.integers(0, 3),
-    st.integers(0, 9),
-    st.sampled_from([0, 1, 0xA1B2C3D4E5F6]),
-    st.sampled_from([0, 1, 16, 127, 128, 129, 255]),
-)
-def test_header_fits_any_header_as_the_core(
-    version: int, model_id: int, encryption: int, kind: int, session: int, buffer: int
-) -> None:
-    data = struct.pack(
-        ">BHBBHIHIHB",
-        version,
-        model_id,
-        encryption,
-        kind,
-        1,
-        2,
-        session >> 32,
-        session & 0xFFFFFFFF,
-        3,
-        buffer,
-    )
-    assert rsp.header_fits(data) == _core_header_ok(data)

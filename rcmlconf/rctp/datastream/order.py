@@ -28,6 +28,9 @@ class Arrival(enum.Enum):
     LATE = "late"
 
 
+_NEWER = Arrival.NEWER
+
+
 @dataclass(frozen=True, slots=True)
 class SequenceCounts:
     #: Every packet given to the tracker: newer + duplicates + late.
@@ -43,7 +46,18 @@ class SequenceCounts:
 class SequenceTracker:
     """The sequence state of one peer's packets. Pure state: no clock, no I/O."""
 
-    __slots__ = ("_duplicates", "_first", "_highest", "_late", "_lost", "_newer", "_seen")
+    __slots__ = (
+        "_duplicates",
+        "_first",
+        "_gaps",
+        "_highest",
+        "_largest_gap",
+        "_late",
+        "_lost",
+        "_newer",
+        "_next",
+        "_seen",
+    )
 
     def __init__(self) -> None:
         #: One flag per 16-bit number: received since the highest passed it. Only numbers in
@@ -53,12 +67,20 @@ class SequenceTracker:
         #: Unwrapped numbers of the first packet and the highest so far; None before the first.
         self._first: int | None = None
         self._highest = 0
+        #: The number after the highest, which nearly every packet has; None before the first.
+        self._next: int | None = None
         self._newer = self._duplicates = self._late = self._lost = 0
+        self._gaps = self._largest_gap = 0
 
     @property
     def highest(self) -> int | None:
         """The highest sequence number seen (16-bit), None before the first packet."""
         return None if self._first is None else self._highest & _MASK
+
+    @property
+    def gaps(self) -> tuple[int, int]:
+        """Times a newer packet skipped numbers, and the most one skipped at once."""
+        return self._gaps, self._largest_gap
 
     @property
     def counts(self) -> SequenceCounts:
@@ -87,17 +109,27 @@ class SequenceTracker:
 
     def see(self, sequence: int) -> Arrival:
         """Take one packet's sequence number and say what it is (D-RCTP-21)."""
+        if sequence == self._next:
+            # `_advance(1)` without the call or the flags to clear: a receiver takes one packet
+            # each period, `rcmlconf dissect` a million of a capture.
+            self._next = (sequence + 1) & _MASK
+            self._highest += 1
+            self._seen[sequence] = 1
+            self._newer += 1
+            return _NEWER
         if not 0 <= sequence <= _MASK:
             raise ValueError(f"sequence number {sequence} is not 16-bit")
         if self._first is None:  # D-RCTP-21: the first packet is newer by definition
             self._first = self._highest = sequence
+            self._next = (sequence + 1) & _MASK
             self._seen[sequence] = 1
             self._newer += 1
-            return Arrival.NEWER
-        ahead = (sequence - self._highest) & _MASK
+            return _NEWER
+        highest = self._highest
+        ahead = (sequence - highest) & _MASK
         if 1 <= ahead <= _MAX_AHEAD:  # D-RCTP-21, RFC 1982
             self._advance(ahead)
-            return Arrival.NEWER
+            return _NEWER
         if self._seen[sequence]:
             self._duplicates += 1
             return Arrival.DUPLICATE
@@ -105,7 +137,7 @@ class SequenceTracker:
         self._late += 1
         # Behind by 1 to 32,768. A number after the first was skipped by a newer packet and
         # counted lost; one before the first never was.
-        if self._highest - (_MODULO - ahead) > self._first:
+        if highest - (_MODULO - ahead) > self._first:
             self._lost -= 1
         return Arrival.LATE
 
@@ -121,6 +153,10 @@ class SequenceTracker:
             self._seen[start:] = _CLEAR[: _MODULO - start]
             self._seen[: end - _MODULO] = _CLEAR[: end - _MODULO]
         self._highest += ahead
+        self._next = (self._highest + 1) & _MASK
         self._seen[self._highest & _MASK] = 1
         self._newer += 1
         self._lost += skipped
+        if skipped:
+            self._gaps += 1
+            self._largest_gap = max(self._largest_gap, skipped)

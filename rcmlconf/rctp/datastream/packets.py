@@ -18,9 +18,8 @@ import enum
 import struct
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 
-from rcmlconf.buffer import Buffer
 from rcmlconf.errors import EncodeError, ProtocolError
 from rcmlconf.rctp.datastream.flow import (
     PREAMBLE,
@@ -51,9 +50,12 @@ class PayloadType(enum.IntEnum):
     FLOW = 2
 
 
-@dataclass(frozen=True, slots=True)
-class DataPayload:
-    """D-RCTP-20: the values of one stream's data nodes, still encoded (`values` decodes them)."""
+class DataPayload(NamedTuple):
+    """D-RCTP-20: the values of one stream's data nodes, still encoded (`values` decodes them).
+
+    Immutable like the other payloads, but a NamedTuple, as `Packet` is: one is made for every
+    DATA a stream sends (D-RCTP-20), and a frozen dataclass costs four times as much to make.
+    """
 
     stream: int
     body: bytes
@@ -110,9 +112,14 @@ class UnknownPayload:
 Payload = DataPayload | FlowPayload | MalformedFlowPayload | UnknownPayload
 
 
-@dataclass(frozen=True, slots=True)
-class Packet:
-    """One datagram. The version is not a field: only version 2 decodes, and 2 is what is sent."""
+class Packet(NamedTuple):
+    """One datagram. The version is not a field: only version 2 decodes, and 2 is what is sent.
+
+    A NamedTuple, as `rsp.codec.header.Header` is, not a frozen dataclass: one is made for every
+    datagram of the data stream (a stream's values each period, D-RCTP-20), and `rcmlconf
+    dissect` makes a million of them for a large capture; a frozen dataclass costs four times as
+    much to make (bench/dissect_speed.py).
+    """
 
     #: Per sender per session, one more per packet modulo 65,536 (D-RCTP-19, R-RCTP-41).
     sequence: int
@@ -125,57 +132,61 @@ class Packet:
 
 # -- decoding --------------------------------------------------------------------------------------
 
-#: (buffer, payload type, stream id, body length) -> the payload, its body read.
-_PullBody = Callable[[Buffer, int, int, int], Payload]
+#: The header and a first payload's header.
+_ONE = struct.Struct(HEADER.format + PAYLOAD_HEADER.format[1:])
+_unpack_header, _unpack_one = HEADER.unpack_from, _ONE.unpack_from
+_unpack_payload_header = PAYLOAD_HEADER.unpack_from
+_HEADER_SIZE, _PAYLOAD_HEADER_SIZE, _ONE_SIZE = HEADER.size, PAYLOAD_HEADER.size, _ONE.size
+_DATA, _FLOW = int(PayloadType.DATA), int(PayloadType.FLOW)
+#: `Packet(...)` and `DataPayload(...)` without the call to their `__new__`: the fields are the
+#: decoder's own, in their order.
+_new = tuple.__new__
 
 
-def _pull_data(buf: Buffer, kind: int, stream: int, length: int) -> Payload:
-    return DataPayload(stream, buf.pull_bytes(length))
-
-
-def _pull_flow(buf: Buffer, kind: int, stream: int, length: int) -> Payload:
-    start = buf.position
-    body = buf.pull_bytes(length)
+def _flow_payload(stream: int, body: bytes, start: int) -> Payload:
     try:
         return FlowPayload(stream, decode_flow(body))
     except ProtocolError as error:  # R-RCTP-53: the packet stays readable
         return MalformedFlowPayload(stream, body, error.reason, start + error.offset)
 
 
-def _pull_unknown(buf: Buffer, kind: int, stream: int, length: int) -> Payload:
-    return UnknownPayload(kind, stream, buf.pull_bytes(length))  # R-RCTP-51
-
-
-_PULL_BODY: dict[int, _PullBody] = {PayloadType.DATA: _pull_data, PayloadType.FLOW: _pull_flow}
-
-
 def pull_packet(data: bytes | bytearray | memoryview) -> Packet:
     """The packet of one whole datagram (R-RCTP-39)."""
     size = len(data)
+    if _ONE_SIZE <= size <= MAX_DATAGRAM and type(data) is bytes:
+        version, count, sequence, tag, timestamp, kind, stream, length = _unpack_one(data)
+        if version == VERSION and count == 1 and kind == _DATA and length == size - _ONE_SIZE:
+            # What nearly every datagram is (a stream's values each period, D-RCTP-20): one DATA
+            # payload that fills it, checked as the loop below checks it, made in a third of the
+            # time. Anything else, and every error, is the loop's.
+            payload = _new(DataPayload, (stream, data[_ONE_SIZE:]))
+            return _new(Packet, (sequence, tag, timestamp, (payload,)))
     if size > MAX_DATAGRAM:
         raise ProtocolError(f"datagram of {size} bytes, more than {MAX_DATAGRAM}", MAX_DATAGRAM)
     # The version first: a datagram of another version has another layout, so it is reported as
     # that rather than as whatever its bytes would break of this one.
     if size and data[0] != VERSION:
         raise ProtocolError(f"version {data[0]}, not {VERSION}", 0, _RULE)
-    if size < HEADER.size:
-        raise ProtocolError(f"header of {size} bytes, not {HEADER.size}", size, _RULE)
-    buf = Buffer(data)
-    _, count, sequence, tag, timestamp = buf.pull_struct(HEADER)
+    if size < _HEADER_SIZE:
+        raise ProtocolError(f"header of {size} bytes, not {_HEADER_SIZE}", size, _RULE)
+    if type(data) is not bytes:
+        data = bytes(data)  # bodies are bytes, whatever the datagram came as
+    _, count, sequence, tag, timestamp = _unpack_header(data)
     if count == 0:
         raise ProtocolError("payload count 0: a packet holds 1 to 255 payloads", 1, _RULE)
     payloads: list[Payload] = []
+    position = _HEADER_SIZE
     for index in range(count):
-        start = buf.position
-        left = size - start - PAYLOAD_HEADER.size
+        start = position
+        left = size - start - _PAYLOAD_HEADER_SIZE
         if left < 0:
             raise ProtocolError(
-                f"payload {index + 1} of {count} has {size - start} of {PAYLOAD_HEADER.size}"
+                f"payload {index + 1} of {count} has {size - start} of {_PAYLOAD_HEADER_SIZE}"
                 " header bytes",
                 start,
                 _RULE,
             )
-        kind, stream, length = buf.pull_struct(PAYLOAD_HEADER)
+        kind, stream, length = _unpack_payload_header(data, start)
         if length > left:
             raise ProtocolError(
                 f"payload {index + 1} of {count}: body length {length} runs past the end"
@@ -183,16 +194,22 @@ def pull_packet(data: bytes | bytearray | memoryview) -> Packet:
                 start + 2,
                 _RULE,
             )
-        end = start + PAYLOAD_HEADER.size + length
-        payloads.append(_PULL_BODY.get(kind, _pull_unknown)(buf, kind, stream, length))
-        assert buf.position == end  # each body codec reads exactly `length` bytes, or raises
-    if not buf.eof():
+        body_start = start + _PAYLOAD_HEADER_SIZE
+        position = body_start + length
+        body = data[body_start:position]
+        if kind == _DATA:
+            payloads.append(_new(DataPayload, (stream, body)))
+        elif kind == _FLOW:
+            payloads.append(_flow_payload(stream, body, body_start))
+        else:
+            payloads.append(UnknownPayload(kind, stream, body))  # R-RCTP-51
+    if position != size:
         raise ProtocolError(
-            f"{plural(buf.remaining, 'byte')} after the last of {plural(count, 'payload')}",
-            buf.position,
+            f"{plural(size - position, 'byte')} after the last of {plural(count, 'payload')}",
+            position,
             _RULE,
         )
-    return Packet(sequence, tag, timestamp, tuple(payloads))
+    return _new(Packet, (sequence, tag, timestamp, tuple(payloads)))
 
 
 # -- encoding --------------------------------------------------------------------------------------

@@ -116,7 +116,7 @@ _ANY_MODEL = _AnyModel()
 class HeaderRules:
     """What a header must hold, for any model (`ANY`) or for one (`for_model`)."""
 
-    __slots__ = ("_buffers", "_by_type", "_model_ids", "model_id")
+    __slots__ = ("_buffers", "_by_type", "_highest", "_lowest", "_model_ids", "model_id")
 
     def __init__(self, model_id: int | None, command_buffers: int) -> None:
         self.model_id = model_id
@@ -124,6 +124,9 @@ class HeaderRules:
         self._model_ids: Container[object] = (
             _ANY_MODEL if model_id is None else frozenset({model_id})
         )
+        #: The same as the bounds `pull` compares the ints it unpacks with (a comparison costs a
+        #: tenth of `_AnyModel`'s call).
+        self._lowest, self._highest = (1, MAX_MODEL_ID) if model_id is None else (model_id,) * 2
         robot = frozenset(range(command_buffers + 1))
         local = frozenset({0, CLEAR_BUFFER})
         #: D-RSP-10: the buffer byte each sender may give.
@@ -181,7 +184,7 @@ class HeaderRules:
         enum = _ENCRYPTIONS.get(encryption)
         if (
             version == VERSION
-            and model_id in self._model_ids
+            and self._lowest <= model_id <= self._highest
             and enum is not None
             and rules is not None
             and (not (high or low)) is rules[1]

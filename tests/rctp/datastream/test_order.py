@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -81,6 +83,13 @@ def test_only_16_bit_numbers() -> None:
         SequenceTracker().see(65536)
 
 
+def test_gaps_are_counted_with_the_largest() -> None:
+    tracker = SequenceTracker()
+    feed([65530, 65531, 65534, 65535, 3, 2, 4], tracker)  # 65532-65533 and 0-2 skipped
+    assert tracker.gaps == (2, 3)
+    assert tracker.counts.lost == 4  # 2 came late
+
+
 # -- properties ----------------------------------------------------------------------------------
 
 
@@ -129,3 +138,6 @@ def test_counts_add_up(case: tuple[int, list[int]]) -> None:
     # Lost: every number from the first to the highest that never arrived.
     first, highest = offsets[0], max(offsets)
     assert counts.lost == sum(1 for n in range(first, highest + 1) if n not in distinct)
+    # Gaps: each newer number that is not the one after the newer one before it.
+    skips = [b - a - 1 for a, b in pairwise(newer) if b - a > 1]
+    assert tracker.gaps == (len(skips), max(skips, default=0))
