@@ -11,7 +11,8 @@ import click
 from rcmlconf.cli.console import Output
 from rcmlconf.cli.models import load_or_exit
 from rcmlconf.diagnostics import Diagnostic
-from rcmlconf.dissect import PROTOCOLS, Dissector, Options, Record, Severity
+from rcmlconf.dissect import Dissector, Options, Record, Severity
+from rcmlconf.dissect.classify import parse_decode_as
 from rcmlconf.dissect.output import JsonFormat, TextFormat, analysis_json, analysis_lines
 from rcmlconf.pcap.reader import Capture, CaptureError
 from rcmlconf.rcml.model import RcmlDocument
@@ -25,17 +26,10 @@ BATCH = 2048
 def _decode_as(
     ctx: click.Context, param: click.Parameter, values: tuple[str, ...]
 ) -> tuple[tuple[str, int], ...]:
-    pairs = []
-    for value in values:
-        protocol, sep, port = value.partition("=")
-        protocol = protocol.strip().lower()
-        if not sep or protocol not in PROTOCOLS or not port.isdigit() or not 0 < int(port) < 65536:
-            raise click.BadParameter(
-                f"{value!r} is not PROTO=PORT with PROTO one of {', '.join(PROTOCOLS)} and a port"
-                " from 1 to 65535"
-            )
-        pairs.append((protocol, int(port)))
-    return tuple(pairs)
+    try:
+        return tuple(parse_decode_as(value) for value in values)
+    except ValueError as error:
+        raise click.BadParameter(str(error)) from None
 
 
 def _load_model(path: Path, warnings: list[Diagnostic]) -> RobotModel | RcmlDocument:

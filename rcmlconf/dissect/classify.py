@@ -51,10 +51,16 @@ def parse_decode_as(text: str) -> tuple[str, int]:
     """`PROTO=PORT` (`rctp=8000`, `rctp-data=41000`, `rsp=9000`); ValueError for anything else."""
     proto, equals, port = text.partition("=")
     proto = proto.strip().lower()
-    if not equals or proto not in PROTOCOLS:
-        raise ValueError(f"{text!r}: give PROTO=PORT with PROTO one of {', '.join(PROTOCOLS)}")
-    if not port.strip().isdigit() or not 0 < int(port) < 65536:
-        raise ValueError(f"{text!r}: the port must be 1 to 65535")
+    if (
+        not equals
+        or proto not in PROTOCOLS
+        or not port.strip().isdigit()
+        or not 0 < int(port) < 65536
+    ):
+        raise ValueError(
+            f"{text!r}: give PROTO=PORT with PROTO one of {', '.join(PROTOCOLS)} and a PORT"
+            " from 1 to 65535"
+        )
     return proto, int(port)
 
 

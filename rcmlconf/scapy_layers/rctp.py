@@ -48,39 +48,24 @@ from scapy.fields import (
 from scapy.layers.inet import TCP, UDP
 from scapy.packet import Packet, bind_bottom_up, bind_layers, bind_top_down
 
-RCTP_PORT = 7330
-RCTP_VERSION = b"RCTP/2.0"
+from rcmlconf.rctp.messages import REASONS, VERSION
+from rcmlconf.rctp.reader import LIMITS
+from rcmlconf.rctp.url import DEFAULT_PORT
+
+# The numbers of specs/rctp-2.0.md, taken from the core so that the layer and the codec it is
+# checked against cannot disagree on them.
+RCTP_PORT = DEFAULT_PORT
+RCTP_VERSION = VERSION.encode("ascii")
 
 #: D-RCTP-15: status codes and their reason phrases.
-RCTP_STATUS_CODES = {
-    200: "OK",
-    400: "Bad Request",
-    403: "Forbidden",
-    404: "Not Found",
-    405: "Method Not Allowed",
-    411: "Length Required",
-    413: "Content Too Large",
-    414: "URI Too Long",
-    415: "Unsupported Media Type",
-    422: "Unprocessable Content",
-    431: "Request Header Fields Too Large",
-    454: "Session Not Found",
-    455: "Method Not Valid in This State",
-    461: "Unsupported Transport",
-    470: "Not Acquired",
-    471: "Acquired by Another Session",
-    500: "Internal Server Error",
-    501: "Not Implemented",
-    503: "Service Unavailable",
-    505: "RCTP Version Not Supported",
-}
+RCTP_STATUS_CODES = dict(REASONS)
 
 #: D-RCTP-9: what a receiver reads of one message at most.
-MAX_START_LINE = 4096
-MAX_HEADER_LINE = 4096
-MAX_HEADER_SECTION = 16384
-MAX_HEADER_FIELDS = 64
-MAX_BODY = 4194304
+MAX_START_LINE = LIMITS.start_line
+MAX_HEADER_LINE = LIMITS.header_line
+MAX_HEADER_SECTION = LIMITS.header_section
+MAX_HEADER_FIELDS = LIMITS.header_fields
+MAX_BODY = LIMITS.body
 
 #: D-RCTP-19, D-RCTP-22: the data stream's numbers and what they mean.
 RCTP_STREAM_VERSION = 2
