@@ -99,6 +99,8 @@ class Context:
             )
             if number
         ]
+        if self.impair.jitter and counts.sent:  # gaps between datagrams are no longer the peer's
+            done.append(f"delayed with {self.impair.jitter * 1000:g} ms of jitter")
         return f"--impair {self.impair}: datagrams {', '.join(done)}" if done else ""
 
     # -- the target ----------------------------------------------------------------------------

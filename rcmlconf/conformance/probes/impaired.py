@@ -67,9 +67,17 @@ class ImpairedPath:
         if when is not None:
             self._timer = self._loop.call_at(when, self._due)
 
-    def close(self) -> None:
+    def close(self, *, flush: bool = False) -> None:
+        """No more deliveries: what the channel holds is dropped, or with `flush` handed on at
+        once, in order (a probe's last packets, before the word that ends its session)."""
         if self._timer is not None:
             self._timer.cancel()
             self._timer = None
-        if self.channel is not None:
+        if self.channel is None:
+            return
+        if not flush:
             self.channel.discard()
+            return
+        for item in self.channel.flush():
+            key = int.from_bytes(item[:4], "big")
+            self._deliver(item[4:], self._addresses.get(key) or self._addresses[self._key], 0)

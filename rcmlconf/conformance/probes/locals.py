@@ -547,6 +547,11 @@ class LocalProbe(DatagramLog):
         """The run ends: BYE to an open session, REFUSED (busy) to a HELLO left unanswered."""
         if self.closed:
             return
+        if self._forward is not None:
+            # What the impairment holds goes now, and the last word straight to the socket: an
+            # impairment must not leave the local system in a session or waiting on a HELLO.
+            self._forward.close(flush=True)
+            self._forward = None
         if self.state == "open" and self.wire is not None:
             bye = Bye(ByeReason.CLOSED)
             data = self.wire.build(PacketType.BYE, bye, self.now, self.free, self.psk)
@@ -557,8 +562,6 @@ class LocalProbe(DatagramLog):
         if self._beat is not None:
             self._beat.cancel()
             self._beat = None
-        if self._forward is not None:
-            self._forward.close()
         self.listener._unbind(self)
 
 

@@ -636,10 +636,14 @@ class RspProbe(DatagramLog):
     # -- the end -------------------------------------------------------------------------------
 
     def close(self) -> None:
-        """BYE to whatever session the robot holds for this probe, and the socket closed. The
-        BYE goes straight to the socket: an impairment must not keep the robot busy."""
+        """BYE to whatever session the robot holds for this probe, and the socket closed. What the
+        impairment still holds goes first (a BYE of the case's among it), then the BYE, straight
+        to the socket: an impairment must not keep the robot busy."""
         if self.closed:
             return
+        if self._forward is not None:
+            self._forward.close(flush=True)
+            self._forward = None
         now = self.now
         if self.endpoint is not None and self.endpoint.state == "open":
             self.endpoint.close(now)
@@ -652,8 +656,6 @@ class RspProbe(DatagramLog):
         self.closed = True
         if self._timer is not None:
             self._timer.cancel()
-        if self._forward is not None:
-            self._forward.close()
         if self._transport is not None:
             self._transport.close()
 
