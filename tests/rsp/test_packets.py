@@ -45,6 +45,7 @@ from rcmlconf.rsp.codec import (
 )
 from rcmlconf.rsp.codec.bodies import Body
 from rcmlconf.rsp.codec.flat import DECLINED, FlatLayout
+from rcmlconf.rsp.codec.header import ANY, HeaderRules
 from rcmlconf.rsp.codec.maps import COMPILE_AT, MapPlan
 from rcmlconf.rsp.codec.payloads import Slot
 from rcmlconf.rsp.layout import Bit, MapPacket, bit
@@ -586,6 +587,43 @@ def test_a_header_is_read_as_written(data: bytes) -> None:
         offset = error.offset
     else:
         assert push_header(header) == data
+        return
+    assert offset in (0, 1, 3, 4, 11, 19)
+
+
+@given(
+    st.sampled_from([None, 1, 2, 65535]),
+    st.sampled_from([0, 1, 2]),
+    st.sampled_from([0, 1, 2, 65534, 65535]),
+    st.integers(0, 3),
+    st.integers(0, 9),
+    st.sampled_from([0, 1, 1 << 40]),
+    st.sampled_from([0, 15, 16, 17, 127, 128, 255]),
+)
+def test_the_header_check_is_the_faults(
+    model_id: int | None,
+    version: int,
+    given_id: int,
+    encryption: int,
+    kind: int,
+    session: int,
+    buffer: int,
+) -> None:
+    """`HeaderRules.pull` checks a header with one expression, `fault` field by field: what the
+    one takes the other finds no fault in, for any model's rules and for one model's (16
+    command buffers)."""
+    rules = ANY if model_id is None else HeaderRules(model_id, 16)
+    high, low = divmod(session, 1 << 32)
+    data = struct.pack(
+        ">BHBBHIHIHB", version, given_id, encryption, kind, 1, 2, high, low, 3, buffer
+    )
+    try:
+        header = rules.pull(data)
+    except ProtocolError as error:
+        offset = error.offset
+    else:
+        assert rules.fault(header) is None
+        assert rules.push(header) == data
         return
     assert offset in (0, 1, 3, 4, 11, 19)
 
