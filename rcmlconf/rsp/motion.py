@@ -95,7 +95,11 @@ class MotionFilter:
 
     def output(self, now: float) -> dict[str, dict[str, Value]]:
         """Every effector's values to apply now, by device name."""
-        return {e.device.name: self._now(e, now) for e in self._effectors.values()}
+        # Most hold their target, no ramp running (R-RSP-34): that one without a call.
+        return {
+            e.device.name: e.target if e.start is None else self._now(e, now)
+            for e in self._effectors.values()
+        }
 
     def _now(self, effector: _Effector, now: float) -> dict[str, Value]:
         start = effector.start

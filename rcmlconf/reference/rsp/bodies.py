@@ -41,6 +41,7 @@ class GenericBody:
             if d.kind is DeviceKind.SENSOR
         }
         self._effectors: dict[str, Values] = {}
+        self._names = [*self._sensors, *self._monitors]
 
     def apply(self, effectors: Mapping[str, Values], now: float) -> None:
         self._effectors = dict(effectors)
@@ -49,11 +50,18 @@ class GenericBody:
         pass
 
     def sensors(self, now: float, only: Collection[str] | None = None) -> Mapping[str, Values]:
-        found: dict[str, Values] = dict(self._sensors)
-        for monitor, effector in self._monitors.items():
-            if effector is not None and effector in self._effectors:
-                found[monitor] = self._effectors[effector]
-        return found if only is None else {name: found[name] for name in only if name in found}
+        # Only those asked for: a robot asks each tick for what the next UPLINK carries, a few
+        # of all (D-RSP-14).
+        sensors, monitors, effectors = self._sensors, self._monitors, self._effectors
+        found: dict[str, Values] = {}
+        for name in self._names if only is None else only:
+            if name in sensors:
+                found[name] = sensors[name]
+            else:
+                effector = monitors.get(name)
+                if effector is not None and effector in effectors:
+                    found[name] = effectors[effector]
+        return found
 
     def occurrences(self, now: float) -> list[tuple[str, Values]]:
         return []

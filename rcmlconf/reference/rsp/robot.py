@@ -69,6 +69,9 @@ class ReferenceRobot(asyncio.DatagramProtocol):
         self.body = body if body is not None else body_for(model, settings.seed)
         self.transport: Datagrams | None = None
         self._timer: Timer | None = None
+        #: The deadline the timer was last set to, None once it fired: a flush that finds the
+        #: same one (most do: a DOWNLINK received moves no beat, D-RSP-13) leaves the timer be.
+        self._timer_at: float | None = None
         #: When the control loop ticks next (loop time).
         self._tick_at = 0.0
         #: The memory command being executed, and when it is done (D-RSP-19).
@@ -98,8 +101,9 @@ class ReferenceRobot(asyncio.DatagramProtocol):
         else:
             self.transport = batch.open(self.datagram_received, local=local)
             self._timer = batch.timer(self._timer_fired)
+        self._timer_at = None
         self._tick_at = loop.time()
-        self._timer.set(self._tick_at)
+        self._set_timer(self._tick_at)
 
     @property
     def address(self) -> tuple[str, int]:
@@ -111,9 +115,8 @@ class ReferenceRobot(asyncio.DatagramProtocol):
         """BYE (reason 2) to the session, if one is open, and close the socket."""
         loop = asyncio.get_running_loop()
         self.endpoint.close(loop.time())
-        if self._timer is not None:
-            self._timer.set(None)
-            self._timer = None
+        self._set_timer(None)
+        self._timer = None
         self._flush()
         if self.transport is not None:
             self.transport.close()
@@ -125,8 +128,9 @@ class ReferenceRobot(asyncio.DatagramProtocol):
         self.transport = cast(asyncio.DatagramTransport, transport)
 
     def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
-        self.endpoint.receive_datagram(data, (addr[0], addr[1]), self._now())
-        self._flush()
+        now = self._now()
+        self.endpoint.receive_datagram(data, (addr[0], addr[1]), now)
+        self._flush(now)
 
     def error_received(self, exc: Exception) -> None:
         log.debug("UDP error: %s", exc)  # an ICMP unreachable from a local system gone away
@@ -135,6 +139,7 @@ class ReferenceRobot(asyncio.DatagramProtocol):
         return asyncio.get_running_loop().time()
 
     def _timer_fired(self) -> None:
+        self._timer_at = None
         now = self._now()
         ticked = now >= self._tick_at
         if ticked:
@@ -142,30 +147,40 @@ class ReferenceRobot(asyncio.DatagramProtocol):
         self.endpoint.handle_timer(now)
         if ticked:
             self._tick_at = self._next_tick(now)
-        self._flush()
+        self._flush(now)
 
-    def _flush(self) -> None:
-        now = self._now()
-        if self.transport is not None:
-            for data, addr in self.endpoint.datagrams_to_send(now):
-                self.transport.sendto(data, addr)
-        while (event := self.endpoint.next_event()) is not None:
-            if isinstance(event, events.StateReceived) and event.device in self.audio:
-                self._hear(event)
-            elif isinstance(event, events.SessionOpened | events.SessionClosed):
+    def _flush(self, now: float | None = None) -> None:
+        """What the endpoint has to send sent, its events handled, the timer moved; `now`, when
+        the caller just read the clock (a datagram or a timer handled), else read here."""
+        endpoint = self.endpoint
+        transport = self.transport
+        if transport is not None:
+            for data, addr in endpoint.datagrams_to_send(self._now() if now is None else now):
+                transport.sendto(data, addr)
+        while (event := endpoint.next_event()) is not None:
+            if isinstance(event, events.StateReceived):
+                if event.device in self.audio:
+                    self._hear(event)
+                # Two a period: kept out of the history, whose objects would cost the loop full
+                # garbage collections (bench/rsp_pairs_scale.py saw 50 ms pauses).
+                if log.isEnabledFor(logging.DEBUG):
+                    log.debug("%s <- %s", event.device, dict(event.values))
+                continue
+            if isinstance(event, events.SessionOpened | events.SessionClosed):
                 self._forget()
             self._log(event)
         if self._timer is not None:
-            deadline = self.endpoint.get_timer()
-            self._timer.set(self._tick_at if deadline is None else min(deadline, self._tick_at))
+            deadline = endpoint.get_timer()
+            tick = self._tick_at
+            self._set_timer(tick if deadline is None or tick < deadline else deadline)
+
+    def _set_timer(self, at: float | None) -> None:
+        if self._timer is not None and at != self._timer_at:
+            self._timer_at = at
+            self._timer.set(at)
 
     def _log(self, event: events.Event) -> None:
-        if isinstance(event, events.StateReceived):
-            # Two a period: kept out of the history, whose objects would cost the loop full
-            # garbage collections (bench/rsp_pairs_scale.py saw 50 ms pauses).
-            if log.isEnabledFor(logging.DEBUG):
-                log.debug("%s <- %s", event.device, dict(event.values))
-            return
+        """An event but a state: into the history and the log."""
         self.history.append(event)
         if isinstance(event, events.PacketDropped):
             log.warning("dropped a packet: %s [%s]", event.reason, event.rule)

@@ -74,6 +74,10 @@ class Simulacrum:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._transport: Datagrams | None = None
         self._timer: Timer | None = None
+        #: The deadline the timer was last set to, None once it fired or was stopped: a flush
+        #: that finds the same one (most do: an UPLINK received moves no beat, D-RSP-13) leaves
+        #: it be.
+        self._timer_at: float | None = None
         self._opened: asyncio.Future[events.SessionOpened] | None = None
         self.closed: events.SessionClosed | events.SessionRefused | None = None
         #: Every event except states, for those who watch the session (bounded).
@@ -95,6 +99,7 @@ class Simulacrum:
         else:
             self._transport = batch.open(self._datagram, remote=self.robot)
             self._timer = batch.timer(self._timer_fired)
+        self._timer_at = None
         with self._lock:
             self.endpoint.connect(loop.time())
         self._flush()
@@ -149,8 +154,7 @@ class Simulacrum:
         thread.join(timeout=5.0)
 
     def _close_socket(self) -> None:
-        if self._timer is not None:
-            self._timer.set(None)
+        self._set_timer(None)
         if self._transport is not None:
             self._transport.close()
 
@@ -239,6 +243,7 @@ class Simulacrum:
     def _timer_fired(self) -> None:
         assert self._loop is not None
         with self._lock:
+            self._timer_at = None
             self.endpoint.handle_timer(self._loop.time())
         self._flush()
 
@@ -256,20 +261,32 @@ class Simulacrum:
         if loop is None:
             return
         calls: list[tuple[Callable[[Values], None], Values]] = []
+        endpoint = self.endpoint
         with self._lock:
-            if self._transport is not None and not self._transport.is_closing():
-                for data in self.endpoint.datagrams_to_send(loop.time()):
-                    self._transport.sendto(data)
-            while (event := self.endpoint.next_event()) is not None:
-                calls += self._take(event)
-            if self._timer is not None:
-                self._timer.set(self.endpoint.get_timer())
-            self._changed.notify_all()
+            transport = self._transport
+            if transport is not None and not transport.is_closing():
+                for data in endpoint.datagrams_to_send(loop.time()):
+                    transport.sendto(data)
+            event = endpoint.next_event()
+            if event is not None:
+                while event is not None:
+                    self._take(event, calls)
+                    event = endpoint.next_event()
+                # Only an event changes what `read` waits for (values, occurrences, the end).
+                self._changed.notify_all()
+            self._set_timer(endpoint.get_timer())
         for listener, values in calls:
             listener(values)
 
-    def _take(self, event: events.Event) -> list[tuple[Callable[[Values], None], Values]]:
-        """Into the data buffer; the listeners to call, outside the lock."""
+    def _set_timer(self, at: float | None) -> None:
+        if self._timer is not None and at != self._timer_at:
+            self._timer_at = at
+            self._timer.set(at)
+
+    def _take(
+        self, event: events.Event, calls: list[tuple[Callable[[Values], None], Values]]
+    ) -> None:
+        """Into the data buffer; the listeners to call, outside the lock, onto `calls`."""
         if isinstance(event, events.StateReceived | events.OccurrenceReceived):
             device = event.device
             if isinstance(event, events.StateReceived):
@@ -279,7 +296,10 @@ class Simulacrum:
                 self.history.append(event)
                 unread = self._unread.setdefault(device, deque(maxlen=MAX_UNREAD))
                 unread.append(event.values)
-            return [(listener, event.values) for listener in self._listeners.get(device, ())]
+            listeners = self._listeners.get(device)
+            if listeners:
+                calls += [(listener, event.values) for listener in listeners]
+            return
         self.history.append(event)
         if isinstance(event, events.SessionOpened) and self._opened is not None:
             if not self._opened.done():
@@ -288,7 +308,6 @@ class Simulacrum:
             self.closed = event
             if self._opened is not None and not self._opened.done():
                 self._opened.set_exception(NoSession(_refusal(event)))
-        return []
 
 
 def _refusal(event: events.SessionRefused | events.SessionClosed) -> str:

@@ -90,6 +90,9 @@ class LocalEndpoint:
         # The Robot Device Manager (paper §II.B): what every DOWNLINK carries.
         self._values: dict[int, dict[str, Value]] = {}
         self._active: set[int] = set()
+        #: What of them every DOWNLINK carries, in model order (D-RSP-14, D-RSP-18); None when
+        #: `write` or `set_active`, the only calls that change it, made it to be made again.
+        self._standing: tuple[Item, ...] | None = None
         ids = 1 << (8 * model.id_length)
         self._sender = ReliableSender(ids, self.period)
         self._taken = ReceivedIds(ids)
@@ -114,6 +117,7 @@ class LocalEndpoint:
             self.codec, PacketType.DOWNLINK, found, values, None
         )
         self._active.add(found.position)
+        self._standing = None
 
     def set_active(self, name: str, active: bool) -> None:
         """An effector's value sent or not; a sensor, monitor, event or memory event requested or
@@ -122,6 +126,7 @@ class LocalEndpoint:
         if found.kind is _K.EFFECTOR and active and found.position not in self._values:
             raise ValueError(f"{name} has no value yet: write() it first")
         (self._active.add if active else self._active.discard)(found.position)
+        self._standing = None
 
     def issue(self, name: str, values: Mapping[str, Value]) -> int:
         """A command or memory command; its ID (R-RSP-24). It goes when D-RSP-17 and D-RSP-19
@@ -312,30 +317,34 @@ class LocalEndpoint:
     def _downlink(self, now: float) -> None:
         if self._period_repeats > 0:
             self._send_period(now)
-        items: dict[int, Item] = {}
-        for position in self._active:  # effector values, module and request bits
-            items[position] = Item(position, None, self._values.get(position))
-        credit = self.latest_free()
+        standing = self._standing
+        if standing is None:  # effector values, module and request bits
+            values = self._values
+            standing = tuple([Item(p, None, values.get(p)) for p in sorted(self._active)])
+            self._standing = standing
+        credit: int | None = None  # counted at the first memory command due: most beats have none
 
         def may_start(found: Device) -> bool:
             nonlocal credit
             if found.kind is not _K.MEMORY_COMMAND:
                 return True
-            credit -= 1
+            credit = (self.latest_free() if credit is None else credit) - 1
             return credit >= 0
 
         due = self._sender.due(now, may_start)
-        for occurrence in due:
-            position = occurrence.device.position
-            items[position] = Item(position, occurrence.id, occurrence.values)
+        carried = standing
+        if due:
+            items = {item.device: item for item in standing}
+            for occurrence in due:
+                position = occurrence.device.position
+                items[position] = Item(position, occurrence.id, occurrence.values)
+            carried = tuple([items[p] for p in sorted(items)])
         buffer = CLEAR_BUFFER if self._clear else 0
-        if not items and not buffer and not self._beat.quiet():
+        if not carried and not buffer and not self._beat.quiet():
             return
         self._beat.sent()
         if buffer:
             self._clear = False
             self.free_buffers = self.model.command_buffers
-        self._send(
-            PacketType.DOWNLINK, MapBody(tuple(items[p] for p in sorted(items))), now, buffer
-        )
+        self._send(PacketType.DOWNLINK, MapBody(carried), now, buffer)
         self._sender.sent(due, now)

@@ -48,7 +48,7 @@ from rcmlconf.rsp.motion import MotionFilter
 from rcmlconf.rsp.reliable import EventRepeater, Occurrence, ReceivedIds, ReliableSender
 from rcmlconf.rsp.security import Direction
 from rcmlconf.rsp.session import events
-from rcmlconf.rsp.session.devices import check_values, device
+from rcmlconf.rsp.session.devices import check_values, device, same_values
 from rcmlconf.rsp.session.timing import Beat, Liveness, Silence
 from rcmlconf.rsp.session.wire import SessionWire
 from rcmlconf.values import Value
@@ -116,18 +116,29 @@ class RobotEndpoint:
         self._reported = {
             d.position for d in model.devices if bit(d.kind, MapPacket.UPLINK) is Bit.STATE
         }
+        #: D-RSP-14, from the model (immutable) once rather than by name at every item: the
+        #: modules, and the module of each device by position (None: in none; -1: one the model
+        #: lacks, never active).
+        self._modules = frozenset(d.position for d in model.devices if d.kind is _K.MODULE)
+        self._module_of = [_module_position(model, d) for d in model.devices]
 
     # -- the robot application's calls ---------------------------------------------------------
 
     @property
     def free_buffers(self) -> int:
-        if Fault.FREE_BUFFERS_STUCK in self.faults:  # fault: free-buffers-stuck
+        # `self.faults and` first, in the beat: an Enum's hash is Python code, faults rare.
+        if self.faults and Fault.FREE_BUFFERS_STUCK in self.faults:  # fault: free-buffers-stuck
             return self.model.command_buffers
         return self.model.command_buffers - len(self._buffer)
 
     def set_state(self, name: str, values: Mapping[str, Value]) -> None:
         """A sensor's or monitor's newest value, for the UPLINKs that request it (D-RSP-18)."""
         found = device(self.codec, name, (_K.SENSOR, _K.MONITOR), "report a state")
+        held = self._states.get(found.position)
+        if held is not None and same_values(held, values):
+            # A body reports every tick, mostly what it reported before: the values held were
+            # checked and copied already, and checking these would give the same (D-RSP-18).
+            return
         self._states[found.position] = check_values(
             self.codec, PacketType.UPLINK, found, values, None
         )
@@ -142,7 +153,7 @@ class RobotEndpoint:
         return [
             devices[p].name
             for p in sorted(self._reported & session.requested)
-            if self._in_active(devices[p])
+            if self._in_active(session, p)
         ]
 
     def occur(self, name: str, values: Mapping[str, Value]) -> int | None:
@@ -347,14 +358,16 @@ class RobotEndpoint:
             # R-RSP-33: before the payloads; fault: clear-buffer-ignored
             if header.buffer & CLEAR_BUFFER and Fault.CLEAR_BUFFER_IGNORED not in self.faults:
                 self._buffer.clear()
-            flags = {item.device for item in body.items if item.values is None and item.id is None}
-            session.active_modules = frozenset(p for p in flags if devices[p].kind is _K.MODULE)
-            session.requested = frozenset(flags) - session.active_modules
-            if Fault.UNREQUESTED_REPORTED in self.faults:  # fault: unrequested-reported
+            flags = frozenset(
+                [item.device for item in body.items if item.values is None and item.id is None]
+            )
+            session.active_modules = flags & self._modules
+            session.requested = flags - self._modules
+            # fault: unrequested-reported
+            if self.faults and Fault.UNREQUESTED_REPORTED in self.faults:
                 session.requested |= self._reported
         acks = []
         for item in body.items:
-            found = devices[item.device]
             if item.id is not None:
                 assert item.values is not None
                 if self._occurrence(session, item.device, item.id, item.values):
@@ -362,7 +375,12 @@ class RobotEndpoint:
                     if Fault.ACK_NEXT_ID in self.faults:  # fault: ack-next-id
                         ack = Item(item.device, (item.id + 1) % self._ids)
                     acks.append(ack)
-            elif item.values is not None and arrival is Arrival.NEWER and self._in_active(found):
+            elif (
+                item.values is not None
+                and arrival is Arrival.NEWER
+                and self._in_active(session, item.device)
+            ):
+                found = devices[item.device]
                 session.motion.receive(found, item.values, header.timestamp, now)
                 self._events.append(events.StateReceived(found.name, item.values, header.timestamp))
         if acks:
@@ -385,13 +403,10 @@ class RobotEndpoint:
         session.commands.take(position, ident)
         return True
 
-    def _in_active(self, found: Device) -> bool:
+    def _in_active(self, session: _Session, position: int) -> bool:
         """Not in a module, or in one the newest DOWNLINK activated (D-RSP-14)."""
-        session = self.session
-        if found.module is None or session is None:
-            return True
-        owner = self.model.device(found.module)
-        return owner is not None and owner.position in session.active_modules
+        module = self._module_of[position]
+        return module is None or module in session.active_modules
 
     def _reports(self, position: int) -> bool:
         """Requested by the newest DOWNLINK, and not in an inactive module (D-RSP-14)."""
@@ -399,7 +414,7 @@ class RobotEndpoint:
         return (
             session is not None
             and position in session.requested
-            and self._in_active(self.model.devices[position])
+            and self._in_active(session, position)
         )
 
     # -- sending -------------------------------------------------------------------------------
@@ -412,21 +427,22 @@ class RobotEndpoint:
 
     def _send(self, session: _Session, kind: PacketType, body: Body, now: float) -> None:
         data = session.wire.build(kind, body, now, self.free_buffers, self._psk)
-        if Fault.SEQUENCE_FROZEN in self.faults:  # fault: sequence-frozen
+        if self.faults and Fault.SEQUENCE_FROZEN in self.faults:  # fault: sequence-frozen
             session.wire.sent -= 1
         self._out.append((data, session.peer))
 
     def _uplink(self, session: _Session, now: float) -> None:
         items: dict[int, Item] = {}
+        states = self._states
         for position in self._reported & session.requested:
-            values = self._states.get(position)
-            if values is not None and self._in_active(self.model.devices[position]):
+            values = states.get(position)
+            if values is not None and self._in_active(session, position):
                 items[position] = Item(position, None, values)
         for occurrence in self._events_out.ride():
             position = occurrence.device.position
             items[position] = Item(position, occurrence.id, occurrence.values)
-        due = self._memory_events.due(now, lambda found: True)
-        if Fault.NO_RETRANSMISSION in self.faults:  # fault: no-retransmission
+        due = self._memory_events.due(now, _any)
+        if self.faults and Fault.NO_RETRANSMISSION in self.faults:  # fault: no-retransmission
             due = [occurrence for occurrence in due if occurrence.last_sent is None]
         for occurrence in due:
             position = occurrence.device.position
@@ -434,7 +450,9 @@ class RobotEndpoint:
         if not items and not session.beat.quiet():
             return
         session.beat.sent()
-        self._send(session, PacketType.UPLINK, MapBody(tuple(items[p] for p in sorted(items))), now)
+        self._send(
+            session, PacketType.UPLINK, MapBody(tuple([items[p] for p in sorted(items)])), now
+        )
         self._memory_events.sent(due, now)
 
     # -- faults (reference.faults), none but to test a conformance harness --------------------
@@ -458,3 +476,17 @@ class RobotEndpoint:
         self.session = None
         self._buffer.clear()
         self._events.append(event)
+
+
+def _module_position(model: RobotModel, found: Device) -> int | None:
+    """The position of `found`'s module: None when it is in none, -1 when the model has no such
+    device (no DOWNLINK can activate it, D-RSP-14)."""
+    if found.module is None:
+        return None
+    owner = model.device(found.module)
+    return -1 if owner is None else owner.position
+
+
+def _any(found: Device) -> bool:
+    """A robot's memory events start whenever due: it has no free-buffer credit to wait for."""
+    return True

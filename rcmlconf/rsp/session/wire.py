@@ -72,7 +72,8 @@ class SessionWire:
         index = self.sent
         self.sent += 1
         data = self.codec.push_packet(Packet(header, body))
-        if kind in SIGNED and self.encryption is not Encryption.NONE:
+        # The encryption first: in a session without (most), no type is looked up (D-RSP-21).
+        if self.encryption is not Encryption.NONE and kind in SIGNED:
             assert psk is not None, "an encrypted session signs its HELLO and WELCOME"
             unsigned = data[:-MAC_SIZE]
             return unsigned + mac(psk, unsigned)
@@ -99,7 +100,7 @@ class SessionWire:
         return Packet(header, body), self.tracker.see(header.sequence)
 
     def _body(self, header: Header, data: bytes, psk: bytes | None) -> Body:
-        if header.type in SIGNED and self.encryption is not Encryption.NONE:
+        if self.encryption is not Encryption.NONE and header.type in SIGNED:
             if psk is None or not mac_matches(psk, data[:-MAC_SIZE], data[-MAC_SIZE:]):
                 raise ProtocolError("the MAC is wrong", max(len(data) - MAC_SIZE, 0), "R-RSP-38")
         elif self._opener is not None:
