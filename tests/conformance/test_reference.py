@@ -55,7 +55,7 @@ def test_every_case_passes_on_the_reference_twice_with_the_same_verdicts(tmp_pat
         if r["verdict"] != Verdict.PASS.value
         and not (r["verdict"] == Verdict.NOT_APPLICABLE.value and r["case"] in NOT_APPLICABLE)
         # A case run under its own impairment may find the answer hidden by it: inconclusive,
-        # never a failure (rsp/reliable/memory-commands-under-loss, a few runs in a thousand).
+        # never a failure (rsp/reliable/memory-commands-under-loss, about one run in 1,600).
         and not (r["verdict"] == Verdict.INCONCLUSIVE.value and cases[r["case"]].impairment)
     ]
     assert not failing, "\n\n".join(failing)
