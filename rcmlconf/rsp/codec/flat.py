@@ -238,14 +238,22 @@ def _unpack_source(
 
 def _pack_source(layout: list[tuple[Slot, list[_Value]]], namespace: dict[str, Any]) -> str:
     lines = ["def pack(items):"]
-    if layout:
-        lines.append(f"    {''.join(f'i{n}, ' for n in range(len(layout)))}= items")
+    # Unpacked even when empty: items of another count are declined (ValueError).
+    targets = "".join(f"i{n}, " for n in range(len(layout))) if layout else "[] "
+    lines.append(f"    {targets}= items")
+    # The devices first: items of another map are declined before any of their values is read,
+    # so that `maps` may offer a packet's items to the layout of the map it wrote last.
+    devices = [
+        f"type(i{number}.device) is int and i{number}.device == {slot.device}"
+        for number, (slot, _) in enumerate(layout)
+    ]
+    if devices:
+        lines += [f"    if not ({' and '.join(devices)}):", "        return None"]
     arguments = ["_PREFIX"]
     tests: list[str] = []
     loops: list[str] = []
     for number, (slot, values) in enumerate(layout):
         item = f"i{number}"
-        tests.append(f"type({item}.device) is int and {item}.device == {slot.device}")
         if not slot.has_id:
             tests.append(f"{item}.id is None")
         if slot.values is None:

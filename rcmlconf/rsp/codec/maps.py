@@ -85,7 +85,17 @@ class MapPlan:
 class MapCodec:
     """The bodies of one map packet type of one model."""
 
-    __slots__ = ("_by_devices", "_plans", "_slots", "id_length", "map_size", "packet", "size")
+    __slots__ = (
+        "_by_devices",
+        "_plans",
+        "_pulled",
+        "_pushed",
+        "_slots",
+        "id_length",
+        "map_size",
+        "packet",
+        "size",
+    )
 
     def __init__(self, model: RobotModel, packet: MapPacket) -> None:
         self.packet = packet
@@ -97,6 +107,10 @@ class MapCodec:
         #: Plans by Device Map, and by the devices of the items written with them.
         self._plans: dict[bytes, MapPlan] = {}
         self._by_devices: dict[tuple[int, ...], MapPlan] = {}
+        #: The plans with a flat layout last read and last written: a session's steady map
+        #: (D-RSP-18), tried before the map is sliced and looked up, or the devices listed.
+        self._pulled: MapPlan | None = None
+        self._pushed: MapPlan | None = None
 
     # -- reading -------------------------------------------------------------------------------
 
@@ -110,11 +124,14 @@ class MapCodec:
     def pull_from(self, data: bytes, start: int) -> tuple[Item, ...]:
         """The items of the body from `start` to the end of `data`; offsets are `data`'s."""
         end = start + self.map_size
-        plan = self._plans.get(data[start:end])
-        if plan is None:
-            plan = self._new_plan(data, start)
+        plan = self._pulled
+        if plan is None or not data.startswith(plan.device_map, start):
+            plan = self._plans.get(data[start:end])
+            if plan is None:
+                plan = self._new_plan(data, start)
         flat = plan.flat
         if flat is not None:
+            self._pulled = plan
             items = flat.unpack(data, end)
             if items is not None:
                 return items
@@ -175,6 +192,15 @@ class MapCodec:
 
     def push(self, items: Sequence[Item]) -> bytes:
         """A body from items in model order, one per set bit."""
+        hot = self._pushed
+        if hot is not None and (type(items) is tuple or type(items) is list):
+            # The layout declines items of other devices before it reads their values.
+            try:
+                packed = hot.flat.pack(items)  # type: ignore[union-attr]
+            except DECLINED:
+                packed = None
+            if packed is not None:
+                return packed
         try:
             devices = tuple([item.device for item in items])
             plan = self._by_devices.get(devices)
@@ -188,6 +214,7 @@ class MapCodec:
                 except DECLINED:
                     packed = None
                 if packed is not None:
+                    self._pushed = plan
                     return packed
             elif all(type(device) is int for device in devices):
                 # The plan's devices, checked when it was made: the slots check the rest.

@@ -15,6 +15,8 @@ from rcmlconf.rsp.codec.bodies import (
     Item,
     MapBody,
     Packet,
+    _new_body,
+    _set_items,
     map_body,
     pull_session_body,
     push_session_body,
@@ -36,12 +38,18 @@ class RspCodec:
     """Read and write the packets of one model; the only exception a read lets escape is
     `ProtocolError` (offset, reason, rule), a write's is `EncodeError`."""
 
-    __slots__ = ("_maps", "model", "rules")
+    __slots__ = ("_maps", "_maps_by_type", "model", "rules")
 
     def __init__(self, model: RobotModel) -> None:
         self.model = model
         self.rules = HeaderRules.for_model(model)
         self._maps = {kind: MapCodec(model, packet) for kind, packet in _MAP_PACKETS.items()}
+        #: The same, indexed by the wire type (0 to 8): for a header `rules` has checked, whose
+        #: type is one of 1 to 8, an index costs less than a dict lookup.
+        by_type: list[MapCodec | None] = [None] * (max(PacketType) + 1)
+        for kind, codec in self._maps.items():
+            by_type[kind] = codec
+        self._maps_by_type = tuple(by_type)
 
     def pull_header(self, data: bytes | bytearray | memoryview) -> Header:
         """The header of a datagram, checked against this model (R-RSP-13)."""
@@ -97,9 +105,12 @@ class RspCodec:
         if type(data) is not bytes:
             data = bytes(data)
         header = self.rules.pull(data)
-        maps = self._maps.get(header.type)
+        maps = self._maps_by_type[header[3]]  # the type, checked by `pull`
         if maps is not None:
-            return _new(Packet, (header, map_body(maps.pull_from(data, HEADER_SIZE))))
+            # `map_body`, inline: one is made for every map packet read.
+            body = _new_body(MapBody)
+            _set_items(body, maps.pull_from(data, HEADER_SIZE))
+            return _new(Packet, (header, body))
         return _new(Packet, (header, self._pull_body(header, data, HEADER_SIZE)))
 
     def push_packet(self, packet: Packet) -> bytes:
