@@ -11,7 +11,6 @@ import itertools
 from collections.abc import Callable, Iterable
 
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.datagrams import ANSWER_TRIES
 from rcmlconf.conformance.probes.locals import REQUESTED, LocalProbe, zeros
 from rcmlconf.conformance.probes.pace import gaps, ms, paced, spaced
 from rcmlconf.conformance.probes.rsp import Datagram, first, newer, of_kind
@@ -222,15 +221,19 @@ async def downlink_header(ctx: Context) -> None:
     occurring = of_kind(_model(ctx), DeviceKind.COMMAND, DeviceKind.MEMORY_COMMAND)
     # Nothing acknowledged and no keep-alive: the robot's numbers move only as the case says.
     probe = await session(ctx, withheld=occurring, beating=False)
-    assert probe.wire is not None
+    wire = probe.wire
+    assert wire is not None
     period = probe.period
-    ten = probe.wire.sent + 9
-    for _ in range(ANSWER_TRIES):  # sequence 10, again while the impairment spoils it
-        probe.wire.sent, spoiled = ten, probe.spoiled
-        high = probe.uplink()
-        if probe.spoiled == spoiled:
-            break
-    probe.wire.sent = 5
+    ten = wire.sent + 9
+    sent: list[bytes] = []
+
+    def high_one() -> None:  # sequence 10, again while the impairment spoils it
+        wire.sent = ten
+        sent.append(probe.uplink())
+
+    probe.send_intact(high_one)
+    high = sent[-1]
+    wire.sent = 5
     probe.uplink()  # sequence 5: late (D-RSP-15), not the newest
     high_at = probe.now
     await probe.listen(8 * period)

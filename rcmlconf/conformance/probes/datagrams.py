@@ -110,12 +110,19 @@ class DatagramLog:
         a reliable item that went unanswered (D-RSP-12, D-RSP-16), up to ANSWER_TRIES times in
         all; Inconclusive if it spoiled them all. Without an impairment: one packet, one wait."""
         start = self.mark()
+        if not self.send_intact(send):
+            raise Inconclusive(f"the impairment lost or corrupted all {ANSWER_TRIES} packets sent")
+        return await self.next(kinds, after=start, where=where, wait=wait)
+
+    def send_intact(self, send: Callable[[], object]) -> bool:
+        """Call `send` (it sends one new packet), and again at once while the case's impairment
+        spoils what it sent, up to ANSWER_TRIES times in all; False if it spoiled them all."""
         for _ in range(ANSWER_TRIES):
             spoiled = self.spoiled
             send()
             if self.spoiled == spoiled:
-                return await self.next(kinds, after=start, where=where, wait=wait)
-        raise Inconclusive(f"the impairment lost or corrupted all {ANSWER_TRIES} packets sent")
+                return True
+        return False
 
     async def expect_answer_to(
         self,

@@ -505,13 +505,10 @@ class LocalProbe(DatagramLog):
     def bye(self, reason: ByeReason = ByeReason.SHUTDOWN) -> bytes:
         """BYE: the session ends (R-RSP-22). Sent again while the impairment spoils it (the
         local system answers none, and a case ending the session means it); the last sent."""
-        while True:
-            spoiled = self.spoiled
-            data = self.packet(PacketType.BYE, Bye(reason))
-            if self.spoiled == spoiled:
-                break
+        sent: list[bytes] = []
+        self.send_intact(lambda: sent.append(self.packet(PacketType.BYE, Bye(reason))))
         self.state = "ended"
-        return data
+        return sent[-1]
 
     def _line(self, data: bytes, body: Body | None = None) -> str:
         """A datagram this probe sends, for the transcript (its body decoded if not given; the

@@ -794,11 +794,8 @@ class RawSession:
     def bye(self, reason: ByeReason = ByeReason.CLOSED) -> bytes:
         """BYE, sent again while the impairment spoils it (the robot answers none, and a case
         ending the session means it: the next one must not be refused as busy); the last sent."""
-        while True:
-            spoiled = self.probe.spoiled
-            data = self.send(PacketType.BYE, Bye(reason))
-            if self.probe.spoiled == spoiled:
-                return data
+        self.probe.send_intact(lambda: self.send(PacketType.BYE, Bye(reason)))
+        return self.last
 
     def last_bye(self) -> bytes:
         """The BYE that ends the case, numbered after the newest sequence number the robot can
