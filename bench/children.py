@@ -101,8 +101,11 @@ class Child:
     def stop(self) -> str | None:
         """Stop the process; its profile, if it made one."""
         report = None
-        with contextlib.suppress(OSError, EOFError):
+        # A child that has ended by itself (its main returned) has closed its end: the send
+        # fails, but what it sent before ending, its profile, is still to be read.
+        with contextlib.suppress(OSError):
             self.pipe.send("stop")
+        with contextlib.suppress(OSError, EOFError):
             if self.pipe.poll(60):
                 report = self.pipe.recv()
         self.process.join(15)
