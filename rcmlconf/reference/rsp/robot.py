@@ -157,13 +157,16 @@ class ReferenceRobot(asyncio.DatagramProtocol):
         if transport is not None:
             for data, addr in endpoint.datagrams_to_send(self._now() if now is None else now):
                 transport.sendto(data, addr)
+        debug: bool | None = None  # asked at the first state: most flushes have none
         while (event := endpoint.next_event()) is not None:
-            if isinstance(event, events.StateReceived):
+            if type(event) is events.StateReceived:
                 if event.device in self.audio:
                     self._hear(event)
                 # Two a period: kept out of the history, whose objects would cost the loop full
                 # garbage collections (bench/rsp_pairs_scale.py saw 50 ms pauses).
-                if log.isEnabledFor(logging.DEBUG):
+                if debug is None:
+                    debug = log.isEnabledFor(logging.DEBUG)
+                if debug:
                     log.debug("%s <- %s", event.device, dict(event.values))
                 continue
             if isinstance(event, events.SessionOpened | events.SessionClosed):

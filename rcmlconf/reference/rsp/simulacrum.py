@@ -35,6 +35,8 @@ from rcmlconf.rsp.session.devices import device
 from rcmlconf.rsp.session.local import LocalEndpoint
 
 Address = tuple[str, int]
+#: A listener and the values it is to be called with.
+Call = tuple[Callable[[Values], None], Values]
 #: Occurrences kept per device for `read` (the oldest go first when an application reads none).
 MAX_UNREAD = 1024
 _STATES = (DeviceKind.SENSOR, DeviceKind.MONITOR)
@@ -241,65 +243,80 @@ class Simulacrum:
             loop.call_soon_threadsafe(self._flush)
 
     def _timer_fired(self) -> None:
-        assert self._loop is not None
+        loop = self._loop
+        assert loop is not None
+        calls: list[Call] = []
         with self._lock:
             self._timer_at = None
-            self.endpoint.handle_timer(self._loop.time())
-        self._flush()
+            now = loop.time()
+            self.endpoint.handle_timer(now)
+            self._drain(now, calls)
+        _call(calls)
 
     def _datagram(self, data: bytes, addr: Address) -> None:
         self.received(data)  # from the robot: the socket is connected to it
 
     def received(self, data: bytes) -> None:
-        assert self._loop is not None
+        loop = self._loop
+        assert loop is not None
+        calls: list[Call] = []
         with self._lock:
-            self.endpoint.receive_datagram(data, self._loop.time())
-        self._flush()
+            now = loop.time()
+            self.endpoint.receive_datagram(data, now)
+            self._drain(now, calls)
+        _call(calls)
 
     def _flush(self) -> None:
         loop = self._loop
         if loop is None:
             return
-        calls: list[tuple[Callable[[Values], None], Values]] = []
-        endpoint = self.endpoint
+        calls: list[Call] = []
         with self._lock:
-            transport = self._transport
-            if transport is not None and not transport.is_closing():
-                for data in endpoint.datagrams_to_send(loop.time()):
-                    transport.sendto(data)
-            event = endpoint.next_event()
-            if event is not None:
-                while event is not None:
-                    self._take(event, calls)
-                    event = endpoint.next_event()
-                # Only an event changes what `read` waits for (values, occurrences, the end).
-                self._changed.notify_all()
-            self._set_timer(endpoint.get_timer())
-        for listener, values in calls:
-            listener(values)
+            self._drain(loop.time(), calls)
+        _call(calls)
+
+    def _drain(self, now: float, calls: list[Call]) -> None:
+        """Under the lock: what the endpoint has to send sent, its events taken (the listeners to
+        call, outside the lock, onto `calls`), the timer moved. Twice a period, in the same hold
+        of the lock as the datagram or beat that made them."""
+        endpoint = self.endpoint
+        transport = self._transport
+        if transport is not None and not transport.is_closing():
+            for data in endpoint.datagrams_to_send(now):
+                transport.sendto(data)
+        event = endpoint.next_event()
+        if event is not None:
+            while event is not None:
+                self._take(event, calls)
+                event = endpoint.next_event()
+            # Only an event changes what `read` waits for (values, occurrences, the end).
+            self._changed.notify_all()
+        self._set_timer(endpoint.get_timer())
 
     def _set_timer(self, at: float | None) -> None:
         if self._timer is not None and at != self._timer_at:
             self._timer_at = at
             self._timer.set(at)
 
-    def _take(
-        self, event: events.Event, calls: list[tuple[Callable[[Values], None], Values]]
-    ) -> None:
+    def _take(self, event: events.Event, calls: list[Call]) -> None:
         """Into the data buffer; the listeners to call, outside the lock, onto `calls`."""
-        if isinstance(event, events.StateReceived | events.OccurrenceReceived):
+        if type(event) is events.StateReceived:  # one a period: its type first
             device = event.device
-            if isinstance(event, events.StateReceived):
-                self._latest[device] = event.values
-                self._counts[device] = self._counts.get(device, 0) + 1
-            else:
-                self.history.append(event)
-                unread = self._unread.setdefault(device, deque(maxlen=MAX_UNREAD))
-                unread.append(event.values)
-            listeners = self._listeners.get(device)
-            if listeners:
-                calls += [(listener, event.values) for listener in listeners]
+            self._latest[device] = event.values
+            self._counts[device] = self._counts.get(device, 0) + 1
+        elif isinstance(event, events.OccurrenceReceived):
+            device = event.device
+            self.history.append(event)
+            unread = self._unread.setdefault(device, deque(maxlen=MAX_UNREAD))
+            unread.append(event.values)
+        else:
+            self._session_event(event)
             return
+        listeners = self._listeners.get(device)
+        if listeners:
+            calls += [(listener, event.values) for listener in listeners]
+
+    def _session_event(self, event: events.Event) -> None:
         self.history.append(event)
         if isinstance(event, events.SessionOpened) and self._opened is not None:
             if not self._opened.done():
@@ -308,6 +325,13 @@ class Simulacrum:
             self.closed = event
             if self._opened is not None and not self._opened.done():
                 self._opened.set_exception(NoSession(_refusal(event)))
+
+
+def _call(calls: list[Call]) -> None:
+    """The listeners of what came, called outside the lock: a listener may call the Robot API,
+    which takes it."""
+    for listener, values in calls:
+        listener(values)
 
 
 def _refusal(event: events.SessionRefused | events.SessionClosed) -> str:

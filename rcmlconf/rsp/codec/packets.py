@@ -105,19 +105,28 @@ class RspCodec:
         if type(data) is not bytes:
             data = bytes(data)
         header = self.rules.pull(data)
+        return _new(Packet, (header, self.pull_rest(header, data)))
+
+    def pull_rest(self, header: Header, data: bytes) -> Body:
+        """The body of a whole plaintext datagram whose header `pull_header` gave: read in place,
+        with the datagram's offsets (a session reads one every period, D-RSP-13)."""
         maps = self._maps_by_type[header[3]]  # the type, checked by `pull`
         if maps is not None:
             # `map_body`, inline: one is made for every map packet read.
             body = _new_body(MapBody)
             _set_items(body, maps.pull_from(data, HEADER_SIZE))
-            return _new(Packet, (header, body))
-        return _new(Packet, (header, self._pull_body(header, data, HEADER_SIZE)))
+            return body
+        return self._pull_body(header, data, HEADER_SIZE)
 
     def push_packet(self, packet: Packet) -> bytes:
         try:
             header, body = packet
         except (TypeError, ValueError):
             raise EncodeError(f"a packet is a header and a body, not {packet!r}") from None
+        return self.push_parts(header, body)
+
+    def push_parts(self, header: Header, body: Body) -> bytes:
+        """`push_packet` of a header and a body not yet made a `Packet`."""
         head = self.rules.push(header)
         maps = self._maps.get(header.type)
         if maps is not None and type(body) is MapBody:

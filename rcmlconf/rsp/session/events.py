@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from rcmlconf.rsp.codec import ByeReason, RefusedReason
 from rcmlconf.values import Value
@@ -48,10 +49,10 @@ class LinkRestored:
     """A packet from the peer after the link was lost."""
 
 
-@dataclass(frozen=True, slots=True)
-class StateReceived:
+class StateReceived(NamedTuple):
     """A newer packet's value of a device (D-RSP-15, D-RSP-18): a sensor's or monitor's at the
-    local system, an effector's at the robot."""
+    local system, an effector's at the robot. A NamedTuple, as `Header` is: one is made for every
+    value of every packet, and a frozen dataclass costs three times as much to make."""
 
     device: str
     values: Mapping[str, Value]

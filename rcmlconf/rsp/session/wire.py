@@ -12,6 +12,7 @@ from rcmlconf.errors import ProtocolError
 from rcmlconf.rctp.datastream.order import Arrival, SequenceTracker
 from rcmlconf.rsp.codec import Encryption, Header, Packet, PacketType, RspCodec
 from rcmlconf.rsp.codec.bodies import Body
+from rcmlconf.rsp.codec.header import WITHOUT_SESSION
 from rcmlconf.rsp.layout import HEADER_SIZE, MAC_SIZE
 from rcmlconf.rsp.security import Direction, Sealer, mac, mac_matches, session_key
 
@@ -23,6 +24,7 @@ SIGNED = frozenset({PacketType.HELLO, PacketType.WELCOME})
 _STAMP = 1 << 32
 _SEQUENCE = 1 << 16
 _SESSION_AT, _SEQUENCE_AT = 11, 5
+_new = tuple.__new__
 
 
 class SessionWire:
@@ -32,6 +34,7 @@ class SessionWire:
         self.codec = codec
         self.encryption = encryption
         self.session_id = 0
+        self._model_id = codec.model.model_id
         self._sends = sends
         #: Packets sent: the packet index of D-RSP-21 (its low 16 bits are the sequence number).
         self.sent = 0
@@ -56,22 +59,26 @@ class SessionWire:
         self, kind: PacketType, body: Body, now: float, buffer: int = 0, psk: bytes | None = None
     ) -> bytes:
         """The next packet; `psk` signs a HELLO or WELCOME of an encrypted session."""
-        if self._epoch is None:
-            self._epoch = now
-        header = Header(
-            1,
-            self.codec.model.model_id,
-            self.encryption,
-            kind,
-            self.sent % _SEQUENCE,
-            round((now - self._epoch) * 1000) % _STAMP,
-            0 if kind in (PacketType.HELLO, PacketType.REFUSED) else self.session_id,
-            self.tracker.highest or 0,
-            buffer,
-        )
+        epoch = self._epoch
+        if epoch is None:
+            epoch = self._epoch = now
         index = self.sent
-        self.sent += 1
-        data = self.codec.push_packet(Packet(header, body))
+        self.sent = index + 1
+        header = _new(
+            Header,
+            (
+                1,
+                self._model_id,
+                self.encryption,
+                kind,
+                index % _SEQUENCE,
+                round((now - epoch) * 1000) % _STAMP,
+                0 if kind in WITHOUT_SESSION else self.session_id,
+                self.tracker.highest or 0,
+                buffer,
+            ),
+        )
+        data = self.codec.push_parts(header, body)
         # The encryption first: in a session without (most), no type is looked up (D-RSP-21).
         if self.encryption is not Encryption.NONE and kind in SIGNED:
             assert psk is not None, "an encrypted session signs its HELLO and WELCOME"
@@ -83,6 +90,8 @@ class SessionWire:
 
     def read(self, data: bytes, psk: bytes | None = None) -> tuple[Packet, Arrival]:
         """A packet of this session and how it arrived; ProtocolError when it is to be dropped."""
+        if type(data) is not bytes:
+            data = bytes(data)
         header = self.codec.pull_header(data)
         if header.session_id != self.session_id:
             raise ProtocolError("a packet of another session", _SESSION_AT, DROP)
@@ -97,7 +106,7 @@ class SessionWire:
                 "seen before, or more than 64 behind the newest", _SEQUENCE_AT, DROP
             )
         body = self._body(header, data, psk)
-        return Packet(header, body), self.tracker.see(header.sequence)
+        return _new(Packet, (header, body)), self.tracker.see(header.sequence)
 
     def _body(self, header: Header, data: bytes, psk: bytes | None) -> Body:
         if self.encryption is not Encryption.NONE and header.type in SIGNED:
@@ -107,4 +116,4 @@ class SessionWire:
             index = self.tracker.extended(header.sequence)
             plain = self._opener.open(data[:HEADER_SIZE], data[HEADER_SIZE:], index)
             return self.codec.pull_body(header, plain)
-        return self.codec.pull_body(header, memoryview(data)[HEADER_SIZE:])
+        return self.codec.pull_rest(header, data)
