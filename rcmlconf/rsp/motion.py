@@ -56,6 +56,8 @@ def _between(field: Field, start: Value, end: Value, share: float) -> Value:
 
 
 class MotionFilter:
+    __slots__ = ("_effectors", "link_lost", "period")
+
     def __init__(self, model: RobotModel, period: float) -> None:
         self.period = period
         self._effectors = {

@@ -78,6 +78,8 @@ class _Queue:
 class ReliableSender:
     """One side's commands and memory commands, or memory events, until acknowledged."""
 
+    __slots__ = ("_id_space", "_queues", "timer")
+
     def __init__(self, id_space: int, period: float) -> None:
         self._id_space = id_space
         self.timer = RetransmissionTimer(period)
@@ -158,6 +160,8 @@ class ReliableSender:
 class ReceivedIds:
     """Per device, the last ID taken: what is new (D-RSP-16)."""
 
+    __slots__ = ("_half", "_last", "_space")
+
     def __init__(self, id_space: int) -> None:
         self._half = id_space // 2
         self._space = id_space
@@ -184,6 +188,8 @@ class _Repeated:
 class EventRepeater:
     """Events ride the next EVENT_REPEATS packets (D-RSP-17); a newer one of the same device
     waits for the older one's last ride, so none is skipped."""
+
+    __slots__ = ("_id_space", "_next_id", "_queues")
 
     def __init__(self, id_space: int) -> None:
         self._id_space = id_space

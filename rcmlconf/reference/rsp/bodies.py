@@ -33,6 +33,8 @@ class GenericBody:
     """Any model: effectors do at once what they are told, monitors say so, sensors read their
     fields' zero values (D-RSP-20's safe state), and nothing happens: no event is raised."""
 
+    __slots__ = ("_effectors", "_monitors", "_names", "_sensors")
+
     def __init__(self, model: RobotModel) -> None:
         self._monitors = {d.name: d.of for d in model.devices if d.kind is DeviceKind.MONITOR}
         self._sensors = {

@@ -28,7 +28,7 @@ from rcmlconf.rsp.codec.header import (
     pull_header,
     push_header,
 )
-from rcmlconf.rsp.codec.packets import RspCodec
+from rcmlconf.rsp.codec.packets import RspCodec, codec_for
 
 __all__ = [
     "CLEAR_BUFFER",
@@ -46,6 +46,7 @@ __all__ = [
     "RefusedReason",
     "RspCodec",
     "Welcome",
+    "codec_for",
     "pull_header",
     "push_header",
 ]

@@ -107,8 +107,9 @@ class MapCodec:
         #: Plans by Device Map, and by the devices of the items written with them.
         self._plans: dict[bytes, MapPlan] = {}
         self._by_devices: dict[tuple[int, ...], MapPlan] = {}
-        #: The plans with a flat layout last read and last written: a session's steady map
-        #: (D-RSP-18), tried before the map is sliced and looked up, or the devices listed.
+        #: The plans with a flat layout last read and last written: the steady map (D-RSP-18)
+        #: of the sessions sharing the codec (`codec_for`), tried before the map is sliced and
+        #: looked up, or the devices listed.
         self._pulled: MapPlan | None = None
         self._pushed: MapPlan | None = None
 

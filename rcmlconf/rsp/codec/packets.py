@@ -1,11 +1,14 @@
 """Whole RSP packets of one robot model: header and body, as plaintext (D-RSP-10, D-RSP-11).
 
-`RspCodec` is derived from the model at run time: no per-robot code. An encrypted session seals
+`RspCodec` is derived from the model at run time: no per-robot code. The endpoints of one model in
+a process share one (`codec_for`). An encrypted session seals
 and opens bodies around it (`rsp.security`): it reads the header with `pull_header`, opens what
 follows, and reads that with `pull_body`.
 """
 
 from __future__ import annotations
+
+from functools import lru_cache
 
 from rcmlconf.buffer import Buffer
 from rcmlconf.errors import EncodeError, ProtocolError
@@ -132,3 +135,20 @@ class RspCodec:
         if maps is not None and type(body) is MapBody:
             return head + maps.push(body.items)
         return head + self.push_body(header, body)
+
+
+#: Models whose codec `codec_for` keeps: a process serves a few models, a test run makes many.
+SHARED_MODELS = 64
+
+
+@lru_cache(maxsize=SHARED_MODELS)
+def codec_for(model: RobotModel) -> RspCodec:
+    """The codec of a model (or of an equal one), shared by the endpoints of it in the process.
+
+    Hundreds of sessions of one model in one process (bench/rsp_pairs_scale.py) each with a codec
+    of their own — its slots, header rules, plans and compiled layouts, about 36 KB — touch
+    that much more memory every period: at 150 pairs the caches miss enough for a sixth of the
+    time. A codec's state is caches only (plans, layouts, the map last read and written), so
+    sharing it changes no outcome; sessions sending other maps share its bounded plans.
+    """
+    return RspCodec(model)

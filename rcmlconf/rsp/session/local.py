@@ -33,8 +33,8 @@ from rcmlconf.rsp.codec import (
     PacketType,
     Period,
     Refused,
-    RspCodec,
     Welcome,
+    codec_for,
 )
 from rcmlconf.rsp.codec.bodies import MAX_PERIOD_MS, MIN_PERIOD_MS, Body, map_body
 from rcmlconf.rsp.layout import MAC_SIZE, NONCE_SIZE
@@ -67,6 +67,32 @@ _ACTIVATABLE = (_K.EFFECTOR, _K.MODULE, *_REQUESTABLE)
 class LocalEndpoint:
     """One session with one robot, from the local system (D-RSP-12)."""
 
+    __slots__ = (
+        "_active",
+        "_beat",
+        "_clear",
+        "_credit",
+        "_events",
+        "_hello_at",
+        "_hellos",
+        "_live",
+        "_nonce",
+        "_out",
+        "_period_repeats",
+        "_psk",
+        "_sender",
+        "_standing",
+        "_taken",
+        "_values",
+        "_wire",
+        "codec",
+        "encryption",
+        "free_buffers",
+        "model",
+        "period",
+        "state",
+    )
+
     def __init__(
         self,
         model: RobotModel,
@@ -79,7 +105,7 @@ class LocalEndpoint:
         if encryption is not Encryption.NONE and psk is None:
             raise ValueError("an encrypted session needs the robot's pre-shared key")
         self.model = model
-        self.codec = RspCodec(model)
+        self.codec = codec_for(model)
         self.period = model.period if period is None else period
         self.encryption = encryption
         self._psk = psk

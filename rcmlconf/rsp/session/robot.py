@@ -36,8 +36,8 @@ from rcmlconf.rsp.codec import (
     Period,
     Refused,
     RefusedReason,
-    RspCodec,
     Welcome,
+    codec_for,
     pull_header,
     push_header,
 )
@@ -86,6 +86,28 @@ class _Session:
 class RobotEndpoint:
     """A robot's RSP side for one model."""
 
+    __slots__ = (
+        "_buffer",
+        "_events",
+        "_events_out",
+        "_idle",
+        "_ids",
+        "_memory_events",
+        "_min_period_ms",
+        "_module_of",
+        "_modules",
+        "_out",
+        "_psk",
+        "_random",
+        "_reported",
+        "_states",
+        "codec",
+        "encryptions",
+        "faults",
+        "model",
+        "session",
+    )
+
     def __init__(
         self,
         model: RobotModel,
@@ -100,7 +122,7 @@ class RobotEndpoint:
         if any(e is not Encryption.NONE for e in encryptions) and psk is None:
             raise ValueError("encrypted sessions need the robot's pre-shared key")
         self.model = model
-        self.codec = RspCodec(model)
+        self.codec = codec_for(model)
         self.encryptions = encryptions
         self._psk = psk
         self._min_period_ms = round((model.period if min_period is None else min_period) * 1000)

@@ -30,6 +30,19 @@ _new = tuple.__new__
 class SessionWire:
     """Packets of one session, as one side sends and receives them."""
 
+    __slots__ = (
+        "_epoch",
+        "_model_id",
+        "_opener",
+        "_sealer",
+        "_sends",
+        "codec",
+        "encryption",
+        "sent",
+        "session_id",
+        "tracker",
+    )
+
     def __init__(self, codec: RspCodec, encryption: Encryption, sends: Direction) -> None:
         self.codec = codec
         self.encryption = encryption
