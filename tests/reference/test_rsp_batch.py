@@ -4,11 +4,12 @@ clock, over real UDP sockets on 127.0.0.1."""
 from __future__ import annotations
 
 import asyncio
+import socket
 
 from support.rsp_models import EVERY_KIND, robot_model
 from support.servers import run
 
-from rcmlconf.reference.rsp.batch import Batch
+from rcmlconf.reference.rsp.batch import READS_A_WAKEUP, Batch
 from rcmlconf.reference.rsp.robot import ReferenceRobot, RobotSettings
 from rcmlconf.reference.rsp.simulacrum import Simulacrum
 from rcmlconf.rsp.session import events
@@ -71,3 +72,24 @@ async def test_a_robot_on_a_batch_serves_a_simulacrum_on_asyncio() -> None:
     batch.close()
     assert robot.transport is not None
     assert robot.transport.is_closing()
+
+
+@run
+async def test_a_beat_due_waits_for_one_wake_ups_reads_not_for_all() -> None:
+    """More sockets with a datagram than one wake-up reads: the timer due runs after the first
+    READS_A_WAKEUP of them, and the rest are read at the wake-ups after it, none lost."""
+    loop = asyncio.get_running_loop()
+    batch = Batch(loop)
+    sockets = 3 * READS_A_WAKEUP + 5
+    received: list[bytes] = []
+    ports = [batch.open(lambda data, addr: received.append(data)) for _ in range(sockets)]
+    seen_by_beat: list[int] = []
+    batch.timer(lambda: seen_by_beat.append(len(received))).set(loop.time() - 0.01)
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
+        for number, port in enumerate(ports):
+            sender.sendto(number.to_bytes(2, "big"), port.get_extra_info("sockname"))
+        while len(received) < sockets:
+            await asyncio.sleep(0.001)
+    assert seen_by_beat == [READS_A_WAKEUP]
+    assert sorted(received) == [number.to_bytes(2, "big") for number in range(sockets)]
+    batch.close()

@@ -10,9 +10,11 @@ serves them all with:
 - one reader: every endpoint keeps a UDP socket of its own, as D-RSP-9 has it (a robot on its
   port, a local system on any port), but the sockets are in one epoll set of the batch's, and the
   set's descriptor is the only one the loop watches for them. One wake-up reads one datagram from
-  every socket that has one, into one buffer; a socket with more stays ready (the set is
-  level-triggered) and is read at the next wake-up, so no socket waits on a busier one's backlog
-  and no read ends in EAGAIN;
+  each of up to `READS_A_WAKEUP` sockets that have one, into one buffer; a socket with more, or
+  not reached, stays ready (the set is level-triggered, and hands out the ones it did not report
+  first) and is read at a next wake-up, so no socket waits on a busier one's backlog, no read
+  ends in EAGAIN, and no beat waits for every datagram that came meanwhile: the loop runs the
+  timers due after each wake-up's reads;
 - one clock: an endpoint's timer is a place on a `BeatClock`, one loop timer per millisecond for
   every endpoint whose deadline falls in it, called back at the millisecond's end: never early,
   since an RSP endpoint sends only when its beat has come (D-RSP-13), and at most 1 ms late, the
@@ -43,6 +45,11 @@ MAX_DATAGRAM = 65_507
 #: Receive buffers of this size (the kernel caps it at net.core.rmem_max): a socket that a busy
 #: millisecond leaves unread for a while keeps what came meanwhile.
 RECEIVE_BUFFER = 1 << 20
+#: Datagrams read at one wake-up at most. A beat due meanwhile waits for that many, about a
+#: millisecond of RSP's work, rather than for all that came: at 200 pairs in one process, reading
+#: every ready socket at once put beats 15 ms late at the 99th percentile, 32 at a time 2 ms
+#: (bench/rsp_pairs_scale.py).
+READS_A_WAKEUP = 32
 
 
 class Datagrams(Protocol):
@@ -177,9 +184,10 @@ class Batch:
             self._epoll.unregister(fileno)
 
     def _readable(self) -> None:
-        """One datagram from each socket that has one (bounded: one poll, one read a socket)."""
+        """One datagram from each of up to READS_A_WAKEUP sockets that have one (bounded: one
+        poll, one read a socket); the loop runs the timers due, then calls again for the rest."""
         buffer, view, ports = self._buffer, self._view, self._ports
-        for fileno, _ in self._epoll.poll(0):
+        for fileno, _ in self._epoll.poll(0, READS_A_WAKEUP):
             port = ports.get(fileno)
             if port is None:
                 continue

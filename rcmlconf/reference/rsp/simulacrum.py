@@ -66,6 +66,8 @@ class Simulacrum:
         self.endpoint = LocalEndpoint(model, period=period, encryption=encryption, psk=psk)
         self._lock = threading.RLock()
         self._changed = threading.Condition(self._lock)
+        #: Threads in `read`, waiting on `_changed` or about to.
+        self._readers = 0
         #: The Robot Environment Data Buffer: newest values, how many came, occurrences unread.
         self._latest: dict[str, Values] = {}
         self._counts: dict[str, int] = {}
@@ -181,22 +183,31 @@ class Simulacrum:
     def read(self, device: str, timeout: float | None = None) -> Values:
         found = self._known(device, _REPORTED, "be read")
         with self._changed:
-            if found.kind in _OCCURRENCES:
-                unread = self._unread.setdefault(device, deque(maxlen=MAX_UNREAD))
-                if not self._changed.wait_for(lambda: bool(unread) or self._ended(), timeout):
-                    raise TimeoutError(f"no {device} within {timeout} s")
-                if not unread:
-                    raise NoSession(f"the session ended: {self.closed}")
-                return unread.popleft()
-            seen = self._read_counts.get(device, 0)
-            if not self._changed.wait_for(
-                lambda: self._counts.get(device, 0) > seen or self._ended(), timeout
-            ):
-                raise TimeoutError(f"no new value of {device} within {timeout} s")
-            if self._counts.get(device, 0) == seen:
+            self._readers += 1
+            try:
+                return self._read(found, timeout)
+            finally:
+                self._readers -= 1
+
+    def _read(self, found: Device, timeout: float | None) -> Values:
+        """`read`, under the lock."""
+        device = found.name
+        if found.kind in _OCCURRENCES:
+            unread = self._unread.setdefault(device, deque(maxlen=MAX_UNREAD))
+            if not self._changed.wait_for(lambda: bool(unread) or self._ended(), timeout):
+                raise TimeoutError(f"no {device} within {timeout} s")
+            if not unread:
                 raise NoSession(f"the session ended: {self.closed}")
-            self._read_counts[device] = self._counts[device]
-            return self._latest[device]
+            return unread.popleft()
+        seen = self._read_counts.get(device, 0)
+        if not self._changed.wait_for(
+            lambda: self._counts.get(device, 0) > seen or self._ended(), timeout
+        ):
+            raise TimeoutError(f"no new value of {device} within {timeout} s")
+        if self._counts.get(device, 0) == seen:
+            raise NoSession(f"the session ended: {self.closed}")
+        self._read_counts[device] = self._counts[device]
+        return self._latest[device]
 
     def issue(self, device: str, values: Values) -> int:
         with self._lock:
@@ -289,8 +300,10 @@ class Simulacrum:
             while event is not None:
                 self._take(event, calls)
                 event = endpoint.next_event()
-            # Only an event changes what `read` waits for (values, occurrences, the end).
-            self._changed.notify_all()
+            # Only an event changes what `read` waits for (values, occurrences, the end); most
+            # events, a state every period, come with no reader waiting.
+            if self._readers:
+                self._changed.notify_all()
         self._set_timer(endpoint.get_timer())
 
     def _set_timer(self, at: float | None) -> None:
