@@ -45,11 +45,11 @@ MAX_DATAGRAM = 65_507
 #: Receive buffers of this size (the kernel caps it at net.core.rmem_max): a socket that a busy
 #: millisecond leaves unread for a while keeps what came meanwhile.
 RECEIVE_BUFFER = 1 << 20
-#: Datagrams read at one wake-up at most. A beat due meanwhile waits for that many, about a
+#: Datagrams read at one wake-up at most. A beat due meanwhile waits for that many, about half a
 #: millisecond of RSP's work, rather than for all that came: at 200 pairs in one process, reading
-#: every ready socket at once put beats 15 ms late at the 99th percentile, 32 at a time 2 ms
-#: (bench/rsp_pairs_scale.py).
-READS_A_WAKEUP = 32
+#: every ready socket at once put beats 15 ms late at the 99th percentile; 32 at a time, 1.7 to
+#: 2.1 ms; 16 or 8, 1.0 to 1.9 ms (bench/rsp_pairs_scale.py).
+READS_A_WAKEUP = 16
 
 
 class Datagrams(Protocol):
