@@ -330,6 +330,7 @@ class Simulacrum:
             calls += [(listener, event.values) for listener in listeners]
 
     def _session_event(self, event: events.Event) -> None:
+        """Any other event: into the history; a session opened, refused or closed to `open`."""
         self.history.append(event)
         if isinstance(event, events.SessionOpened) and self._opened is not None:
             if not self._opened.done():
