@@ -1,9 +1,9 @@
 """Whole RSP packets of one robot model: header and body, as plaintext (D-RSP-10, D-RSP-11).
 
 `RspCodec` is derived from the model at run time: no per-robot code. The endpoints of one model in
-a process share one (`codec_for`). An encrypted session seals
-and opens bodies around it (`rsp.security`): it reads the header with `pull_header`, opens what
-follows, and reads that with `pull_body`.
+a process share one (`codec_for`). An encrypted session seals and opens bodies around it
+(`rsp.security`): it reads the header with `pull_header`, opens what follows, and reads that with
+`pull_body`; an unencrypted one reads the body in place with `pull_rest`.
 """
 
 from __future__ import annotations
@@ -147,7 +147,7 @@ def codec_for(model: RobotModel) -> RspCodec:
 
     Hundreds of sessions of one model in one process (bench/rsp_pairs_scale.py) each with a codec
     of their own — its slots, header rules, plans and compiled layouts, about 36 KB — touch
-    that much more memory every period: at 150 pairs the caches miss enough for a sixth of the
+    that much more memory every period: at 150 pairs the caches missed for about 15 % of the
     time. A codec's state is caches only (plans, layouts, the map last read and written), so
     sharing it changes no outcome; sessions sending other maps share its bounded plans.
     """
