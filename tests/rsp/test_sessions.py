@@ -350,3 +350,28 @@ def test_welcome_and_ack_give_the_free_buffers_too() -> None:
     sent = sum(exchange(fresh, robot, 1.0 + 0.02 * k) for k in range(1, 40))
     assert sent == model.command_buffers  # the ACK of the last said none is free
     assert robot.free_buffers == 0
+
+
+def test_sessions_of_one_model_share_its_codec_and_keep_their_own_maps() -> None:
+    """`codec_for`: every endpoint of a model (or of an equal one) in a process uses one codec,
+    whose caches (the map last read and written) alternating sessions with other maps share."""
+    model = robot_model()
+    first = opened(open_pair(model))
+    second = opened(open_pair(replace(model)))  # equal, not the same object
+    assert first.local.codec is first.robot.codec is second.local.codec is second.robot.codec
+    first.local.write("leftWheel", {"speed": 100})
+    first.local.set_active("base", True)
+    first.local.set_active("position", True)
+    first.robot.set_state("position", POSE)
+    second.local.set_active("battery", True)
+    second.robot.set_state("battery", {"charge": 80})
+    second.robot.set_state("position", {**POSE, "x": -3.0})
+    for _ in range(20):  # one period of each in turn: every packet's map is the other's last
+        first.run_until(first.now + 0.02)
+        second.run_until(second.now + 0.02)
+    assert first.robot.effectors(first.now)["leftWheel"] == {"speed": 100}
+    assert second.robot.effectors(second.now)["leftWheel"] == {"speed": 0}
+    assert {s.device for s in of(events.StateReceived, first.local_events)} == {"position"}
+    assert of(events.StateReceived, first.local_events)[-1].values == POSE
+    assert {s.device for s in of(events.StateReceived, second.local_events)} == {"battery"}
+    assert of(events.StateReceived, second.local_events)[-1].values == {"charge": 80}
