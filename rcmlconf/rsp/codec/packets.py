@@ -20,7 +20,6 @@ from rcmlconf.rsp.codec.bodies import (
     Packet,
     _new_body,
     _set_items,
-    map_body,
     pull_session_body,
     push_session_body,
 )
@@ -74,10 +73,14 @@ class RspCodec:
             raise ProtocolError(exc.reason, base + exc.offset, exc.rule) from None
 
     def _pull_body(self, header: Header, data: bytes, start: int) -> Body:
-        """The body from `start` to the end of `data`; offsets are `data`'s."""
-        maps = self._maps.get(header.type)
+        """The body from `start` to the end of `data`; offsets are `data`'s. The header's type is
+        one of D-RSP-11's (`pull` or `pull_body` checked it)."""
+        maps = self._maps_by_type[header[3]]
         if maps is not None:
-            return map_body(maps.pull_from(data, start))
+            # `map_body`, inline: one is made for every map packet read.
+            body = _new_body(MapBody)
+            _set_items(body, maps.pull_from(data, start))
+            return body
         cls = BODIES[header.type]
         assert cls is not MapBody
         try:
@@ -113,12 +116,6 @@ class RspCodec:
     def pull_rest(self, header: Header, data: bytes) -> Body:
         """The body of a whole plaintext datagram whose header `pull_header` gave: read in place,
         with the datagram's offsets (a session reads one every period, D-RSP-13)."""
-        maps = self._maps_by_type[header[3]]  # the type, checked by `pull`
-        if maps is not None:
-            # `map_body`, inline: one is made for every map packet read.
-            body = _new_body(MapBody)
-            _set_items(body, maps.pull_from(data, HEADER_SIZE))
-            return body
         return self._pull_body(header, data, HEADER_SIZE)
 
     def push_packet(self, packet: Packet) -> bytes:
