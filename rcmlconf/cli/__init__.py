@@ -5,6 +5,8 @@ Commands are imported only when run, so `rcmlconf validate` never pays for what 
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import importlib
 import os
 import sys
@@ -76,6 +78,10 @@ COMMANDS = {
 }
 
 
+class _ReaderGone(Exception):
+    """Standard output's reader closed the pipe."""
+
+
 class LazyGroup(click.Group):
     #: The commands of the group, as COMMANDS; a group of subcommands (`rsp`) has its own.
     table: dict[str, tuple[str, str, str]] = COMMANDS
@@ -90,6 +96,13 @@ class LazyGroup(click.Group):
         command = getattr(importlib.import_module(module), name)
         assert isinstance(command, click.Command)
         return command
+
+    def invoke(self, ctx: click.Context) -> object:
+        try:
+            return super().invoke(ctx)
+        except BrokenPipeError as exc:
+            # click would end a closed pipe with status 1; main() makes it 0.
+            raise _ReaderGone from exc
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         rows = [(name, self.table[name][2]) for name in self.list_commands(ctx)]
@@ -113,30 +126,74 @@ def main() -> None:
         cli.main(prog_name="rcmlconf")
     except SystemExit as exit_:
         _leave(exit_.code)
-    except BrokenPipeError:
-        # The reader went away (`rcmlconf ... | head`): not an error of ours.
-        _leave(1)
+    except (BrokenPipeError, _ReaderGone):
+        # The reader went away (`rcmlconf dissect ... | head`): it had all it wanted, which is
+        # not an error of ours or of the input's.
+        _leave(0, quiet_stdout=True)
+    except OSError as exc:
+        if not _is_output_error(exc):
+            _internal_error(exc)
+        _output_failed(exc)
     except Exception as exc:
-        if os.environ.get("RCMLCONF_TRACEBACK"):
-            raise
-        sys.stderr.write(
-            f"rcmlconf: internal error: {type(exc).__name__}: {exc}\n"
-            "This is a bug in rcmlconf. Set RCMLCONF_TRACEBACK=1 to see where it happened.\n"
-        )
-        _leave(2)
+        _internal_error(exc)
     _leave(0)
 
 
-def _leave(code: str | int | None) -> NoReturn:
+def _is_output_error(exc: OSError) -> bool:
+    """An error writing standard output or error (a full disk, `> /dev/full`), which names no
+    file: every file rcmlconf opens itself is reported with its name where it is opened."""
+    return exc.filename is None and exc.errno in _OUTPUT_ERRNOS
+
+
+_OUTPUT_ERRNOS = frozenset({errno.ENOSPC, errno.EIO, errno.EDQUOT, errno.EFBIG, errno.EPIPE})
+
+
+def _output_failed(exc: OSError) -> NoReturn:
+    _say(_cannot_write(exc))
+    _leave(2, quiet_stdout=True)
+
+
+def _cannot_write(exc: OSError) -> str:
+    return f"rcmlconf: cannot write the output: {exc.strerror or exc}"
+
+
+def _internal_error(exc: BaseException) -> NoReturn:
+    if os.environ.get("RCMLCONF_TRACEBACK"):
+        raise exc
+    _say(
+        f"rcmlconf: internal error: {type(exc).__name__}: {exc}\n"
+        "This is a bug in rcmlconf. Set RCMLCONF_TRACEBACK=1 to see where it happened."
+    )
+    _leave(2)
+
+
+def _say(line: str) -> None:
+    """A last line on standard error, if it can still be written."""
+    try:
+        sys.stderr.write(line + "\n")
+        sys.stderr.flush()
+    except OSError:
+        pass
+
+
+def _leave(code: str | int | None, quiet_stdout: bool = False) -> NoReturn:
     """Flush and end the process without freeing every object one by one, as mypy does: a large
     robot leaves a few hundred thousand behind, and freeing them is all the interpreter's
-    shutdown would do. Only the console entry point leaves this way, never a library caller."""
+    shutdown would do. Only the console entry point leaves this way, never a library caller.
+
+    What standard output still holds is written now, and a failure to is reported as such (exit
+    2), except where the output is already known lost (`quiet_stdout`)."""
     if isinstance(code, str):
-        sys.stderr.write(code + "\n")
+        _say(code)
         code = 1
-    try:
-        sys.stdout.flush()
+    if not quiet_stdout:
+        try:
+            sys.stdout.flush()
+        except BrokenPipeError:
+            pass
+        except OSError as exc:
+            _say(_cannot_write(exc))
+            code = 2
+    with contextlib.suppress(OSError):
         sys.stderr.flush()
-    except BrokenPipeError:
-        code = code or 1
     os._exit(code or 0)
