@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import sys
 from collections.abc import Callable, Sequence
 from typing import IO, TYPE_CHECKING, Any
@@ -38,11 +39,39 @@ class _Stream:
 
     def line(self, segments: Segments) -> None:
         if self._console is None:
-            self.file.write("".join(text for text, _ in segments) + "\n")
+            self.file.write(printable("".join(text for text, _ in segments)) + "\n")
             return
         from rich.text import Text
 
-        self._console.print(Text.assemble(*segments))
+        self._console.print(Text.assemble(*((printable(text), style) for text, style in segments)))
+
+    def lines(self, texts: Sequence[str]) -> None:
+        """Plain lines at once (a batch of a capture's records), each made printable."""
+        self.file.write("".join(printable(text) + "\n" for text in texts))
+
+
+#: What must not reach a terminal as it is: control characters but the tab (a file named with a
+#: newline would split its diagnostic in two, D-XML-9; one with ESC would drive the terminal), and
+#: the lone surrogates that stand for a file name's bytes that are not UTF-8.
+_UNPRINTABLE = re.compile("[\x00-\x08\x0a-\x1f\x7f-\x9f\ud800-\udfff]")
+_ESCAPES = {"\n": "\\n", "\r": "\\r"}
+
+
+def printable(text: str) -> str:
+    """`text` with what must not reach a terminal written as escapes (\\n, \\x1b, \\xff)."""
+    if _UNPRINTABLE.search(text) is None:
+        return text
+    return _UNPRINTABLE.sub(_escape, text)
+
+
+def _escape(found: re.Match[str]) -> str:
+    char = found.group()
+    if char in _ESCAPES:
+        return _ESCAPES[char]
+    code = ord(char)
+    if 0xDC80 <= code <= 0xDCFF:  # the undecodable byte code - 0xDC00 (PEP 383)
+        return f"\\x{code - 0xDC00:02x}"
+    return f"\\x{code:02x}" if code <= 0xFF else f"\\u{code:04x}"
 
 
 class Output:

@@ -217,7 +217,7 @@ class RecordLines:
 
     def flush(self) -> None:
         if self._batch:
-            self.output.out.line([("\n".join(self._batch), "")])
+            self.output.out.lines(self._batch)
             self._batch.clear()
 
 
