@@ -29,8 +29,8 @@ def test_local_drives_the_robot_and_prints_what_changes(tmp_path: Path) -> None:
     assert all(line["device"] == "armActual" for line in lines)
     assert "1 occurrence acknowledged" in done.stderr
     assert status == 0
-    assert "OccurrenceReceived(device='beep'" in out
-    assert "SessionClosed" in out
+    assert "beep #0 <- tone=440" in out
+    assert "session ended by the local system: closed" in out
 
 
 def test_an_encrypted_session_needs_the_same_key(tmp_path: Path) -> None:

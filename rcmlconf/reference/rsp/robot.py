@@ -28,6 +28,7 @@ from typing import cast
 from rcmlconf.reference.faults import Fault, describe
 from rcmlconf.reference.rsp.batch import Batch, Datagrams, Timer
 from rcmlconf.reference.rsp.bodies import Body, body_for
+from rcmlconf.reference.rsp.log_text import event_text, values_text
 from rcmlconf.reference.timers import LoopTimer
 from rcmlconf.rsp.audio import AudioReceiver
 from rcmlconf.rsp.codec import Encryption
@@ -167,7 +168,7 @@ class ReferenceRobot(asyncio.DatagramProtocol):
                 if debug is None:
                     debug = log.isEnabledFor(logging.DEBUG)
                 if debug:
-                    log.debug("%s <- %s", event.device, dict(event.values))
+                    log.debug("%s", event_text(self.model, event))
                 continue
             if isinstance(event, events.SessionOpened | events.SessionClosed):
                 self._forget()
@@ -185,10 +186,9 @@ class ReferenceRobot(asyncio.DatagramProtocol):
     def _log(self, event: events.Event) -> None:
         """An event but a state: into the history and the log."""
         self.history.append(event)
-        if isinstance(event, events.PacketDropped):
-            log.warning("dropped a packet: %s [%s]", event.reason, event.rule)
-        else:
-            log.info("%s", event)
+        level = logging.WARNING if isinstance(event, events.PacketDropped) else logging.INFO
+        if log.isEnabledFor(level):
+            log.log(level, "%s", event_text(self.model, event))
 
     def _forget(self) -> None:
         """A session opens or ends, and what the one before asked for with it: the memory command
@@ -218,8 +218,8 @@ class ReferenceRobot(asyncio.DatagramProtocol):
             except Backlog:  # a local system that requests memory events and never acknowledges
                 log.debug("%s: too many occurrences waiting, one dropped", name)
                 continue
-            if ident is not None:
-                log.debug("%s #%d %s", name, ident, dict(values))
+            if ident is not None and log.isEnabledFor(logging.DEBUG):
+                log.debug("%s #%d -> %s", name, ident, values_text(self.model, name, values))
         self._execute(now)
 
     def _next_tick(self, now: float) -> float:

@@ -9,6 +9,7 @@ from collections.abc import Collection, Mapping
 from rcmlconf.rsp.codec import Item, PacketType, RspCodec
 from rcmlconf.rsp.model import Device, DeviceKind
 from rcmlconf.values import Value
+from rcmlconf.wording import indefinite, one_of
 
 
 def device(codec: RspCodec, name: str, kinds: Collection[DeviceKind], what: str) -> Device:
@@ -16,8 +17,8 @@ def device(codec: RspCodec, name: str, kinds: Collection[DeviceKind], what: str)
     if found is None:
         raise KeyError(f"{codec.model.name} has no device {name!r}")
     if found.kind not in kinds:
-        allowed = " or ".join(kind.value for kind in kinds)
-        raise TypeError(f"{name} is a {found.kind.value}: only a {allowed} can {what}")
+        allowed = indefinite(one_of([kind.value for kind in kinds]))
+        raise TypeError(f"{name} is {indefinite(found.kind.value)}: only {allowed} can {what}")
     return found
 
 

@@ -46,6 +46,7 @@ from rcmlconf.rsp.session.devices import check_values, device
 from rcmlconf.rsp.session.timing import Beat, Liveness, Silence
 from rcmlconf.rsp.session.wire import SessionWire
 from rcmlconf.values import Value
+from rcmlconf.wording import indefinite
 
 #: D-RSP-12: a HELLO without answer is sent again this often, this many times.
 HELLO_INTERVAL = 0.25
@@ -278,7 +279,9 @@ class LocalEndpoint:
             self.state = "closed"
             self._events.append(events.SessionClosed(body.reason, by_peer=True))
         elif kind is not PacketType.WELCOME:  # a WELCOME again answers a repeated HELLO
-            raise ProtocolError(f"a {kind.name} is not sent to the local system", 4, "R-RSP-18")
+            raise ProtocolError(
+                f"{indefinite(kind.name)} is not sent to the local system", 4, "R-RSP-18"
+            )
 
     def _answer(self, data: bytes, now: float) -> None:
         """WELCOME or REFUSED to our HELLO (D-RSP-12)."""
@@ -290,7 +293,7 @@ class LocalEndpoint:
             self._events.append(events.SessionRefused(packet.body.reason))
             return
         if header.type is not PacketType.WELCOME:
-            raise ProtocolError(f"a {header.type.name} before WELCOME", 4, "R-RSP-18")
+            raise ProtocolError(f"{indefinite(header.type.name)} before WELCOME", 4, "R-RSP-18")
         self._wire.session_id = header.session_id
         try:
             packet, _ = self._wire.read(data, self._psk)

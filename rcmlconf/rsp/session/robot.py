@@ -52,6 +52,7 @@ from rcmlconf.rsp.session.devices import check_values, device, same_values
 from rcmlconf.rsp.session.timing import Beat, Liveness, Silence
 from rcmlconf.rsp.session.wire import SessionWire
 from rcmlconf.values import Value
+from rcmlconf.wording import indefinite
 
 _K = DeviceKind
 Address = events.Address
@@ -267,7 +268,9 @@ class RobotEndpoint:
         ):
             header = pull_header(data)
             if header.type is not PacketType.HELLO:
-                raise ProtocolError(f"a {header.type.name} from outside a session", 4, "R-RSP-18")
+                raise ProtocolError(
+                    f"{indefinite(header.type.name)} from outside a session", 4, "R-RSP-18"
+                )
             self._hello(header, data, peer, now)
             return
         if self.faults:
@@ -296,7 +299,7 @@ class RobotEndpoint:
             assert isinstance(body, Bye)
             self._end(events.SessionClosed(body.reason, by_peer=True))
         else:
-            raise ProtocolError(f"a {kind.name} is not sent to a robot", 4, "R-RSP-18")
+            raise ProtocolError(f"{indefinite(kind.name)} is not sent to a robot", 4, "R-RSP-18")
 
     def _hello(self, header: Header, data: bytes, peer: Address, now: float) -> None:
         """R-RSP-20, R-RSP-21, R-RSP-38: WELCOME, the WELCOME given again, or REFUSED."""
