@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import html
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import quote, unquote, urlsplit
@@ -28,6 +29,8 @@ _SERVER = f"rcmlconf/{__version__}"
 _READ_SIZE = 65536
 #: h11 buffers at most this much of a request's head.
 _MAX_HEAD = 16384
+
+log = logging.getLogger("rcmlconf.server")
 
 
 @dataclass(frozen=True, slots=True)
@@ -76,6 +79,18 @@ class FileServer:
         self.served = 0
 
     async def handle(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        try:
+            await self._converse(reader, writer)
+        except OSError as error:
+            # A peer that resets the connection (even while it is told "bad request") or goes
+            # silent (TimeoutError is an OSError) ends its own connection and nothing else: not
+            # an error of the server's, so not a traceback on its standard error.
+            log.debug("HTTP connection ended: %s", error.strerror or type(error).__name__)
+        finally:
+            writer.close()
+
+    async def _converse(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        """Answer the connection's requests in turn, until it closes or breaks HTTP."""
         conn = h11.Connection(h11.SERVER, max_incomplete_event_size=_MAX_HEAD)
         try:
             while True:
@@ -93,10 +108,6 @@ class FileServer:
                 await self._send(
                     conn, writer, error.error_status_hint, b"bad request\n", "text/plain"
                 )
-        except (TimeoutError, ConnectionError):
-            pass
-        finally:
-            writer.close()
 
     async def _next_event(self, conn: h11.Connection, reader: asyncio.StreamReader) -> object:
         while True:

@@ -3,8 +3,13 @@
 from __future__ import annotations
 
 import asyncio
+import socket
+import struct
+import urllib.request
+from pathlib import Path
 
 import pytest
+from support.processes import BOUND, running
 from support.robots import CAMERA
 from support.servers import run, serving
 
@@ -62,3 +67,35 @@ async def test_nothing_else_is_served(request_bytes: bytes, status: int) -> None
         assert server.http_port is not None
         answer, _, _ = await http(server.http_port, request_bytes)
         assert answer == status
+
+
+def _reset(port: int, data: bytes) -> None:
+    """Send `data`, then end the connection with a reset (RST): SO_LINGER on, for 0 s."""
+    with socket.create_connection(("127.0.0.1", port), timeout=BOUND) as peer:
+        peer.sendall(data)
+        peer.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+
+
+@pytest.mark.parametrize(
+    "sent",
+    [b"GET /camera.rcml HTTP/1.1\r\nHo", b"\x16\x03\x01 not http\r\n\r\n", b""],
+    ids=["partial request", "bad request", "nothing"],
+)
+def test_a_peer_that_resets_the_connection_ends_only_its_own(tmp_path: Path, sent: bytes) -> None:
+    """A reset as the server reads, or as it answers "bad request", is no traceback on the
+    server's standard error, and the next client is served."""
+    with running(
+        tmp_path, "serve", "--port", "0", "--http-port", "0", "-vv", str(CAMERA)
+    ) as server:
+        url = str(server.ready["http"])
+        port = int(url.rsplit(":", 1)[1].strip("/"))
+        # The server sees the reset at one moment or another of its answer: a few tries meet
+        # most of them.
+        for _ in range(10):
+            _reset(port, sent)
+        with urllib.request.urlopen(url + "camera.rcml", timeout=BOUND) as answer:
+            assert answer.read() == CAMERA.read_bytes()
+        status, _, err = server.stop()
+    assert status == 0, err
+    for broken in ("Traceback", "Unhandled exception", "ConnectionResetError"):
+        assert broken not in err
