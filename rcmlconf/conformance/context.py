@@ -48,6 +48,8 @@ class Context:
     _channels: list[ImpairedChannel] = field(default_factory=list)
     #: How late the harness's loop ran (the run's), for `expect(..., timing=True)`.
     loop_watch: LoopWatch | None = None
+    #: The RSP robot the runner took for the case before it started (`rsp`).
+    taken: Address | None = None
     #: When the case started, in loop time.
     started: float = field(default_factory=lambda: asyncio.get_running_loop().time())
 
@@ -197,6 +199,9 @@ class Context:
     async def rsp(self) -> Address:
         """An RSP robot under test, this case's alone until it ends (a robot serves one session
         at a time, D-RSP-12)."""
+        if self.taken is not None:  # the runner gives it back when the case ends
+            address, self.taken = self.taken, None
+            return address
         robots = self.robots
         if robots is None or not self.target.rsp:
             raise NotApplicable("no RSP robot under test (--rsp-target)")

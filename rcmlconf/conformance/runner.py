@@ -54,6 +54,11 @@ def robot_pool(target: Target) -> asyncio.Queue[Address]:
     return pool
 
 
+def needs_robot(case: Case, target: Target) -> bool:
+    """Whether the case takes one of the target's RSP robots for itself (`Context.rsp`)."""
+    return case.role is Role.ROBOT and bool(target.rsp) and target.rsp_model is not None
+
+
 async def run_case(
     case: Case,
     target: Target,
@@ -61,10 +66,15 @@ async def run_case(
     run: int = 1,
     robots: asyncio.Queue[Address] | None = None,
     watch: LoopWatch | None = None,
+    robot: Address | None = None,
 ) -> Result:
+    """One case, its timeout counted from now. `robot`: the RSP robot taken for it already (a
+    robot serves one session at a time, D-RSP-12, so a case may have waited for its turn; that
+    wait is not the case's time), else it takes one from `robots` when it asks."""
     pool = robots or robot_pool(target)
     ctx = Context(case, target, options.timeout_scale, options.seed, pool, options.impair)
     ctx.loop_watch = watch
+    ctx.taken = robot
     started = time.monotonic()
     try:
         missing = [f for f in case.features if f not in target.features]
@@ -139,8 +149,15 @@ async def run_cases(
     watch = LoopWatch()
 
     async def one(case: Case, run: int) -> None:
-        async with gate:
-            result = await run_case(case, target, options, run, robots, watch)
+        # A robot case waits for a free robot before it takes a slot, and its clock starts
+        # only then: one robot under test serves the robot cases one after another.
+        robot = await robots.get() if needs_robot(case, target) else None
+        try:
+            async with gate:
+                result = await run_case(case, target, options, run, robots, watch, robot)
+        finally:
+            if robot is not None:
+                robots.put_nowait(robot)
         results.append(result)
         done(result)
 

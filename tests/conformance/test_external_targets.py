@@ -1,0 +1,34 @@
+"""The reference implementation run as an external target, as a user runs rcmlconf against theirs:
+a process of its own, reached only through its address."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from support.processes import run_command, running
+
+from rcmlconf.conformance.targets import REFERENCE_RMODEL
+
+
+def test_one_external_robot_serves_the_robot_cases_in_turn(tmp_path: Path) -> None:
+    """A robot serves one session at a time (D-RSP-12), so the robot cases of a run take it in
+    turn; a case's clock starts when it has the robot, not while it waits for it. Before, most of
+    the header cases failed with 'the case did not finish within 5 s' and an empty exchange."""
+    report = tmp_path / "report.json"
+    with running(tmp_path, "robot", str(REFERENCE_RMODEL), "--port", "0") as robot:
+        done = run_command(
+            "run",
+            "--rsp-target",
+            f"127.0.0.1:{robot.ready['port']}",
+            "--model",
+            str(REFERENCE_RMODEL),
+            "--only",
+            "rsp/[hmp]*",  # header, map, motion, payload
+            "--json",
+            str(report),
+        )
+    results = json.loads(report.read_text())["results"]
+    assert len(results) >= 20  # in turn, they take longer than any one case's 5 s timeout
+    assert {r["verdict"] for r in results} == {"pass"}, done.stdout
+    assert done.returncode == 0
