@@ -1,11 +1,18 @@
-"""`rcmlconf local MODEL --robot HOST:PORT`: the simulacrum, driving a robot and watching it."""
+"""`rcmlconf local MODEL --robot HOST:PORT`: the simulacrum, driving a robot and watching it.
+
+Every option is checked against the model, and what it asks for handed to the simulacrum, before
+HELLO: a bad one is a usage error and no packet. Once the robot has opened a session, whatever
+ends the command (--duration, Ctrl-C or SIGTERM, the output's reader going away) ends it with BYE,
+or the robot would refuse every local system as busy until its 10 s timeout (D-RSP-12, R-RSP-22).
+"""
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import click
@@ -14,34 +21,48 @@ from rcmlconf.cli.client.values import parse_typed_value, values_json, values_te
 from rcmlconf.cli.console import Output
 from rcmlconf.cli.interrupts import Interrupts
 from rcmlconf.cli.models import load_or_exit
-from rcmlconf.cli.rsp_options import ENCRYPTIONS, parse_address, psk_option, read_psk
+from rcmlconf.cli.params import DAY, Bounded, seconds
+from rcmlconf.cli.rsp_options import ENCRYPTIONS, Address, address_of, psk_option, read_psk
 from rcmlconf.errors import EncodeError, ValueTextError
 from rcmlconf.reference.rsp.robot import DEFAULT_PORT
 from rcmlconf.reference.rsp.simulacrum import NoSession, Simulacrum
-from rcmlconf.rsp.model import Device, RobotModel
+from rcmlconf.rsp.codec.bodies import MAX_PERIOD_MS, MIN_PERIOD_MS
+from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
 from rcmlconf.rsp.reliable import Backlog
 from rcmlconf.rsp.session import events
 from rcmlconf.validate.validator import load_robot_model
 from rcmlconf.values import Value
-from rcmlconf.wording import plural
+from rcmlconf.wording import indefinite, one_of, plural
 
 Assignments = tuple[tuple[str, str], ...]
+_K = DeviceKind
+#: What each option takes (D-RSP-14, D-RSP-17, D-RSP-18).
+_TAKES = {
+    "--write": (_K.EFFECTOR,),
+    "--activate": (_K.MODULE,),
+    "--watch": (_K.SENSOR, _K.MONITOR, _K.EVENT, _K.MEMORY_EVENT),
+    "--issue": (_K.COMMAND, _K.MEMORY_COMMAND),
+}
+#: What the simulacrum may still refuse of a device whose name, kind and values `_Plan` took: a
+#: value the codec cannot carry, or more occurrences than may wait.
+_REFUSED = (KeyError, TypeError, ValueError, EncodeError, Backlog)
 
 
 @click.command()
 @click.argument("model_path", metavar="MODEL.rmodel", type=click.Path(path_type=Path))
 @click.option(
     "--robot",
-    "robot_text",
+    "robot",
     required=True,
     metavar="HOST[:PORT]",
+    callback=address_of(DEFAULT_PORT),
     help=f"The robot's address (port {DEFAULT_PORT} if not given, D-RSP-9).",
 )
 @click.option(
     "--period",
-    type=click.FloatRange(0.005, 10),
+    type=Bounded(MIN_PERIOD_MS / 1000, MAX_PERIOD_MS / 1000),
     metavar="SECONDS",
-    help="T, a DOWNLINK every T (D-RSP-13). Default: the model's period.",
+    help="T, a DOWNLINK every T (D-RSP-13; whole milliseconds). Default: the model's period.",
 )
 @click.option(
     "--write",
@@ -75,9 +96,9 @@ Assignments = tuple[tuple[str, str], ...]
 )
 @click.option(
     "--duration",
-    type=click.FloatRange(0, min_open=True),
+    type=seconds(DAY),
     metavar="SECONDS",
-    help="Stop after this long. Default: at Ctrl-C.",
+    help="Stop after this long (at most a day). Default: at Ctrl-C.",
 )
 @click.option(
     "--encryption",
@@ -97,7 +118,7 @@ Assignments = tuple[tuple[str, str], ...]
 )
 def local(
     model_path: Path,
-    robot_text: str,
+    robot: Address,
     period: float | None,
     writes: Assignments,
     activates: tuple[str, ...],
@@ -112,12 +133,13 @@ def local(
     does: effector values in a DOWNLINK every T, requested sensors, monitors and events printed
     as they change or occur, commands acknowledged.
 
-    Values are printed when they change, not every T. At the end (--duration or Ctrl-C) the
-    session gets BYE and a summary of the packets goes to standard error.
+    Values are printed when they change, not every T. Every option is checked against the model
+    before anything is sent. At the end (--duration, Ctrl-C, or the reader of the output gone)
+    the session gets BYE and a summary of the packets goes to standard error.
 
     \b
     Exit status: 0 done; 1 invalid model, or no session (refused or no answer);
-      2 usage error.
+      2 usage error or unreadable model.
 
     \b
     Examples:
@@ -129,12 +151,16 @@ def local(
     """
     output = Output()
     model = load_or_exit(output, "local", model_path, load_robot_model)
-    address = parse_address(robot_text, DEFAULT_PORT)
     chosen = ENCRYPTIONS[encryption]
     psk = read_psk(psk_file, {chosen})
     plan = _Plan(model, writes, activates, watches, issues)
-    simulacrum = Simulacrum(model, address, period=period, encryption=chosen, psk=psk)
-    sys.exit(asyncio.run(_run(simulacrum, plan, duration, output, format_ == "json")))
+    simulacrum = Simulacrum(model, robot, period=period, encryption=chosen, psk=psk)
+    printer = _Printer(model, output, format_ == "json")
+    plan.apply(simulacrum, printer)
+    status = asyncio.run(_run(simulacrum, printer, duration, output))
+    if printer.failed is not None:
+        raise printer.failed  # the console's entry point reports a lost output
+    sys.exit(status)
 
 
 class _Plan:
@@ -148,55 +174,88 @@ class _Plan:
         watches: Sequence[str],
         issues: Assignments,
     ) -> None:
-        self.model = model
         self.writes = _grouped(model, writes, "--write")
+        self.activates = [_device(model, name, "--activate").name for name in activates]
+        self.watches = [_device(model, name, "--watch").name for name in watches]
         self.issues = _grouped(model, issues, "--issue")
-        for name in (*activates, *watches):
-            _device(model, name, "--activate" if name in activates else "--watch")
-        self.activates = tuple(activates)
-        self.watches = tuple(watches)
 
-    def apply(self, simulacrum: Simulacrum) -> None:
-        try:
-            for name in self.activates:
-                simulacrum.set_active(name, True)
-            for name in self.watches:
-                simulacrum.set_active(name, True)
-            for name, values in self.writes.items():
-                simulacrum.write(name, values)
-            for name, values in self.issues.items():
-                simulacrum.issue(name, values)
-        except (KeyError, TypeError, ValueError, EncodeError, Backlog) as exc:
-            raise click.UsageError(str(exc).strip("'\"")) from None
+    def apply(self, simulacrum: Simulacrum, printer: _Printer) -> None:
+        """All of it handed to the simulacrum, which holds it until the session opens: whatever
+        it refuses is refused before HELLO. Effector values first, so that a module activated
+        with them acts from the first DOWNLINK."""
+        for name, values in self.writes.items():
+            _handed("--write", name, simulacrum.write, name, values)
+        for name in self.activates:
+            _handed("--activate", name, simulacrum.set_active, name, True)
+        for name in self.watches:
+            _handed("--watch", name, simulacrum.set_active, name, True)
+            printer.watch(simulacrum, name)
+        for name, values in self.issues.items():
+            _handed("--issue", name, simulacrum.issue, name, values)
+
+
+def _handed(option: str, name: str, call: Callable[..., object], *args: object) -> None:
+    try:
+        call(*args)
+    except _REFUSED as exc:
+        why = str(exc).strip("'\"")  # a KeyError's text is the repr of its message
+        raise _bad(option, f"{name}: {why}") from None
+
+
+def _bad(option: str, message: str) -> click.BadParameter:
+    return click.BadParameter(message, param_hint=f"'{option}'")
 
 
 def _device(model: RobotModel, name: str, option: str) -> Device:
+    """The device `name` of the model, of a kind `option` takes."""
+    kinds = _TAKES[option]
+    takes = indefinite(one_of([kind.value for kind in kinds]))
+    candidates = ", ".join(d.name for d in model.devices if d.kind in kinds) or "none"
     found = model.device(name)
     if found is None:
-        names = ", ".join(d.name for d in model.devices)
-        raise click.BadParameter(
-            f"{model.name} has no device {name!r} (it has {names})", param_hint=option
+        raise _bad(
+            option, f"{model.name} has no device {name!r} ({option} takes {takes}: {candidates})"
+        )
+    if found.kind not in kinds:
+        raise _bad(
+            option,
+            f"{name!r} is {indefinite(found.kind.value)}; {option} takes {takes}"
+            f" ({model.name} has {candidates})",
         )
     return found
 
 
 def _grouped(model: RobotModel, pairs: Assignments, option: str) -> dict[str, dict[str, Value]]:
-    """FIELD=VALUE pairs gathered by device, each value parsed by its field's type."""
+    """FIELD=VALUE pairs gathered by device, each value parsed by its field's type, each device
+    with a value for every field (every packet carries them all)."""
     grouped: dict[str, dict[str, Value]] = {}
     for name, assignment in pairs:
         found = _device(model, name, option)
         field_name, equals, text = assignment.partition("=")
         fields = {f.name: f for f in found.fields}
         if not equals or field_name not in fields:
-            raise click.BadParameter(
-                f"{assignment!r}: give FIELD=VALUE with a field of {name} ({', '.join(fields)})",
-                param_hint=option,
+            raise _bad(
+                option,
+                f"{name} {assignment!r}: give FIELD=VALUE with a field of {name}"
+                f" ({', '.join(fields)})",
             )
+        values = grouped.setdefault(name, {})
+        if field_name in values:
+            raise _bad(option, f"{name} {field_name} is given twice")
         try:
-            value = parse_typed_value(fields[field_name].type, text, f"{name}.{field_name}")
+            values[field_name] = parse_typed_value(
+                fields[field_name].type, text, f"{name}.{field_name}"
+            )
         except ValueTextError as exc:
-            raise click.BadParameter(str(exc), param_hint=option) from None
-        grouped.setdefault(name, {})[field_name] = value
+            raise _bad(option, str(exc)) from None
+    for name, values in grouped.items():
+        missing = [f.name for f in model.by_name[name].fields if f.name not in values]
+        if missing:
+            raise _bad(
+                option,
+                f"{name} has no value for {', '.join(missing)}: give each field"
+                f" ({option} {name} FIELD=VALUE, repeated)",
+            )
     return grouped
 
 
@@ -207,8 +266,13 @@ class _Printer:
         self.model = model
         self.output = output
         self.as_json = as_json
+        #: When the session opened: each line's time is counted from there.
         self.start = time.monotonic()
         self.last: dict[str, Mapping[str, Value]] = {}
+        #: Why standard output could not be written (its reader gone, a full disk): the command
+        #: then ends, as other commands do, and the error is reported once the session is closed.
+        self.failed: OSError | None = None
+        self.stopped = asyncio.Event()
 
     def watch(self, simulacrum: Simulacrum, name: str) -> None:
         simulacrum.listen(name, lambda values: self.show(name, values))
@@ -216,57 +280,70 @@ class _Printer:
     def show(self, name: str, values: Mapping[str, Value]) -> None:
         found = self.model.device(name)
         assert found is not None
-        if not found.kind.occurrence and self.last.get(name) == values:
+        if self.failed is not None or (not found.kind.occurrence and self.last.get(name) == values):
             return
         self.last[name] = values
+        try:
+            self._print(found, values)
+        except OSError as exc:  # called by the loop, which would only log it and go on
+            self.failed = exc
+            self.stopped.set()
+
+    def _print(self, found: Device, values: Mapping[str, Value]) -> None:
         elapsed = time.monotonic() - self.start
         if self.as_json:
-            document = {"t": round(elapsed, 3), "device": name, "kind": found.kind.value}
+            document = {"t": round(elapsed, 3), "device": found.name, "kind": found.kind.value}
             self.output.json_line({**document, "values": values_json(found.fields, values)})
             return
         self.output.live(
             [
                 (f"{elapsed:8.3f} ", "dim"),
-                (f"{name} ", "bold"),
+                (f"{found.name} ", "bold"),
                 (" ".join(values_text(found.fields, values)), ""),
             ]
         )
 
 
 async def _run(
-    simulacrum: Simulacrum, plan: _Plan, duration: float | None, output: Output, as_json: bool
+    simulacrum: Simulacrum, printer: _Printer, duration: float | None, output: Output
 ) -> int:
     target = f"{simulacrum.robot[0]}:{simulacrum.robot[1]}"
-    try:
-        opened = await simulacrum.open()
-    except NoSession as exc:
-        output.problem("local", f"{target}: {exc}")
-        return 1
-    except OSError as exc:
-        output.problem("local", f"{target}: {exc.strerror or exc}")
-        return 1
-    output.err.line(
-        [
-            ("session ", ""),
-            (f"{opened.session_id:012x}", "bold"),
-            (f" with {target}, T = {opened.period * 1000:g} ms", ""),
-        ]
-    )
-    printer = _Printer(simulacrum.model, output, as_json)
-    for name in plan.watches:
-        printer.watch(simulacrum, name)
-    plan.apply(simulacrum)
     with Interrupts() as interrupts:
-        if duration is None:
-            await interrupts.wait()
-        else:
-            await interrupts.race(asyncio.sleep(duration))
+        # A Ctrl-C while HELLO awaits its answer (3 s at most) lets the answer come, so that a
+        # session the robot opened gets its BYE; only a second one stops waiting.
+        try:
+            opened = await interrupts.race(simulacrum.open(), count=2)
+        except (NoSession, OSError) as exc:
+            reason = exc.strerror or exc if isinstance(exc, OSError) else exc
+            output.problem("local", f"{target}: {reason}")
+            return 1
+        if opened is None:
+            await simulacrum.aclose()
+            output.problem("local", f"{target}: stopped before the robot answered HELLO")
+            return 1
+        try:
+            printer.start = time.monotonic()
+            output.err.line(
+                [
+                    ("session ", ""),
+                    (f"{opened.session_id:012x}", "bold"),
+                    (f" with {target}, T = {opened.period * 1000:g} ms", ""),
+                ]
+            )
+            await interrupts.race(_until(printer.stopped, duration))
+        finally:
+            await simulacrum.aclose()
     ended = simulacrum.closed
-    await simulacrum.aclose()
     _summary(simulacrum, output)
     if isinstance(ended, events.SessionClosed) and ended.by_peer:
         output.notice(f"the robot ended the session: {ended.reason.name.lower()}")
     return 0
+
+
+async def _until(stopped: asyncio.Event, duration: float | None) -> None:
+    """Until `stopped` is set or `duration` seconds have passed (without it, until stopped)."""
+    with contextlib.suppress(TimeoutError):
+        await asyncio.wait_for(stopped.wait(), duration)
 
 
 def _summary(simulacrum: Simulacrum, output: Output) -> None:

@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import asyncio
-import json
 import logging
-import os
 import sys
 from pathlib import Path
 
@@ -15,7 +13,8 @@ from rcmlconf.cli.console import Output
 from rcmlconf.cli.interrupts import Interrupts
 from rcmlconf.cli.logs import log_lines
 from rcmlconf.cli.models import load_or_exit
-from rcmlconf.cli.rsp_options import ENCRYPTIONS, psk_option, read_psk
+from rcmlconf.cli.ready import write_ready
+from rcmlconf.cli.rsp_options import ENCRYPTIONS, host_only, psk_option, read_psk
 from rcmlconf.reference.faults import faults_named, names
 from rcmlconf.reference.rsp.robot import DEFAULT_PORT, ReferenceRobot, RobotSettings
 from rcmlconf.validate.validator import load_robot_model
@@ -23,7 +22,13 @@ from rcmlconf.validate.validator import load_robot_model
 
 @click.command()
 @click.argument("model_path", metavar="MODEL.rmodel", type=click.Path(path_type=Path))
-@click.option("--host", default="127.0.0.1", show_default=True, help="The address to listen on.")
+@click.option(
+    "--host",
+    default="127.0.0.1",
+    show_default=True,
+    callback=host_only,
+    help="The address to listen on.",
+)
 @click.option(
     "--port",
     type=click.IntRange(0, 65535),
@@ -78,7 +83,8 @@ def robot(
     gets BYE (reason 2, shutdown).
 
     \b
-    Exit status: 0 stopped by Ctrl-C or SIGTERM; 1 invalid model; 2 usage error or port in use.
+    Exit status: 0 stopped by Ctrl-C or SIGTERM; 1 invalid model; 2 usage error, unreadable
+      model, a port in use, or a ready file that cannot be written.
 
     \b
     Examples:
@@ -108,12 +114,13 @@ async def _run(robot: ReferenceRobot, output: Output, ready_file: Path | None) -
     host, port = robot.address
     output.err.line([("robot ", ""), (robot.model.name, "bold"), (f" on UDP {host}:{port}", "")])
     output.err.line([("Ctrl-C to stop", "dim")])
+    # Signals are caught before the ready file says so: a script may send one at once.
     with Interrupts() as interrupts:
+        ready = {"host": host, "port": port}
+        if ready_file is not None and not write_ready(output, "robot", ready_file, ready):
+            robot.stop()
+            return 2
         try:
-            if ready_file is not None:
-                partial = ready_file.with_name(ready_file.name + ".tmp")
-                partial.write_text(json.dumps({"host": host, "port": port}) + "\n")
-                os.replace(partial, ready_file)
             await interrupts.wait()
         finally:
             robot.stop()

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import json
 import os
 import sys
 from pathlib import Path
@@ -14,6 +13,7 @@ from rcmlconf.cli.console import Output
 from rcmlconf.cli.interrupts import Interrupts
 from rcmlconf.cli.logs import log_lines
 from rcmlconf.cli.models import load_or_exit
+from rcmlconf.cli.ready import write_ready
 from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
 from rcmlconf.rctp.url import DEFAULT_PORT, FILES_PORT_OFFSET, http_base
 from rcmlconf.reference.drivers import AUTO, DRIVERS, DriverError, choose_driver
@@ -205,14 +205,6 @@ def _banner(server: ReferenceServer, output: Output, url: str) -> None:
 
 
 def _ready(path: Path, server: ReferenceServer, url: str, output: Output) -> bool:
-    """Written whole, then renamed into place: a script polling for it never reads half."""
     base = _http_base(server)
     document = {"rctp": url, "data_port": server.data_port, "http": base and base + "/"}
-    partial = path.with_name(path.name + ".tmp")
-    try:
-        partial.write_text(json.dumps(document) + "\n", encoding="utf-8")
-        os.replace(partial, path)
-    except OSError as exc:
-        output.problem("serve", f"cannot write {path}: {exc.strerror or exc}")
-        return False
-    return True
+    return write_ready(output, "serve", path, document)
