@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import gc
 import sys
 from pathlib import Path
@@ -9,10 +10,15 @@ from pathlib import Path
 import click
 
 from rcmlconf.cli.console import Output
+from rcmlconf.conformance.files import shown
 from rcmlconf.markup.document import MAX_DOCUMENT_BYTES
 from rcmlconf.validate.languages import EXTENSIONS
 from rcmlconf.validate.report import summary_line, to_json
 from rcmlconf.validate.validator import DEFAULT_MAX_FINDINGS, FileReport, Validator
+from rcmlconf.wording import plural
+
+#: The argument, as click names it in a usage error.
+_PATHS = "'PATH...'"
 
 
 def _parse_map(
@@ -40,6 +46,30 @@ def _expand(paths: tuple[str, ...]) -> list[str]:
         else:
             files.append(name)
     return files
+
+
+def _files(paths: tuple[str, ...], allow_empty: bool) -> list[str]:
+    """The files to check (`_expand`), or the usage error that says why there is none to."""
+    if paths.count("-") > 1:
+        raise click.BadParameter("- is given twice: standard input is read once", param_hint=_PATHS)
+    files = _expand(paths)
+    if not files and not allow_empty:
+        # Only directories can hold nothing: a file or - given is always checked.
+        *others, last = (f"*{extension}" for extension in sorted(EXTENSIONS))
+        where = ", ".join(f"'{shown(path)}'" for path in paths)
+        raise click.BadParameter(
+            f"nothing to check: no {', '.join(others)} or {last} file below {where}"
+            " (--allow-empty accepts that)",
+            param_hint=_PATHS,
+        )
+    return files
+
+
+def _read_stdin() -> bytes:
+    """Standard input, one byte more than a document may hold: enough to tell one too large."""
+    if sys.stdin is None:  # started with standard input closed (`<&-`)
+        raise OSError(errno.EBADF, "standard input is closed")
+    return sys.stdin.buffer.read(MAX_DOCUMENT_BYTES + 1)
 
 
 @click.command()
@@ -77,6 +107,12 @@ def _expand(paths: tuple[str, ...]) -> list[str]:
     help="Stop checking a file after N findings (0: never). Bounds the time a hostile "
     "document takes; a file cut short is reported invalid.",
 )
+@click.option(
+    "--allow-empty",
+    is_flag=True,
+    help="Exit 0 when the directories given hold no file to check (else that is a usage error:"
+    " a mistyped directory would pass unnoticed).",
+)
 @click.option("-q", "--quiet", is_flag=True, help="Do not print the summary line on stderr.")
 def validate(
     paths: tuple[str, ...],
@@ -84,6 +120,7 @@ def validate(
     session_map: dict[str, Path],
     strict: bool,
     max_findings: int,
+    allow_empty: bool,
     quiet: bool,
 ) -> None:
     """Check RCML 2.0 (.rcml), RXID 2.0 (.rxid) and RSP robot model (.rmodel) documents.
@@ -101,7 +138,7 @@ def validate(
 
     \b
     Exit status: 0 all valid, 1 any invalid (or any warning with --strict),
-    2 usage error or unreadable file.
+    2 usage error (nothing to check, unless --allow-empty) or unreadable file.
 
     \b
     Examples:
@@ -113,20 +150,20 @@ def validate(
     # collector would only rescan them, again and again (a third of the time). The process is
     # short-lived and ours, so it runs without it.
     gc.disable()
+    files = _files(paths, allow_empty)
     output = Output()
     validator = Validator(session_map, max_findings)
     reports: list[FileReport] = []
-    unreadable = False
-    for name in _expand(paths):
+    unreadable = 0
+    for name in files:
         try:
             if name == "-":
-                data = sys.stdin.buffer.read(MAX_DOCUMENT_BYTES + 1)
-                report = validator.validate_bytes(data, "<stdin>")
+                report = validator.validate_bytes(_read_stdin(), "<stdin>")
             else:
                 report = validator.validate_file(Path(name))
         except OSError as exc:
-            output.failure(f"cannot read {name}: {exc.strerror or exc}")
-            unreadable = True
+            output.failure(f"cannot read {shown(name)}: {exc.strerror or exc}")
+            unreadable += 1
             continue
         reports.append(report)
         if output_format == "text":
@@ -136,5 +173,6 @@ def validate(
         output.json(to_json(reports))
     failed = any(not r.valid or (strict and r.warnings) for r in reports)
     if not quiet:
-        output.summary(summary_line(reports), ok=not failed and not unreadable)
+        cannot = f"; {plural(unreadable, 'file')} could not be read" if unreadable else ""
+        output.summary(summary_line(reports) + cannot, ok=not failed and not unreadable)
     sys.exit(2 if unreadable else 1 if failed else 0)

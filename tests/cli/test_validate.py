@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
@@ -98,9 +99,41 @@ def test_standard_input() -> None:
     assert done.stdout.startswith("<stdin>:2:7: error: [R-RCML-1]")
 
 
+def test_binary_standard_input_is_one_invalid_document() -> None:
+    done = subprocess.run(
+        [*COMMAND, "validate", "-"],
+        input=bytes(range(256)) * 64,
+        capture_output=True,
+        timeout=60,
+        check=False,
+    )
+    assert done.returncode == 1
+    assert done.stdout.decode().startswith("<stdin>:1:1: error: [R-XML-1]")
+    assert done.stderr == b"1 file checked: 1 invalid (1 error)\n"
+
+
+def test_closed_standard_input_cannot_be_read() -> None:
+    done = subprocess.run(
+        [*COMMAND, "validate", "-"],
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+        # The child starts with its descriptor 0 closed, as `rcmlconf validate - <&-`.
+        preexec_fn=lambda: os.close(0),
+    )
+    assert done.returncode == 2
+    assert done.stderr.splitlines() == [
+        "error: cannot read -: standard input is closed",
+        "0 files checked: all valid; 1 file could not be read",
+    ]
+
+
 @pytest.mark.parametrize(
     "args",
     [
+        ["validate", "-", "-"],
         ["validate", "no-such-file.rcml"],
         ["validate", "--frobnicate", "x"],
         ["validate"],
@@ -116,6 +149,37 @@ def test_usage_errors_exit_2(args: list[str]) -> None:
     assert "Error" in done.stderr
 
 
+def test_a_directory_with_nothing_to_check_is_a_usage_error(tmp_path: Path) -> None:
+    (tmp_path / "notes.txt").write_text("not a document")
+    (tmp_path / "sub.rcml").mkdir()  # a directory, whatever its name
+    done = run("validate", str(tmp_path))
+    assert done.returncode == 2
+    assert done.stdout == ""
+    assert done.stderr.splitlines()[-1] == (
+        "Error: Invalid value for 'PATH...': nothing to check: no *.rcml, *.rmodel or *.rxid"
+        f" file below '{tmp_path}' (--allow-empty accepts that)"
+    )
+    assert "0 files checked" not in done.stderr
+
+
+def test_allow_empty_accepts_nothing_to_check(tmp_path: Path) -> None:
+    done = run("validate", "--allow-empty", str(tmp_path))
+    assert done.returncode == 0
+    assert done.stderr == "0 files checked: all valid\n"
+    report = json.loads(run("validate", "--allow-empty", "--format", "json", str(tmp_path)).stdout)
+    assert report["summary"]["files"] == 0
+
+
+def test_a_weird_name_is_shown_on_one_line(tmp_path: Path) -> None:
+    weird = tmp_path / "new\nline"
+    weird.mkdir()
+    done = run("validate", str(weird))
+    assert done.returncode == 2
+    assert done.stderr.splitlines()[-1].endswith(
+        f"file below '{tmp_path}/new\\nline' (--allow-empty accepts that)"
+    )
+
+
 @pytest.mark.skipif(not Path("/proc/self/mem").exists(), reason="needs Linux /proc")
 def test_unreadable_files_exit_2_and_the_others_are_still_checked() -> None:
     # Reading /proc/self/mem at offset 0 fails with EIO, for root too.
@@ -123,6 +187,17 @@ def test_unreadable_files_exit_2_and_the_others_are_still_checked() -> None:
     assert done.returncode == 2
     assert "error: cannot read /proc/self/mem" in done.stderr
     assert "[R-RCML-1]" in done.stdout
+
+
+@pytest.mark.skipif(not Path("/proc/self/mem").exists(), reason="needs Linux /proc")
+def test_an_unreadable_file_with_a_weird_name_is_one_line(tmp_path: Path) -> None:
+    weird = tmp_path / "new\nline.rcml"
+    weird.symlink_to("/proc/self/mem")
+    done = run("validate", str(weird))
+    assert done.returncode == 2
+    assert done.stderr.splitlines()[0] == (
+        f"error: cannot read {tmp_path}/new\\nline.rcml: Input/output error"
+    )
 
 
 def test_warnings_pass_unless_strict() -> None:
@@ -146,8 +221,10 @@ def test_map_lets_a_url_session_be_checked() -> None:
 
 def test_help_teaches() -> None:
     done = run("validate", "--help")
-    for words in ("RULE-ID", "--map", "Exit status", "never fetched", "Examples"):
+    for words in ("RULE-ID", "--map", "Exit status", "never fetched", "Examples", "--allow-empty"):
         assert words in done.stdout
+    # Every language's files are searched in a directory, and the help says which.
+    assert "*.rcml, *.rxid and *.rmodel" in " ".join(done.stdout.split())
     top = run("--help")
     assert "validate" in top.stdout
     assert top.returncode == 0
