@@ -5,8 +5,12 @@ its 10 s timeout (D-RSP-12, R-RSP-22). Real processes on 127.0.0.1, as a user ru
 from __future__ import annotations
 
 import re
+import select
 import signal
+import socket
 import subprocess
+import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -37,8 +41,12 @@ def _local(robot: dict[str, object], *args: str) -> subprocess.CompletedProcess[
 
 def _driving(robot: dict[str, object]) -> subprocess.Popen[str]:
     """`rcmlconf local` driving the robot until stopped, its output read as it comes."""
+    return _started(robot["port"], *DRIVE)
+
+
+def _started(port: object, *args: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
-        [*COMMAND, "local", MODEL, "--robot", f"127.0.0.1:{robot['port']}", *DRIVE],
+        [*COMMAND, "local", MODEL, "--robot", f"127.0.0.1:{port}", *args],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -140,6 +148,57 @@ def test_ctrl_c_ends_the_session_with_bye(tmp_path: Path) -> None:
         assert local.returncode == 0, err
         out = _free_then_stop(robot)
     assert out.count("session ended by the local system: closed") == 2, out
+
+
+def test_ctrl_c_while_hello_awaits_its_answer_still_ends_the_session(tmp_path: Path) -> None:
+    # The robot opens a session at HELLO; a local system that quit before WELCOME came would
+    # leave it busy for 10 s. A relay holds the HELLO until Ctrl-C was sent.
+    with running(tmp_path, "robot", "--port", "0", "-v", MODEL) as robot:
+        robot_address = ("127.0.0.1", int(str(robot.ready["port"])))
+        with (
+            socket.socket(type=socket.SOCK_DGRAM) as front,
+            socket.socket(type=socket.SOCK_DGRAM) as back,
+        ):
+            front.bind(("127.0.0.1", 0))
+            front.settimeout(BOUND)
+            local = _started(front.getsockname()[1])
+            hello, local_system = front.recvfrom(65535)
+            local.send_signal(signal.SIGINT)
+            # For the signal to be taken first (were it not, the test would show nothing).
+            time.sleep(0.3)
+            back.sendto(hello, robot_address)
+            stop = threading.Event()
+            relay = threading.Thread(
+                target=_relay, args=(front, back, robot_address, local_system, stop)
+            )
+            relay.start()
+            try:
+                _, err = local.communicate(timeout=BOUND)
+            finally:
+                stop.set()
+                relay.join(timeout=BOUND)
+        assert local.returncode == 0, err
+        assert HEX_SESSION.search(err), err
+        out = _free_then_stop(robot)
+    assert out.count("session ended by the local system: closed") == 2, out
+
+
+def _relay(
+    front: socket.socket,
+    back: socket.socket,
+    robot: tuple[str, int],
+    local: tuple[str, int],
+    stop: threading.Event,
+) -> None:
+    """Datagrams from the local system (to `front`) on to the robot, and the robot's back."""
+    while not stop.is_set():
+        ready, _, _ = select.select([front, back], [], [], 0.05)
+        for sock in ready:
+            data = sock.recv(65535)
+            if sock is front:
+                back.sendto(data, robot)
+            else:
+                front.sendto(data, local)
 
 
 def test_robot_v_prints_readable_lines_and_the_session_id_local_prints(tmp_path: Path) -> None:
