@@ -7,31 +7,44 @@ from typing import TypeVar
 
 import click
 
+from rcmlconf.cli.client.inputs import check_path, check_rcml
 from rcmlconf.cli.client.live import plan_acquire
 from rcmlconf.cli.client.requests import plan_read, plan_write
 from rcmlconf.cli.client.running import Options, run, run_without_model
 from rcmlconf.cli.client.stream import plan_stream
 from rcmlconf.cli.client.watch import plan_watch
 from rcmlconf.cli.console import Output
+from rcmlconf.cli.params import DAY, seconds
 from rcmlconf.errors import ValueTextError
 from rcmlconf.rcml.paths import parse_node_path, parse_tree_path
 
-_SECONDS = click.FloatRange(min=0, min_open=True)
+#: --hold and --duration: a longer run is open-ended (leave the option out, stop with Ctrl-C).
+_RUN = seconds(DAY)
+#: --timeout: an answer that takes longer than an hour is not coming; Ctrl-C ends the wait.
+_TIMEOUT = seconds(3600.0)
 _P = TypeVar("_P", str, tuple[str, ...])
 
 
 def _paths(parse: Callable[[str], str]) -> Callable[[click.Context, click.Parameter, _P], _P]:
-    """A click callback that checks a path, or each of several, with `parse` (D-RCML-3)."""
+    """A click callback that checks a path, or each of several, with `parse` (D-RCML-3), and
+    that it fits in a request (D-RCTP-9)."""
 
     def check(ctx: click.Context, param: click.Parameter, value: _P) -> _P:
         try:
             if isinstance(value, str):
-                return parse(value)
-            return tuple(parse(path) for path in value)
+                return check_path(value, parse)
+            return tuple(check_path(path, parse) for path in value)
         except ValueTextError as exc:
             raise click.BadParameter(str(exc)) from None
 
     return check
+
+
+def _rcml(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
+    try:
+        return None if value is None else check_rcml(value)
+    except ValueTextError as exc:
+        raise click.BadParameter(str(exc)) from None
 
 
 _node_path = _paths(parse_node_path)
@@ -44,16 +57,18 @@ _tree_path = _paths(parse_tree_path)
 @click.option(
     "--rcml",
     metavar="PATH_OR_URL",
+    callback=_rcml,
     help="The robot's RCML file, or its http(s) URL. Default: the one RCML file listed at "
     "http://HOST:PORT+1/, where the reference server serves the robot's files.",
 )
 @click.option(
     "--timeout",
-    type=_SECONDS,
+    type=_TIMEOUT,
     default=5.0,
     show_default=True,
     metavar="S",
-    help="Seconds to wait for the connection, each answer, and the RCML.",
+    help="Seconds to wait for the connection, each answer, and the RCML; at most an hour (a"
+    " server that has not answered by then is not going to).",
 )
 @click.option(
     "--format",
@@ -73,6 +88,10 @@ def client(
     such as 1.5, -2E3, INF or NaN, true/false, bytes in hexadecimal, an array's items
     separated by commas. The robot's RCML gives each node its type: pass it with --rcml, or
     let the client fetch it from the reference server's files.
+
+    URL is at most 4,096 characters, and its path at most 4,079 bytes percent-encoded: CONNECT
+    sends the path in a start line of at most 4,096 bytes (D-RCTP-9). Each segment of the path
+    decodes to an XML Name (D-RCTP-7), and the host is an IP address or a DNS name.
 
     \b
     Exit status: 0 done;
@@ -136,9 +155,9 @@ def write(options: Options, path: str, values: tuple[str, ...], acquire: bool) -
 @click.argument("path", callback=_tree_path)
 @click.option(
     "--hold",
-    type=_SECONDS,
+    type=_RUN,
     metavar="SECONDS",
-    help="Release after this many seconds. Default: hold until Ctrl-C.",
+    help="Release after this many seconds, at most a day. Default: hold until Ctrl-C.",
 )
 @click.pass_obj
 def acquire(options: Options, path: str, hold: float | None) -> None:
@@ -163,9 +182,9 @@ def acquire(options: Options, path: str, hold: float | None) -> None:
 )
 @click.option(
     "--duration",
-    type=_SECONDS,
+    type=_RUN,
     metavar="S",
-    help="Stop after S seconds. Default: run until Ctrl-C.",
+    help="Stop after S seconds, at most a day. Default: run until Ctrl-C.",
 )
 @click.option(
     "--set",
@@ -198,9 +217,9 @@ def stream(
 @click.argument("paths", nargs=-1, callback=_node_path, metavar="[PATH...]")
 @click.option(
     "--duration",
-    type=_SECONDS,
+    type=_RUN,
     metavar="S",
-    help="Stop after S seconds. Default: run until Ctrl-C or the server's BYE.",
+    help="Stop after S seconds, at most a day. Default: run until Ctrl-C or the server's BYE.",
 )
 @click.pass_obj
 def watch(options: Options, paths: tuple[str, ...], duration: float | None) -> None:

@@ -15,6 +15,7 @@ from html.parser import HTMLParser
 from pathlib import Path
 from urllib.parse import urljoin, urlsplit
 
+from rcmlconf.cli.client.inputs import is_http_url
 from rcmlconf.errors import RcmlconfError
 from rcmlconf.markup.document import MAX_DOCUMENT_BYTES
 from rcmlconf.rcml.model import RcmlDocument
@@ -33,7 +34,7 @@ def load_model(url: RctpUrl, rcml: str | None, timeout: float) -> RcmlDocument:
     """The model `--rcml` names, or the one the robot's files index links to."""
     if rcml is None:
         return _from_index(url, timeout)
-    if urlsplit(rcml).scheme.lower() in ("http", "https"):
+    if is_http_url(rcml):
         return _from_url(rcml, timeout)
     try:
         return load_robot(Path(rcml))
@@ -49,10 +50,19 @@ def _from_index(url: RctpUrl, timeout: float) -> RcmlDocument:
         raise NoModel(f"{exc}; {_HINT}") from None
     links = _Links()
     links.feed(page.decode("utf-8", "replace"))
-    found = sorted({urljoin(index, h) for h in links.hrefs if urlsplit(h).path.endswith(".rcml")})
+    found = sorted({link for href in links.hrefs if (link := _rcml_link(index, href))})
     if len(found) != 1:
         raise NoModel(f"{index} links to {plural(len(found), 'RCML file')}, not one; {_HINT}")
     return _from_url(found[0], timeout)
+
+
+def _rcml_link(index: str, href: str) -> str | None:
+    """The URL an index's link names, if it is an RCML file's; a link that is no URL is none."""
+    try:
+        url = urljoin(index, href)
+        return url if urlsplit(url).path.endswith(".rcml") else None
+    except ValueError:  # `http://[::1`: the page is the server's, not to be trusted
+        return None
 
 
 def _from_url(url: str, timeout: float) -> RcmlDocument:

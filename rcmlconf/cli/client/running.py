@@ -16,15 +16,18 @@ from typing import Any, NoReturn
 
 import click
 
+from rcmlconf.cli.client.inputs import check_url
 from rcmlconf.cli.client.robot import NoModel, load_model
 from rcmlconf.cli.console import Output
 from rcmlconf.errors import ValueTextError
 from rcmlconf.rcml.model import RcmlDocument
-from rcmlconf.rctp.url import RctpUrl, parse_rctp_url
+from rcmlconf.rctp.url import RctpUrl
 from rcmlconf.reference.client.adapter import Client, RctpError
 
 #: What a command does in its session; its exit status.
 Work = Callable[[Client], Awaitable[int]]
+#: R-RCTP-23: the side that sends BYE closes the connection after 5 seconds without an answer.
+BYE_WAIT = 5.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -70,7 +73,7 @@ def _finish(output: Output, start: Callable[[], Coroutine[Any, Any, int]]) -> No
 
 def _url(options: Options) -> RctpUrl:
     try:
-        return parse_rctp_url(options.url)
+        return check_url(options.url)
     except ValueTextError as exc:
         raise click.BadParameter(str(exc), param_hint="'URL'") from None
 
@@ -80,4 +83,4 @@ async def _session(url: RctpUrl, options: Options, model: RcmlDocument | None, w
     try:
         return await work(client)
     finally:
-        await client.close(options.timeout)
+        await client.close(min(options.timeout, BYE_WAIT))

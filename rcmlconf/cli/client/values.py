@@ -9,7 +9,6 @@ shows every value exactly.
 from __future__ import annotations
 
 import math
-import struct
 from collections.abc import Iterable, Mapping, Sequence
 
 from rcmlconf.errors import ValueTextError
@@ -25,7 +24,7 @@ from rcmlconf.values import (
     parse_value_text,
 )
 
-_FLOAT32 = struct.Struct(">f")
+_LONGEST_REASON = 200
 #: C0 and C1 controls and DEL: a robot's string must not move the terminal's cursor or change
 #: its colours, so these are shown escaped (`\x1b`).
 _CONTROLS = {c: f"\\x{c:02x}" for c in (*range(0x20), *range(0x7F, 0xA0))}
@@ -50,7 +49,15 @@ def parse_typed_value(vtype: ValueType, text: str, where: str) -> Value:
             items = [item.strip(" ") for item in items]
         return tuple(parse_value_text(vtype.base, item, vtype.size) for item in items)
     except ValueTextError as exc:
-        raise ValueTextError(f"{where} ({vtype}): {exc}") from None
+        raise ValueTextError(f"{where} ({vtype}): {_one_line(str(exc))}") from None
+
+
+def _one_line(reason: str) -> str:
+    """A reason that quotes a long value, with the value's middle left out: the error names the
+    value and says what is wrong with it on one line a person can read."""
+    if len(reason) <= _LONGEST_REASON:
+        return reason
+    return f"{reason[: _LONGEST_REASON // 2]} ... {reason[-_LONGEST_REASON // 2 :]}"
 
 
 def parse_assignments(access: AccessNode, texts: Sequence[str]) -> dict[str, Value]:

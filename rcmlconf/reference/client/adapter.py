@@ -33,6 +33,7 @@ from rcmlconf.rctp.datastream.clock import ClockEstimate
 from rcmlconf.rctp.datastream.endpoint import Address
 from rcmlconf.rctp.fields import Transport, format_nodes, parse_nodes
 from rcmlconf.rctp.messages import Request, Response
+from rcmlconf.rctp.targets import parse_target
 from rcmlconf.rctp.url import RctpUrl, parse_rctp_url
 from rcmlconf.reference.client.session import (
     Answered,
@@ -62,7 +63,7 @@ class RctpError(RcmlconfError):
         """An error response, with its text body (D-RCTP-8: error responses may explain)."""
         answer = f"{request.method} {request.target}: {response.status} {response.reason}"
         text = response.body.decode("utf-8", "replace").strip()
-        if text and (response.headers.get("Content-Type") or "").startswith("text/"):
+        if text and (response.headers.get("Content-Type") or "").lower().startswith("text/"):
             answer += f": {text}"
         return cls(answer, response)
 
@@ -115,6 +116,10 @@ class Client:
     ) -> Self:
         """Open the control connection and the session (CONNECT)."""
         parsed = parse_rctp_url(url) if isinstance(url, str) else url
+        try:  # the URL's path is percent-encoded; `request` takes it decoded (D-RCTP-3, D-RCTP-7)
+            site = parse_target(parsed.path).path
+        except ValueTextError as exc:
+            raise RctpError(f"{parsed}: the path is not a site path: {exc}") from None
         loop = asyncio.get_running_loop()
         session = ClientSession(
             model,
@@ -137,9 +142,7 @@ class Client:
         transport.get_extra_info("socket").setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         client._transport = transport
         try:
-            await client.request(
-                "CONNECT", parsed.path, [("User-Agent", USER_AGENT)], timeout=timeout
-            )
+            await client.request("CONNECT", site, [("User-Agent", USER_AGENT)], timeout=timeout)
         except BaseException:
             client._abort()
             raise
