@@ -14,6 +14,9 @@ from rcmlconf.cli.console import Output
 def write_ready(output: Output, command: str, path: Path, document: object) -> bool:
     """`document` written to `path` whole, then renamed into place, so that a script polling for
     the file never reads half of it; else one line naming --ready-file and False."""
+    if not path.name:  # `--ready-file ''` is `.` to click, a directory's name
+        output.problem(command, f"--ready-file {str(path)!r}: not a file's name")
+        return False
     partial = path.with_name(path.name + ".tmp")
     try:
         partial.write_text(json.dumps(document) + "\n", encoding="utf-8")

@@ -71,13 +71,14 @@ def _free_then_stop(robot: Running) -> str:
 def test_a_ready_file_that_cannot_be_written_is_one_line() -> None:
     # robot wrote it unguarded (an internal error); serve and robot now share one writer.
     for command, *args in (("robot", MODEL), ("serve", str(CAMERA), "--no-http")):
-        done = run_command(command, *args, "--port", "0", "--ready-file", "/nonexistent/d/r.json")
-        assert done.returncode == 2, done.stderr
-        assert (
-            f"rcmlconf {command}: --ready-file /nonexistent/d/r.json: cannot write it:"
-            " No such file or directory" in done.stderr
-        )
-        assert "bug in rcmlconf" not in done.stderr
+        for path, why in (
+            ("/nonexistent/d/r.json", "/nonexistent/d/r.json: cannot write it: No such file"),
+            ("", "'.': not a file's name"),
+        ):
+            done = run_command(command, *args, "--port", "0", "--ready-file", path)
+            assert done.returncode == 2, done.stderr
+            assert f"rcmlconf {command}: --ready-file {why}" in done.stderr
+            assert "bug in rcmlconf" not in done.stderr
 
 
 def test_period_and_duration_refuse_nan_infinities_and_what_is_out_of_range() -> None:
