@@ -9,8 +9,7 @@ from pathlib import Path
 
 import click
 
-from rcmlconf.cli.console import Output
-from rcmlconf.conformance.files import shown
+from rcmlconf.cli.console import Output, printable
 from rcmlconf.markup.document import MAX_DOCUMENT_BYTES
 from rcmlconf.validate.languages import EXTENSIONS
 from rcmlconf.validate.report import summary_line, to_json
@@ -56,7 +55,8 @@ def _files(paths: tuple[str, ...], allow_empty: bool) -> list[str]:
     if not files and not allow_empty:
         # Only directories can hold nothing: a file or - given is always checked.
         *others, last = (f"*{extension}" for extension in sorted(EXTENSIONS))
-        where = ", ".join(f"'{shown(path)}'" for path in paths)
+        # click's message does not go through Output: the names are made printable here.
+        where = ", ".join(f"'{printable(path)}'" for path in paths)
         raise click.BadParameter(
             f"nothing to check: no {', '.join(others)} or {last} file below {where}"
             " (--allow-empty accepts that)",
@@ -162,7 +162,7 @@ def validate(
             else:
                 report = validator.validate_file(Path(name))
         except OSError as exc:
-            output.failure(f"cannot read {shown(name)}: {exc.strerror or exc}")
+            output.failure(f"cannot read {name}: {exc.strerror or exc}")
             unreadable += 1
             continue
         reports.append(report)
