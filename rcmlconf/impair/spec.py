@@ -10,8 +10,12 @@ units in any case)::
            | time        (delay, jitter, gap)
            | number      (burst)
     probability = number "%" | number          ; "5%" and "0.05" are the same; 0..1
-    time        = number ("ms" | "s" | "us") | "0"
+    time        = number ("ms" | "s" | "us") | "0"   ; 0 to 10 s (MOST_TIME)
     number      = digits ["." digits] [("e" | "E") ["+" | "-"] digits]
+
+Every number is finite and in its range: a probability 0..1 (0% to 100%), a time 0 to 10 s, burst
+1 to 1,000 datagrams. A longer delay is no impaired path but a broken one, and a test under it
+only waits; a mean burst of more than 1,000 losses is an outage (`loss=100%`).
 
 `str(impairment)` gives the canonical spec back: the keys above in that order, only those that are
 not at their default, probabilities in percent and times in milliseconds whenever that reads back
@@ -30,7 +34,15 @@ from dataclasses import dataclass, fields
 
 from rcmlconf.errors import RcmlconfError
 
-__all__ = ["DEFAULT_GAP", "KEYS", "Impairment", "ImpairmentError", "parse_impairment"]
+__all__ = [
+    "DEFAULT_GAP",
+    "KEYS",
+    "MOST_BURST",
+    "MOST_TIME",
+    "Impairment",
+    "ImpairmentError",
+    "parse_impairment",
+]
 
 #: The keys of a spec, in canonical order.
 KEYS = ("loss", "burst", "delay", "jitter", "reorder", "gap", "duplicate", "corrupt")
@@ -38,6 +50,9 @@ _PROBABILITIES = frozenset({"loss", "reorder", "duplicate", "corrupt"})
 _TIMES = frozenset({"delay", "jitter", "gap"})
 #: A held-back datagram waits at least this much longer when `gap` is not given.
 DEFAULT_GAP = 0.010
+#: The longest delay, jitter or gap (seconds), and the longest mean burst (datagrams).
+MOST_TIME = 10.0
+MOST_BURST = 1000.0
 
 _NUMBER = re.compile(r"([+-]?)((?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:e[+-]?[0-9]+)?)(.*)", re.I)
 _TIME_UNITS = {"s": 1.0, "ms": 1e3, "us": 1e6, "µs": 1e6}
@@ -84,7 +99,8 @@ class Impairment:
     - `gap`: how long a held-back datagram waits beyond its delay. When not given:
       max(delay + jitter, 10 ms) (`reorder_gap`).
 
-    Probabilities are in 0..1, times in seconds, all finite. An invalid one raises
+    Probabilities are in 0..1, times in seconds up to MOST_TIME, burst 1 to MOST_BURST, all
+    finite. An invalid one raises
     `ImpairmentError` (with no column: the spec's parser gives columns).
     """
 
@@ -196,7 +212,10 @@ def _parse_value(key: str, text: str, column: int) -> float:
             raise ImpairmentError(f"unknown unit {suffix!r} for {key}: use ms, s or us", column)
         if sign == "-" and number != 0:
             raise ImpairmentError(f"{key}={text} is a negative time", column)
-        return number / _TIME_UNITS[suffix] if suffix else 0.0
+        seconds = number / _TIME_UNITS[suffix] if suffix else 0.0
+        if seconds > MOST_TIME:
+            raise ImpairmentError(f"{key}={text} is {_too_long(key)}", column)
+        return seconds
     if key in _PROBABILITIES:
         if suffix not in ("", "%"):
             raise ImpairmentError(
@@ -230,19 +249,30 @@ def _check(key: str, value: float) -> str | None:
         return f"{key}={value} is not a probability in 0..1"
     if key in _TIMES and value < 0:
         return f"{key}={value}s is a negative time"
-    if key == "burst" and value < 1:
-        return f"burst={_number(value)} is not a mean burst length: it is at least 1 datagram"
+    if key in _TIMES and value > MOST_TIME:
+        return f"{key}={_number(value)}s is {_too_long(key)}"
+    if key == "burst" and not 1 <= value <= MOST_BURST:
+        return (
+            f"burst={_number(value)} is not a mean burst length: it is at least 1 datagram and"
+            f" at most {MOST_BURST:,.0f}"
+        )
     return None
+
+
+def _too_long(key: str) -> str:
+    return f"longer than {key} may be: a delay, jitter or gap is 0 to {MOST_TIME:g} s"
 
 
 def _check_burst(loss: float, burst: float | None) -> str | None:
     """Why a Gilbert model cannot have this loss rate and mean burst, or None when it can."""
     if burst is None or loss >= 1.0 or loss <= burst / (1.0 + burst):
         return None
+    needed = loss / (1 - loss)
+    beyond = f", more than burst may be ({MOST_BURST:,.0f})" if needed > MOST_BURST else ""
     return (
         f"loss={loss * 100:.6g}% with burst={_number(burst)} is impossible: a mean burst of "
         f"{_number(burst)} allows at most {burst / (1 + burst) * 100:.4g}% loss, and "
-        f"loss={loss * 100:.6g}% needs burst={loss / (1 - loss):.4g} or more"
+        f"loss={loss * 100:.6g}% needs burst={needed:.4g} or more{beyond}"
     )
 
 

@@ -9,7 +9,14 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from rcmlconf.errors import RcmlconfError
-from rcmlconf.impair.spec import KEYS, Impairment, ImpairmentError, parse_impairment
+from rcmlconf.impair.spec import (
+    KEYS,
+    MOST_BURST,
+    MOST_TIME,
+    Impairment,
+    ImpairmentError,
+    parse_impairment,
+)
 
 FULL = "loss=5%,burst=3,delay=40ms,jitter=10ms,reorder=2%,duplicate=1%,corrupt=0.1%"
 
@@ -104,6 +111,11 @@ ERRORS = [
     ("delay=5m", 7, ["unknown unit 'm'"]),
     ("delay=1e400s", 7, ["too large"]),
     ("burst=0.5", 7, ["at least 1"]),
+    ("burst=1001,loss=1%", 7, ["at most 1,000"]),
+    ("delay=1e9ms", 7, ["delay=1e9ms is longer than delay may be", "0 to 10 s"]),
+    ("jitter=10.001s", 8, ["jitter=10.001s is longer", "0 to 10 s"]),
+    ("loss=1%,gap=10001ms", 13, ["gap=10001ms is longer"]),
+    ("loss=99.95%,burst=1000", 19, ["needs burst=1999 or more, more than burst may be (1,000)"]),
     ("burst=3ms", 7, ["without a unit"]),
     ("loss=60%,burst=1", 16, ["impossible", "at most 50% loss", "burst=1.5 or more"]),
     ("loss=5%,,delay=1ms", 9, ["empty item"]),
@@ -136,6 +148,10 @@ def test_errors_say_where_and_why(text: str, column: int, words: list[str]) -> N
         {"jitter": math.inf},
         {"gap": math.nan},
         {"burst": 0.0},
+        {"burst": 1e4},
+        {"delay": 10.5},
+        {"jitter": 1e9},
+        {"gap": 11.0},
         {"loss": 0.9, "burst": 2.0},
     ],
 )
@@ -146,16 +162,16 @@ def test_an_impairment_built_directly_is_checked_too(kwargs: dict[str, float]) -
 
 
 probabilities = st.floats(0.0, 1.0, allow_nan=False) | st.sampled_from([0.0, 0.01, 0.05, 1.0])
-times = st.floats(0.0, 1e6, allow_nan=False) | st.sampled_from([0.0, 0.001, 0.04, 5e-324])
+times = st.floats(0.0, MOST_TIME) | st.sampled_from([0.0, 0.001, 0.04, 5e-324, MOST_TIME])
 
 
 @st.composite
 def impairments(draw: st.DrawFn) -> Impairment:
     loss = draw(probabilities)
     burst = None
-    if draw(st.booleans()):
-        least = max(1.0, loss / (1.0 - loss)) if loss < 1.0 else 1.0
-        burst = draw(st.floats(least, max(least, 1e4), allow_nan=False))
+    least = max(1.0, loss / (1.0 - loss)) if loss < 1.0 else 1.0
+    if least <= MOST_BURST and draw(st.booleans()):
+        burst = draw(st.floats(least, MOST_BURST))
     return Impairment(
         loss=loss,
         burst=burst,
