@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 
 import click
 
 from rcmlconf.cli.console import Output
 from rcmlconf.conformance.coverage import matrix, unknown_requirements
+from rcmlconf.conformance.files import one_line
 from rcmlconf.conformance.registry import Case, all_cases, select
 from rcmlconf.specs import requirements
-from rcmlconf.wording import plural
+from rcmlconf.wording import plural, shorten
 
 
 @click.command()
@@ -21,7 +22,9 @@ from rcmlconf.wording import plural
     is_flag=True,
     help="Every MUST and SHOULD of specs/ with the cases covering it; the uncovered last.",
 )
-@click.option("--only", multiple=True, metavar="GLOB", help="Cases whose ID matches.")
+@click.option(
+    "--only", multiple=True, metavar="GLOB", help="Cases whose ID matches (* ? [seq] [!seq])."
+)
 @click.option(
     "--format",
     "output_format",
@@ -30,14 +33,18 @@ from rcmlconf.wording import plural
     show_default=True,
 )
 @click.option(
-    "--strict", is_flag=True, help="With --matrix: exit 1 if a MUST has no case and no check."
+    "--strict",
+    is_flag=True,
+    help="With --matrix: exit 1 if a MUST has no case and no check, and specs/ does not say no"
+    " case can check it (unobservable).",
 )
 def cases(show_matrix: bool, only: tuple[str, ...], output_format: str, strict: bool) -> None:
     """List the conformance cases (ID, requirements, role, purpose), or with --matrix the
     requirements of specs/ and the cases that check each.
 
     A requirement on files (an RCML, RXID or robot-model rule) is checked by `rcmlconf
-    validate`, not by a case: the matrix says "validate" for it.
+    validate`, not by a case: the matrix says "validate" for it. One that no black-box case can
+    check (what a browser shows) is tagged so in specs/ with the reason, which the matrix shows.
 
     \b
     Examples:
@@ -46,7 +53,7 @@ def cases(show_matrix: bool, only: tuple[str, ...], output_format: str, strict: 
       rcmlconf cases --matrix --format json > coverage.json
     """
     output = Output()
-    chosen = select(all_cases().values(), only)
+    chosen = chosen_cases(all_cases().values(), only)
     texts = requirements()
     unknown = unknown_requirements(chosen, texts)
     for requirement, naming in sorted(unknown.items()):
@@ -72,7 +79,8 @@ def cases(show_matrix: bool, only: tuple[str, ...], output_format: str, strict: 
             list_cases(output, chosen)
         sys.exit(1 if unknown else 0)
     rows = matrix(chosen, texts)
-    uncovered = [r for r in rows if not r.covered]
+    uncovered = [r for r in rows if r.missing]
+    unobservable = [r for r in rows if not r.covered and not r.missing]
     if output_format == "json":
         output.json(
             [
@@ -82,14 +90,17 @@ def cases(show_matrix: bool, only: tuple[str, ...], output_format: str, strict: 
                     "document": r.requirement.document,
                     "cases": list(r.cases),
                     "validate": r.by_validator,
+                    "unobservable": r.unobservable,
                 }
                 for r in rows
             ]
         )
     else:
-        for row in sorted(rows, key=lambda r: not r.covered):
+        for row in sorted(rows, key=lambda r: (r.missing, not r.covered)):
             covering = ", ".join(row.cases) or ("validate" if row.by_validator else "UNCOVERED")
-            style = "" if row.covered else "bold red"
+            if not row.covered and not row.missing:
+                covering = f"unobservable: {row.unobservable}"
+            style = "bold red" if row.missing else "" if row.covered else "dim"
             output.out.line(
                 [
                     (f"{row.requirement.id:<12}", "bold"),
@@ -98,12 +109,54 @@ def cases(show_matrix: bool, only: tuple[str, ...], output_format: str, strict: 
                 ]
             )
     must = [r for r in uncovered if r.requirement.mandatory]
+    covered = len(rows) - len(uncovered) - len(unobservable)
     output.summary(
-        f"{len(rows)} requirements: {len(rows) - len(uncovered)} covered, "
-        f"{len(uncovered)} uncovered ({len(must)} of them MUST)",
+        f"{len(rows)} requirements: {covered} covered, {len(unobservable)} unobservable by a"
+        f" case (specs/ says why), {len(uncovered)} uncovered ({len(must)} of them MUST)",
         not uncovered,
     )
     sys.exit(1 if unknown or (strict and must) else 0)
+
+
+def chosen_cases(
+    found: Iterable[Case], only: Sequence[str], skip: Sequence[str] = ()
+) -> list[Case]:
+    """The cases --only and --skip choose (`cases` and `run` alike). A glob that is none (`[`
+    without `]`: fnmatch would take it as the character, which no ID has) and a choice of no case
+    are usage errors, status 2."""
+    for option, globs in (("--only", only), ("--skip", skip)):
+        for glob in globs:
+            problem = glob_problem(glob)
+            if problem is not None:
+                raise click.BadParameter(
+                    f"'{one_line(shorten(glob, 80))}' is not a glob: {problem}",
+                    param_hint=f"'{option}'",
+                )
+    chosen = select(found, only, skip)
+    if not chosen:
+        given = " ".join(
+            f"{o} '{one_line(shorten(g, 80))}'"
+            for o, gs in (("--only", only), ("--skip", skip))
+            for g in gs
+        )
+        raise click.UsageError(f"no case matches {given} (`rcmlconf cases` lists them)")
+    return chosen
+
+
+def glob_problem(glob: str) -> str | None:
+    """Why `glob` is no glob of fnmatch (a set opened and never closed), or None."""
+    at = 0
+    while at < len(glob):
+        if glob[at] == "[":
+            end = at + 1
+            end += glob.startswith("!", end)
+            end += glob.startswith("]", end)  # `[]]` and `[!]]`: a ] first is in the set
+            close = glob.find("]", end)
+            if close < 0:
+                return f"the [ at character {at + 1} opens a set that no ] closes"
+            at = close
+        at += 1
+    return None
 
 
 def list_cases(output: Output, chosen: Sequence[Case]) -> None:

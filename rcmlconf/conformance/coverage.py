@@ -1,6 +1,7 @@
 """Which cases check which requirement (`rcmlconf cases --matrix`): every MUST and SHOULD of
 specs/ with the cases naming it, or the validator's checks where a file rule is enforced by
-`rcmlconf validate` rather than at run time (specs/README.md, "Reading a requirement")."""
+`rcmlconf validate` rather than at run time, or why no black-box case can check it where specs/
+tags it `unobservable` (specs/README.md, "Reading a requirement")."""
 
 from __future__ import annotations
 
@@ -14,6 +15,9 @@ from rcmlconf.specs import Requirement
 LEVELS = ("MUST", "MUST NOT", "SHOULD", "SHOULD NOT")
 #: The checks of a requirement that `rcmlconf validate` and the schemas make.
 FILE_CHECKS = frozenset({"validate", "xsd", "dtd"})
+#: The tag of a requirement no black-box case can check; its bullet says why after the marker.
+UNOBSERVABLE = "unobservable"
+_BECAUSE = "Unobservable:"
 
 
 @dataclass(frozen=True, slots=True)
@@ -28,6 +32,18 @@ class Row:
     @property
     def covered(self) -> bool:
         return bool(self.cases) or self.by_validator
+
+    @property
+    def unobservable(self) -> str | None:
+        """Why no case can check the requirement (specs/ tags it so), or None."""
+        if UNOBSERVABLE not in self.requirement.checks:
+            return None
+        return self.requirement.text.partition(_BECAUSE)[2].strip() or "specs/ gives no reason"
+
+    @property
+    def missing(self) -> bool:
+        """No case covers it though one could: what `cases --matrix --strict` counts."""
+        return not self.covered and self.unobservable is None
 
 
 def matrix(cases: Iterable[Case], requirements: Mapping[str, Requirement]) -> list[Row]:
