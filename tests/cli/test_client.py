@@ -23,7 +23,11 @@ from support.servers import run, serving
 from rcmlconf.cli.client.values import parse_node_value, value_json, value_text
 from rcmlconf.errors import ValueTextError
 from rcmlconf.rcml.model import DataNode, Permission
+from rcmlconf.rctp.fields import Transport, parse_transport
+from rcmlconf.rctp.messages import Request
+from rcmlconf.rctp.reader import MessageReader
 from rcmlconf.reference.client.adapter import Client, RctpError
+from rcmlconf.reference.client.session import StreamValues
 from rcmlconf.reference.server.adapter import ReferenceServer
 from rcmlconf.values import ValueType, lookup_type
 
@@ -165,7 +169,8 @@ async def test_a_path_another_session_holds_is_refused_with_471() -> None:
         (["write", "/drive/settings/mode", "1", "2"], "give one VALUE"),
         (["read", "drive"], "paths are absolute"),
         (["stream", "/drive/settings"], "is not a stream access"),
-        (["stream", "/drive/wheels", "--mode", "both"], "give --set NAME=VALUE for each"),
+        (["stream", "/drive/wheels", "--mode", "both"], "give --set NAME=VALUE for one or more"),
+        (["stream", "/drive/wheels", "--mode", "both", "--set", "speed=1"], "no data node 'speed'"),
         (["stream", "/sensors/odometry", "--set", "pose=1"], "use --mode write"),
         (["watch", "/drive/wheels"], "is not an event access"),
     ],
@@ -205,8 +210,8 @@ async def test_no_server_exits_2() -> None:
 
 
 @asynccontextmanager
-async def serving_files_next_door() -> AsyncIterator[ReferenceServer]:
-    """The rover with its files on the port after RCTP's, where the client looks for them."""
+async def serving_files_next_door(rcml: Path = ROVER) -> AsyncIterator[ReferenceServer]:
+    """A robot with its files on the port after RCTP's, where the client looks for them."""
     for _ in range(20):
         with socket.socket() as probe:
             probe.bind(("127.0.0.1", 0))
@@ -214,7 +219,7 @@ async def serving_files_next_door() -> AsyncIterator[ReferenceServer]:
         if port >= 65535:
             continue
         try:
-            context = serving(ROVER, port=port, http_port=port + 1)
+            context = serving(rcml, port=port, http_port=port + 1)
             server = await context.__aenter__()
         except OSError:  # taken meanwhile: try another pair
             continue
@@ -328,6 +333,115 @@ async def test_stream_json_lines_and_writing() -> None:
         assert documents[-1]["values"] == len(documents) - 1
         assert {d["event"] for d in documents[:-1]} <= {"values"}
         assert all(set(d["values"]) == {"left", "right"} for d in documents[:-1])
+
+
+CONTROL = "/stream/control"
+#: README's example, as written there; the test puts the server's port in place of 7330.
+README_STREAM = (
+    "client rctp://127.0.0.1:7330/camera stream /stream/control --mode both --set pan=90"
+    " --duration 2"
+)
+
+
+async def camera_reaches(
+    server: ReferenceServer, axes: dict[str, int], *, point: bool = False
+) -> None:
+    """Wait until the camera's axes, read on its stream, are `axes` (after writing them there
+    as set points, if `point`)."""
+    camera = await Client.connect(server.url, robot(CAMERA))
+    if point:
+        await camera.acquire(CONTROL)
+    await camera.setup(CONTROL, "both" if point else "read")
+    if point:
+        camera.write_values(CONTROL, axes)
+    await camera.go(CONTROL)
+    async with asyncio.timeout(BOUND):
+        while not (
+            isinstance(event := await camera.next_event(), StreamValues) and event.values == axes
+        ):
+            assert event is not None, "the session ended"
+    await camera.close()
+
+
+@run
+async def test_readme_stream_writes_pan_and_keeps_the_other_axes() -> None:
+    async with serving_files_next_door(CAMERA) as server:
+        await camera_reaches(server, {"pan": 0, "tilt": 10, "zoom": 30, "focus": 40}, point=True)
+        args = README_STREAM.replace(":7330/", f":{server.port}/").split()
+        process = await asyncio.create_subprocess_exec(
+            *COMMAND, *args, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE
+        )
+        out, err = await asyncio.wait_for(process.communicate(), BOUND)
+        assert process.returncode == 0, err
+        assert "writing pan=90, and focus=40 tilt=10 zoom=30 as read\n" in err.decode()
+        assert out.decode().startswith(tuple(f"{h:02d}:" for h in range(24)))  # values lines
+        # The set point stays after the session: the camera turns on to it, the rest unmoved.
+        await camera_reaches(server, {"pan": 90, "tilt": 10, "zoom": 30, "focus": 40})
+
+
+@run
+async def test_stream_mode_write_reads_the_values_it_keeps_first() -> None:
+    async with serving(CAMERA) as server:
+        await camera_reaches(server, {"pan": 15, "tilt": -20, "zoom": 0, "focus": 60}, point=True)
+        done = await client(
+            server, "stream", CONTROL, "--mode", "write", "--set", "zoom=70", "--duration", "0.5",
+            rcml=CAMERA,
+        )  # fmt: skip
+        assert done.status == 0, done.err
+        assert done.out == ""  # mode write shows no values: the ones read were to keep
+        assert "writing zoom=70, and focus=60 pan=15 tilt=-20 as read\n" in done.err
+        await camera_reaches(server, {"pan": 15, "tilt": -20, "zoom": 70, "focus": 60})
+
+
+@asynccontextmanager
+async def silent_robot(methods: list[str]) -> AsyncIterator[int]:
+    """The port of an RCTP server that answers every request 200 (`methods` lists them) and
+    sends nothing on the data stream: a stream's values never come."""
+    loop = asyncio.get_running_loop()
+    udp, _ = await loop.create_datagram_endpoint(
+        asyncio.DatagramProtocol, local_addr=("127.0.0.1", 0)
+    )
+    data_port = udp.get_extra_info("sockname")[1]
+
+    async def session(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        messages = MessageReader()
+        while data := await reader.read(65536):
+            messages.feed(data)
+            while isinstance(request := messages.next_message(), Request):
+                methods.append(request.method)
+                fields = [f"CSeq: {request.headers.get('CSeq')}", "Session: silent-robot-1"]
+                if request.method == "SETUP":
+                    asked = parse_transport(request.headers.get("Transport") or "")
+                    given = Transport(asked.client_port, asked.mode, data_port, 0x5113, 1)
+                    fields.append(f"Transport: {given}")
+                answer = "RCTP/2.0 200 OK\r\n" + "".join(f"{f}\r\n" for f in fields) + "\r\n"
+                writer.write(answer.encode())
+        writer.close()
+
+    server = await asyncio.start_server(session, "127.0.0.1", 0)
+    try:
+        async with server:
+            yield server.sockets[0].getsockname()[1]
+    finally:
+        udp.close()
+
+
+@run
+async def test_values_to_keep_that_never_come_end_the_stream_after_timeout() -> None:
+    methods: list[str] = []
+    async with silent_robot(methods) as port:
+        process = await asyncio.create_subprocess_exec(
+            *COMMAND, "client", "--timeout", "0.5", "--rcml", str(CAMERA),
+            f"rctp://127.0.0.1:{port}/camera", "stream", CONTROL, "--mode", "both",
+            "--set", "pan=90", stderr=asyncio.subprocess.PIPE,
+        )  # fmt: skip
+        _, err = await asyncio.wait_for(process.communicate(), BOUND)
+    assert process.returncode == 2, err
+    assert err.decode().splitlines()[-1] == (
+        "rcmlconf client: /stream/control: no values from the robot within 0.5 s: the values"
+        " of focus, tilt, zoom to keep are unknown"
+    )
+    assert methods == ["CONNECT", "ACQUIRE", "SETUP", "GO", "BYE"]
 
 
 @run

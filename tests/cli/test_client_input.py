@@ -12,10 +12,11 @@ import socket
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 import pytest
 from support.processes import COMMAND, run_command
-from support.robots import ROVER
+from support.robots import ROVER, TESTBOT
 from support.servers import run, serving
 
 #: Every wait of these tests is bounded by this many seconds.
@@ -165,12 +166,51 @@ def test_a_path_that_fits_no_request_is_a_usage_error(args: list[str], shown: st
         (["write", "/drive/settings", "=1"], "has no data node ''"),
         (["write", "/drive/settings", "ma\x01x=1"], r"has no data node 'ma\x01x'"),
         (["stream", "/drive/wheels", "--mode", "both", "--set", "=1"], "has no data node ''"),
+        (["stream", "/drive/wheels", "--mode", "write"], "give --set NAME=VALUE for one or more"),
+        (["stream", "/sensors/odometry", "--mode", "write"], "has no node to write"),
     ],
 )
 def test_values_the_model_refuses_are_one_short_line(args: list[str], shown: str) -> None:
     with listening() as address:
         error = refused("--rcml", str(ROVER), f"rctp://{address}/rover", *args)
     assert shown in error
+
+
+def test_a_set_of_a_read_only_node_is_a_usage_error() -> None:
+    with listening() as address:
+        error = refused(
+            "--rcml",
+            str(TESTBOT),
+            f"rctp://{address}/testbot",
+            "stream",
+            "/drive/wheels",
+            "--mode",
+            "both",
+            "--set",
+            "odometry=1,2,3",
+        )
+    assert "(odometry is read-only)" in error
+
+
+def test_a_node_left_out_that_cannot_be_read_is_a_usage_error(tmp_path: Path) -> None:
+    rcml = tmp_path / "arm.rcml"
+    rcml.write_text(
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        '<rcml version="2.0" site="rctp://127.0.0.1/arm">\n'
+        '  <group name="arm" permission="rw">\n'
+        '    <access name="joints" type="stream" readInterval="0.02" writeInterval="0.02">\n'
+        '      <data name="elbow" type="int16"/>\n'
+        '      <data name="grip" type="int16" permission="w"/>\n'
+        "    </access>\n"
+        "  </group>\n"
+        "</rcml>\n"
+    )
+    with listening() as address:
+        error = refused(
+            "--rcml", str(rcml), f"rctp://{address}/arm", "stream", "/arm/joints",
+            "--mode", "both", "--set", "elbow=1",
+        )  # fmt: skip
+    assert "give --set grip=VALUE too" in error
 
 
 class _Index(http.server.BaseHTTPRequestHandler):

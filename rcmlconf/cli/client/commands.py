@@ -191,7 +191,8 @@ def acquire(options: Options, path: str, hold: float | None) -> None:
     "assignments",
     multiple=True,
     metavar="NAME=VALUE",
-    help="A value to write every interval (--mode write or both); one for each writable node.",
+    help="A value to write every interval (--mode write or both), for one or more writable"
+    " nodes; the others are written as the robot has them.",
 )
 @click.pass_obj
 def stream(
@@ -200,15 +201,23 @@ def stream(
     """Exchange a stream access's values on the data stream (D-RCTP-18): SETUP, GO, one line
     per packet received (the robot's time of sending, then its values), STOP, BYE.
 
-    Writing modes ACQUIRE the access first. The end prints a summary on stderr: packets
-    received, lost, late and duplicated (D-RCTP-21), and the robot's clock offset (D-RCTP-24).
-    A server's STOP or a lost stream is reported; a STOP or BYE from the server exits 1.
+    Writing modes ACQUIRE the access first, then write the --set values every interval.
+    Every writable node is written each time (D-RCTP-20): those --set does not name keep the
+    robot's values, which the command reads first on the stream (a stream access has no READ,
+    D-RCTP-17) and waits --timeout for; in --mode write it reads them in mode read, then PAUSE
+    and SETUP change the stream to write (D-RCTP-28).
+
+    The end prints a summary on stderr: packets received, lost, late and duplicated
+    (D-RCTP-21), and the robot's clock offset (D-RCTP-24). A server's STOP or a lost stream is
+    reported; a STOP or BYE from the server exits 1.
 
     \b
     Examples:
       rcmlconf client rctp://127.0.0.1:7330/rover stream /sensors/odometry --duration 5
       rcmlconf client rctp://127.0.0.1:7330/rover stream /drive/wheels --mode both \\
           --set left=0.2 --set right=0.2
+      rcmlconf client rctp://127.0.0.1:7330/camera stream /stream/control --mode both \\
+          --set pan=90 --duration 2
     """
     run(options, lambda model: plan_stream(options, model, path, mode, assignments, duration))
 
