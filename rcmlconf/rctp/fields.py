@@ -18,11 +18,19 @@ MAX_CSEQ = 2**31 - 1
 DEFAULT_SESSION_TIMEOUT = 60
 
 _CSEQ = re.compile(r"[0-9]{1,10}")
-_SESSION = re.compile(r"([A-Za-z0-9$\-_.+]{8,64})(?:;[ \t]*timeout=([0-9]{1,5}))?")
+#: `timeout` in any letter case (D-RCTP-30); the session ID exactly as given.
+_SESSION = re.compile(r"([A-Za-z0-9$\-_.+]{8,64})(?:;[ \t]*(?ai:timeout)=([0-9]{1,5}))?")
 _PORT = re.compile(r"[0-9]{1,5}")
 _TAG = re.compile(r"[0-9A-Fa-f]{8}")
 _STREAM = re.compile(r"[0-9]{1,3}")
 _SAFE = "-._~!$&'()*+;=:@"
+
+
+def same_token(given: str | None, token: str) -> bool:
+    """Whether a field's `given` text is the grammar's `token` (a media type, `udp`, a Reason):
+    compared without regard to ASCII letter case, as D-RCTP-30 says of everything the grammar
+    spells out but the methods and the version."""
+    return given is not None and given.isascii() and given.lower() == token.lower()
 
 
 def parse_cseq(text: str) -> int:
@@ -92,12 +100,14 @@ _MODES = ("read", "write", "both")
 
 
 def parse_transport(text: str) -> Transport:
+    # `udp`, the parameter names and the modes in any letter case (D-RCTP-30).
     protocol, *params = (part.strip(" \t") for part in text.split(";"))
-    if protocol != "udp":
+    if not same_token(protocol, "udp"):
         raise ValueTextError(f"Transport {protocol[:20]!r}: RCTP/2.0's data stream is udp")
     values: dict[str, str] = {}
     for param in params:
         key, equals, value = param.partition("=")
+        key = key.lower() if key.isascii() else key
         if not equals or key in values:
             raise ValueTextError(f"Transport parameter {param[:30]!r} is not key=value, once")
         values[key] = value
@@ -105,6 +115,7 @@ def parse_transport(text: str) -> Transport:
     if unknown:
         raise ValueTextError(f"unknown Transport parameter {sorted(unknown)[0]!r}")
     mode = values.get("mode", "read")
+    mode = mode.lower() if mode.isascii() else mode
     if mode not in _MODES:
         raise ValueTextError(f"Transport mode {mode[:20]!r} is not read, write or both")
     tag = values.get("tag")

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+from typing import Any
+
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -15,6 +19,7 @@ from rcmlconf.rctp.fields import (
     parse_nodes,
     parse_session,
     parse_transport,
+    same_token,
 )
 from rcmlconf.rctp.targets import format_target, parse_target
 
@@ -101,3 +106,50 @@ def test_transport_round_trip(transport: Transport) -> None:
 def test_not_transports(text: str) -> None:
     with pytest.raises(ValueTextError):
         parse_transport(text)
+
+
+# -- letter case (D-RCTP-30): vectors/rctp/fields.json -------------------------------------------
+
+FIELDS = json.loads((Path(__file__).parents[2] / "vectors" / "rctp" / "fields.json").read_text())
+
+
+@pytest.mark.parametrize("vector", FIELDS["transport"], ids=lambda v: v["text"])
+def test_transport_in_any_letter_case(vector: dict[str, Any]) -> None:
+    value = dict(vector["value"])
+    if "tag" in value:
+        value["tag"] = int(value["tag"], 16)
+    assert parse_transport(vector["text"]) == Transport(**value)
+
+
+@pytest.mark.parametrize("vector", FIELDS["not_transport"], ids=lambda v: v["text"])
+def test_not_transport_in_any_letter_case(vector: dict[str, Any]) -> None:
+    with pytest.raises(ValueTextError):
+        parse_transport(vector["text"])
+
+
+@pytest.mark.parametrize("vector", FIELDS["session"], ids=lambda v: v["text"])
+def test_session_timeout_in_any_letter_case(vector: dict[str, Any]) -> None:
+    assert parse_session(vector["text"]) == SessionField(vector["id"], vector["timeout"])
+
+
+@pytest.mark.parametrize("vector", FIELDS["not_session"], ids=lambda v: v["text"])
+def test_not_session_in_any_letter_case(vector: dict[str, Any]) -> None:
+    with pytest.raises(ValueTextError):
+        parse_session(vector["text"])
+
+
+@pytest.mark.parametrize("vector", FIELDS["tokens"], ids=lambda v: f"{v['given']}")
+def test_tokens_compare_without_ascii_case(vector: dict[str, Any]) -> None:
+    assert same_token(vector["given"], vector["token"]) is vector["same"]
+
+
+@given(st.sampled_from(["udp", "client_port", "mode", "both"]), st.data())
+def test_transport_tokens_fold_in_any_mix_of_case(word: str, data: st.DataObject) -> None:
+    mixed = "".join(c.upper() if data.draw(st.booleans()) else c for c in word)
+    text = {
+        "udp": f"{mixed};mode=read",
+        "client_port": f"udp;{mixed}=9",
+        "mode": f"udp;{mixed}=both",
+        "both": f"udp;mode={mixed}",
+    }[word]
+    assert parse_transport(text) == parse_transport(text.lower())

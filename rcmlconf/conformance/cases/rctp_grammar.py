@@ -18,7 +18,7 @@ from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
 from rcmlconf.errors import ProtocolError
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode
 from rcmlconf.rctp.bodies import ValuesCodec
-from rcmlconf.rctp.fields import format_nodes
+from rcmlconf.rctp.fields import format_nodes, same_token
 from rcmlconf.rctp.messages import TEXT_TYPE, VALUES_TYPE, VERSION, Message, Request, Response
 from rcmlconf.rctp.targets import format_target
 from rcmlconf.values import Value
@@ -407,7 +407,7 @@ async def answers_well_formed(ctx: Context) -> None:
         media = VALUES_TYPE if answer.status == 200 else TEXT_TYPE
         given = answer.headers.get("Content-Type")
         expected = f"{what} with Content-Type: {media}"
-        ctx.expect(given == media, expected, f"Content-Type: {given}", "R-RCTP-6")
+        ctx.expect(same_token(given, media), expected, f"Content-Type: {given}", "R-RCTP-6")
 
 
 @case(

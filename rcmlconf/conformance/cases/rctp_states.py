@@ -11,8 +11,9 @@ from rcmlconf.conformance.picks import STRANGER, first, read_target, unknown_tar
 from rcmlconf.conformance.probes.control import ControlProbe, Fields
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
+from rcmlconf.errors import ValueTextError
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, GroupNode, Permission
-from rcmlconf.rctp.fields import format_nodes
+from rcmlconf.rctp.fields import format_nodes, parse_session
 from rcmlconf.rctp.messages import VERSION, Request, Response
 from rcmlconf.rctp.targets import format_target
 
@@ -450,12 +451,15 @@ def _timeout(answer: Response) -> int:
     """The session timeout CONNECT's answer announces; inconclusive when there is none (the
     rctp/session cases check it) or it is longer than the case waits."""
     given = answer.headers.get("Session") or ""
-    text = given.partition(";")[2].strip(" \t").removeprefix("timeout=")
-    if answer.status != 200 or not text.isdigit():
+    try:  # `timeout` in any letter case (D-RCTP-30)
+        timeout = parse_session(given).timeout if answer.status == 200 else None
+    except ValueTextError:
+        timeout = None
+    if timeout is None:
         raise Inconclusive(f"CONNECT was answered {answer.status} with Session: {given}")
-    if int(text) > LONGEST_TIMEOUT:
-        raise Inconclusive(f"the session timeout is {text} s; this case waits {LONGEST_TIMEOUT}")
-    return int(text)
+    if timeout > LONGEST_TIMEOUT:
+        raise Inconclusive(f"the session timeout is {timeout} s; this case waits {LONGEST_TIMEOUT}")
+    return timeout
 
 
 def _event(ctx: Context) -> AccessNode:

@@ -72,6 +72,7 @@ from rcmlconf.rctp.datastream import (
 )
 from rcmlconf.rctp.datastream.endpoint import micros
 from rcmlconf.rctp.datastream.packets import MalformedFlowPayload
+from rcmlconf.rctp.fields import same_token
 from rcmlconf.rctp.messages import Request
 from rcmlconf.rctp.targets import format_target
 from rcmlconf.values import Kind, Scalar, Value
@@ -1462,7 +1463,7 @@ async def receive_timeout(ctx: Context) -> None:
         isinstance(message, Request)
         and message.method == "STOP"
         and message.target == set_up.target
-        and message.headers.get("Reason") == "timeout",
+        and same_token(message.headers.get("Reason"), "timeout"),
         f"STOP {set_up.target} with Reason: timeout",
         repr(message),
     )

@@ -37,7 +37,13 @@ from rcmlconf.rctp.connection import (
 from rcmlconf.rctp.datastream.endpoint import MODE_DIRECTIONS, Address, Endpoint
 from rcmlconf.rctp.datastream.events import StreamTimedOut, ValuesReceived
 from rcmlconf.rctp.datastream.flow import Direction
-from rcmlconf.rctp.fields import Transport, format_nodes, parse_nodes, parse_transport
+from rcmlconf.rctp.fields import (
+    Transport,
+    format_nodes,
+    parse_nodes,
+    parse_transport,
+    same_token,
+)
 from rcmlconf.rctp.messages import TEXT_TYPE, VALUES_TYPE, Request
 from rcmlconf.rctp.states import Role, SessionState, StreamState
 from rcmlconf.rctp.targets import STAR, Target, format_target
@@ -254,7 +260,7 @@ class ServerSession(SessionEnd):
             self._privileged(node.path)
         if "Content-Length" not in request.headers:
             raise Refused(411, "a WRITE carries its values, with Content-Length", "R-RCTP-6")
-        if request.headers.get("Content-Type") != VALUES_TYPE:
+        if not same_token(request.headers.get("Content-Type"), VALUES_TYPE):  # D-RCTP-30
             raise Refused(415, f"a WRITE's body is {VALUES_TYPE}", "R-RCTP-6")
         try:
             values = self.robot.codec(target.path, nodes).decode(request.body)

@@ -289,3 +289,17 @@ async def test_bye_ends_the_session_and_closes_the_connection() -> None:
         assert answer.status == 200
         await session.raw.send(b"READ /head/control/led RCTP/2.0\r\nCSeq: 3\r\n\r\n")
         assert await session.raw.closed()
+
+
+@run
+async def test_a_write_takes_its_media_type_in_any_letter_case() -> None:
+    """D-RCTP-30: `Application/RCTP-Values` is `application/rctp-values` (R-RCTP-59)."""
+    async with serving() as server:
+        session = await RawSession.open(server)
+        assert (await session.ask("ACQUIRE", "/head")).status == 200
+        typed = [("Content-Type", "Application/RCTP-Values")]
+        answer = await session.ask("WRITE", "/head/control/led", typed, (7).to_bytes(4, "big"))
+        assert answer.status == 200, answer.body
+        read = await session.ask("READ", "/head/control/led")
+        assert read.body == (7).to_bytes(4, "big")
+        session.close()
