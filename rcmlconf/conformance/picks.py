@@ -4,6 +4,7 @@ and names no server knows."""
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -71,9 +72,22 @@ def pick(
     raise NotApplicable(f"the robot has no {what} of a {where} access")
 
 
-def writable(ctx: Context) -> Named:
-    """A data node a WRITE may write, as `pick` names it."""
-    return pick(ctx, lambda d: Permission.WRITE in d.permission, what="writable data node")
+def writable(
+    ctx: Context,
+    fits: Callable[[DataNode], bool] = lambda node: True,
+    what: str = "writable data node",
+) -> Named:
+    """A data node a WRITE may write that `fits`, as `pick` names it: one that can be read too
+    where the robot has one, since only a node read before and after shows what a WRITE changed,
+    or that a refused one changed nothing (R-RCTP-28)."""
+    for needed in (RW, Permission.WRITE):
+
+        def usable(node: DataNode, needed: Permission = needed) -> bool:
+            return needed in node.permission and fits(node)
+
+        with contextlib.suppress(NotApplicable):
+            return pick(ctx, usable, what=what)
+    raise NotApplicable(f"the robot has no {what} of a normal or event access")
 
 
 def read_target(ctx: Context, *, encoded: bool = True) -> str:

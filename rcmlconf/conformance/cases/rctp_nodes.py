@@ -15,7 +15,7 @@ import asyncio
 import contextlib
 import math
 import struct
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.picks import (
@@ -34,7 +34,7 @@ from rcmlconf.errors import ProtocolError, ValueTextError
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, GroupNode, Permission
 from rcmlconf.rctp.allowed import TargetKind, target_kind
 from rcmlconf.rctp.bodies import ValuesCodec
-from rcmlconf.rctp.fields import format_nodes, parse_nodes
+from rcmlconf.rctp.fields import format_nodes, parse_nodes, same_token
 from rcmlconf.rctp.messages import TEXT_TYPE, VALUES_TYPE, Message, Response
 from rcmlconf.rctp.targets import ROOT, format_target
 from rcmlconf.values import Kind, Scalar, Value
@@ -184,7 +184,7 @@ def check_values(
     `Content-Length` (R-RCTP-6), and exactly the values of `nodes` (`rule`)."""
     kind = message.headers.get("Content-Type")
     length = message.headers.get("Content-Length")
-    ctx.expect(kind == VALUES_TYPE, f"Content-Type: {VALUES_TYPE}", f"{kind}", "R-RCTP-6")
+    ctx.expect(same_token(kind, VALUES_TYPE), f"Content-Type: {VALUES_TYPE}", f"{kind}", "R-RCTP-6")
     ctx.expect(
         length == str(len(message.body)),
         f"Content-Length: {len(message.body)}",
@@ -563,9 +563,18 @@ async def write_event_unwritable(ctx: Context) -> None:
 # -- WRITE bodies: 411, 415, 422, 400 (serial: they hold the privilege) ------------------------
 
 
-def _valid_write(ctx: Context) -> tuple[Named, bytes]:
-    """A writable node, and a valid body of a WRITE of it."""
-    named = writable(ctx)
+def _valid_write(
+    ctx: Context,
+    fits: Callable[[bytes], bool] = lambda body: True,
+    what: str = "writable data node",
+) -> tuple[Named, bytes]:
+    """A writable node whose valid body `fits` (readable where the robot has one: `writable`),
+    and that body."""
+
+    def body(node: DataNode) -> bytes:
+        return Named(node.path, (node,), event=False).encode({node.name: values_for(node)[-1]})
+
+    named = writable(ctx, lambda node: fits(body(node)), what)
     return named, named.encode({named.node.name: values_for(named.node)[-1]})
 
 
@@ -593,7 +602,11 @@ async def _refused(
     serial=True,
 )
 async def write_short(ctx: Context) -> None:
-    named, body = _valid_write(ctx)
+    # One byte short of a 1-byte value is no body at all, which D-RCTP-15 answers 411
+    # (rctp/node/write-no-length): this case needs a value of 2 bytes or more.
+    named, body = _valid_write(
+        ctx, lambda body: len(body) >= 2, "writable data node of 2 bytes or more"
+    )
     await _refused(ctx, named, body[:-1], 422)
 
 
