@@ -14,14 +14,18 @@ from typing import Any
 
 import click
 
-from rcmlconf.cli.cases import list_cases
+from rcmlconf.cli.cases import chosen_cases, list_cases
 from rcmlconf.cli.console import Output
-from rcmlconf.cli.rsp_options import parse_address
-from rcmlconf.conformance.ics import EVERYTHING, Ics, IcsError, load_ics
+from rcmlconf.cli.hosts import Address, address_option, listen_option
+from rcmlconf.cli.params import Bounded
+from rcmlconf.cli.run_options import check_reports, loaded, robot_file, site_option, warn_unknown
+from rcmlconf.cli.run_target import CONNECT_WAIT, described, reach
+from rcmlconf.conformance.files import shown
+from rcmlconf.conformance.ics import EVERYTHING, Ics, load_ics
 from rcmlconf.conformance.probes.clients import ClientListener
 from rcmlconf.conformance.probes.locals import LocalListener
-from rcmlconf.conformance.registry import Case, all_cases, select
-from rcmlconf.conformance.reports.baseline import BaselineError, load_baseline, mark_known
+from rcmlconf.conformance.registry import Case, all_cases
+from rcmlconf.conformance.reports.baseline import load_baseline, mark_known
 from rcmlconf.conformance.reports.json_report import to_json
 from rcmlconf.conformance.reports.junit import to_junit
 from rcmlconf.conformance.reports.summary import counts, explain, new_failures
@@ -33,12 +37,12 @@ from rcmlconf.conformance.targets import (
     quiet_reference_logs,
 )
 from rcmlconf.conformance.verdicts import Result, Verdict
-from rcmlconf.impair.spec import ImpairmentError, parse_impairment
+from rcmlconf.impair.spec import MOST_BURST, MOST_TIME, parse_impairment
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rctp.url import DEFAULT_PORT as RCTP_PORT
 from rcmlconf.reference.faults import Fault, describe, faults_named
 from rcmlconf.rsp.model import RobotModel
-from rcmlconf.validate.validator import InvalidRobot, load_robot, load_robot_model
+from rcmlconf.validate.validator import load_robot, load_robot_model
 
 #: D-RSP-9.
 RSP_PORT = 7340
@@ -51,30 +55,29 @@ _STYLE = {
 }
 
 
-def _address(default_port: int) -> Any:
-    def convert(ctx: click.Context, param: click.Parameter, value: str | None) -> Any:
-        return None if value is None else parse_address(value, default_port)
-
-    return convert
-
-
 @click.command()
 @click.option(
     "--target",
     metavar="HOST[:PORT]",
-    callback=_address(RCTP_PORT),
-    help=f"An RCTP/2.0 server under test (port {RCTP_PORT} by default).",
+    callback=address_option(RCTP_PORT),
+    help=f"An RCTP/2.0 server under test (port {RCTP_PORT} by default; IPv6 in brackets:"
+    " [::1]:7330).",
 )
 @click.option(
     "--rcml",
     type=click.Path(exists=True, dir_okay=False, path_type=Path),
     help="The RCML file of --target's robot: the cases pick its nodes from it.",
 )
-@click.option("--site", metavar="PATH", help="--target's site path (default: the RCML's).")
+@click.option(
+    "--site",
+    metavar="PATH",
+    callback=site_option,
+    help="--target's site path, the target of CONNECT (default: the RCML's).",
+)
 @click.option(
     "--rsp-target",
     metavar="HOST[:PORT]",
-    callback=_address(RSP_PORT),
+    callback=address_option(RSP_PORT),
     help=f"An RSP robot under test (port {RSP_PORT} by default); needs --model.",
 )
 @click.option(
@@ -101,16 +104,19 @@ def _address(default_port: int) -> Any:
 @click.option(
     "--listen",
     metavar="[HOST:]PORT",
+    callback=listen_option("127.0.0.1"),
     help="With --role client or local: where the implementation under test connects or sends"
     " (127.0.0.1 by default).",
 )
 @click.option("--list", "list_only", is_flag=True, help="List the cases that would run; run none.")
-@click.option("--only", multiple=True, metavar="GLOB", help="Run the cases whose ID matches.")
+@click.option(
+    "--only", multiple=True, metavar="GLOB", help="Run the cases whose ID matches (* ? [seq])."
+)
 @click.option("--skip", multiple=True, metavar="GLOB", help="Leave out the cases whose ID matches.")
 @click.option("--repeat", type=click.IntRange(1, 1000), default=1, show_default=True)
 @click.option(
     "--timeout-scale",
-    type=click.FloatRange(0.1, 100),
+    type=Bounded(0.1, 100),
     default=1.0,
     show_default=True,
     help="Multiply every case's timeout (a slow target, a loaded CI machine).",
@@ -119,9 +125,11 @@ def _address(default_port: int) -> Any:
 @click.option(
     "--impair",
     metavar="SPEC",
-    help="Impair the UDP flows of every case with no impairment of its own: "
-    "loss=5%,burst=3,delay=40ms,jitter=10ms,reorder=2%,... A failure the impairment can "
-    "explain is inconclusive.",
+    help="Impair the UDP flows of every case with no impairment of its own, e.g."
+    " loss=5%,delay=40ms (items KEY=VALUE, comma-separated). Keys: loss, reorder, duplicate,"
+    f" corrupt (0 to 100%); delay, jitter, gap (0 to {MOST_TIME:g}s, in ms, s or us); burst"
+    f" (the mean run of losses, 1 to {MOST_BURST:.0f}). A failure the impairment can explain is"
+    " inconclusive.",
 )
 @click.option(
     "--concurrency",
@@ -155,14 +163,14 @@ def _address(default_port: int) -> Any:
 )
 @click.option("-v", "--verbose", is_flag=True, help="A line for every case, passes too.")
 def run(
-    target: tuple[str, int] | None,
+    target: Address | None,
     rcml: Path | None,
     site: str | None,
-    rsp_target: tuple[str, int] | None,
+    rsp_target: Address | None,
     model: Path | None,
     ics: Path | None,
     role: str,
-    listen: str | None,
+    listen: Address | None,
     list_only: bool,
     only: tuple[str, ...],
     skip: tuple[str, ...],
@@ -187,69 +195,57 @@ def run(
     not tell); not applicable (the target lacks an optional feature, or the robot a kind of
     node); error (the harness or the network failed, not the target).
 
+    Every option and file is checked, and --target reached once, before any case runs.
+
     Exit status: 0 when nothing failed but what --baseline lists, 1 when a case failed, 2 for a
-    usage error or when the harness could not do its job.
+    usage error, a --target that cannot be reached, or when the harness could not do its job.
 
     \b
     Examples:
-      rcmlconf run                                   # the embedded reference
-      rcmlconf run --target robot.local --rcml rover.rcml --junit report.xml
+      rcmlconf run                           # the embedded reference
+      rcmlconf run --target robot.local --rcml rover.rcml --junit run.xml
       rcmlconf run --rsp-target 10.0.0.7 --model cubo.rmodel --only 'rsp/*'
-      rcmlconf run --only 'rsp/*' --repeat 20 --impair loss=5%,reorder=2% --seed 7
-      rcmlconf run --role client --listen 7330 --timeout-scale 3   # then start your client
-      rcmlconf run --role local --listen 7340 --model cubo.rmodel  # then your local system
-      rcmlconf run --fault acquire-not-exclusive     # watch the suite catch a bug
+      rcmlconf run --only 'rsp/*' --repeat 20 --impair loss=5%,reorder=2%
+      rcmlconf run --role client --listen 7330   # then start your client
+      rcmlconf run --role local --listen 7340 --model cubo.rmodel
+      rcmlconf run --fault acquire-not-exclusive # the suite catches a bug
       rcmlconf run --list
     """
     output = Output()
-    try:
-        declared = load_ics(ics) if ics is not None else EVERYTHING
-        known = load_baseline(baseline) if baseline is not None else frozenset()
-        impairment = parse_impairment(impair) if impair is not None else None
-    except (IcsError, BaselineError, ImpairmentError) as error:
-        raise click.UsageError(str(error)) from None
-    if rsp_target is not None and model is None:
-        raise click.UsageError("--rsp-target needs the robot's --model")
-    if role == "client":
-        if listen is None:
-            raise click.UsageError("--role client needs --listen PORT for the client to connect")
-        if target is not None or rsp_target is not None:
-            raise click.UsageError("--role client tests a client: leave out --target/--rsp-target")
-    elif role == "local":
-        if listen is None or model is None:
-            raise click.UsageError("--role local needs --listen PORT and the --model to play")
-        if target is not None or rsp_target is not None:
-            raise click.UsageError("--role local tests a local system: leave out the targets")
-    elif listen is not None:
-        raise click.UsageError("--listen is for --role client and --role local")
-    if faults and (target is not None or rsp_target is not None or listen is not None):
-        raise click.UsageError("--fault is for the embedded reference: leave out the targets")
-    if (rcml is not None or site is not None) and target is None:
-        raise click.UsageError("--rcml and --site describe --target: give --target too")
+    declared = loaded("--ics", load_ics, ics) if ics is not None else EVERYTHING
+    known = loaded("--baseline", load_baseline, baseline) if baseline is not None else frozenset()
+    impairment = loaded("--impair", parse_impairment, impair) if impair is not None else None
+    _check_roles(role, target, rcml, site, rsp_target, model, listen, faults)
+    robot = robot_file("--rcml", load_robot, rcml) if rcml is not None else None
+    played = robot_file("--model", load_robot_model, model) if model is not None else None
+    if not list_only:
+        check_reports(junit, json_file, capture)
     registry = all_cases()
-    chosen = select(registry.values(), only, skip)
-    if not chosen:
-        raise click.UsageError("no case matches --only/--skip (rcmlconf run --list shows them)")
+    chosen = chosen_cases(registry.values(), only, skip)
     if list_only:
         list_cases(output, chosen)
         return
+    if baseline is not None:
+        warn_unknown(output, baseline, known, registry)
     options = RunOptions(timeout_scale, seed, concurrency, repeat, impairment, capture)
     if capture is not None:
         try:
             capture.mkdir(parents=True, exist_ok=True)
         except OSError as error:
-            raise click.UsageError(f"--capture {capture}: {error}") from None
+            raise click.BadParameter(
+                f"{shown(capture)} cannot be made: {error.strerror or error}",
+                param_hint="'--capture'",
+            ) from None
     external: Target | ClientTarget | LocalTarget | None = None
     if target is not None or rsp_target is not None:
-        external = _external(output, target, rcml, site, rsp_target, model, declared)
-    elif listen is not None and model is not None and role == "local":
-        address = listen if ":" in listen else f"127.0.0.1:{listen}"
-        played = _model(model)
-        external = LocalTarget(parse_address(address, RSP_PORT), played, declared)
+        if target is not None:
+            reach(output, target, CONNECT_WAIT * timeout_scale)
+        external = _external(output, target, robot, site, rsp_target, played, declared)
+    elif listen is not None and played is not None and role == "local":
+        external = LocalTarget(listen, played, declared)
     elif listen is not None:
-        robot = _robot(rcml) if rcml is not None else load_robot(REFERENCE_RCML)
-        address = listen if ":" in listen else f"127.0.0.1:{listen}"
-        external = ClientTarget(parse_address(address, RCTP_PORT), robot, declared.features)
+        served = robot if robot is not None else load_robot(REFERENCE_RCML)
+        external = ClientTarget(listen, served, declared.features)
     if external is None:
         quiet_reference_logs()
     started = time.time()
@@ -258,7 +254,11 @@ def run(
             _run(external, declared, faults_named(faults), chosen, options, output, verbose)
         )
     except OSError as error:
-        output.problem("run", f"cannot start the embedded reference: {error}")
+        why = error.strerror or str(error)
+        if listen is not None:
+            output.problem("run", f"cannot listen on --listen {described(listen)}: {why}")
+        else:
+            output.problem("run", f"cannot start the embedded reference: {why}")
         sys.exit(2)
     results = mark_known(results, known)
     settings = {"seed": seed, "repeat": repeat, "timeout_scale": timeout_scale, "impair": impair}
@@ -345,24 +345,16 @@ async def _target(
 
 def _external(
     output: Output,
-    target: tuple[str, int] | None,
-    rcml: Path | None,
+    target: Address | None,
+    robot: RcmlDocument | None,
     site: str | None,
-    rsp_target: tuple[str, int] | None,
-    model: Path | None,
+    rsp_target: Address | None,
+    rsp_model: RobotModel | None,
     declared: Ics,
 ) -> Target:
-    robot = _robot(rcml) if rcml is not None else None
-    try:
-        rsp_model = load_robot_model(model) if model is not None else None
-    except InvalidRobot as error:
-        raise click.UsageError(str(error)) from None
     if target is not None and robot is None:
         output.notice("no --rcml: the cases that need the robot's nodes are not applicable")
-    names = []
-    for address in (target, rsp_target):
-        if address is not None:
-            names.append(f"{address[0]}:{address[1]}")
+    names = [described(address) for address in (target, rsp_target) if address is not None]
     return Target(
         server=target,
         robot=robot,
@@ -393,18 +385,35 @@ class LocalTarget:
     ics: Ics
 
 
-def _model(path: Path) -> RobotModel:
-    try:
-        return load_robot_model(path)
-    except InvalidRobot as error:
-        raise click.UsageError(str(error)) from None
-
-
-def _robot(rcml: Path) -> RcmlDocument:
-    try:
-        return load_robot(rcml)
-    except InvalidRobot as error:
-        raise click.UsageError(str(error)) from None
+def _check_roles(
+    role: str,
+    target: Address | None,
+    rcml: Path | None,
+    site: str | None,
+    rsp_target: Address | None,
+    model: Path | None,
+    listen: Address | None,
+    faults: tuple[str, ...],
+) -> None:
+    """The options that go together, for the role tested."""
+    if rsp_target is not None and model is None:
+        raise click.UsageError("--rsp-target needs the robot's --model")
+    if role == "client":
+        if listen is None:
+            raise click.UsageError("--role client needs --listen PORT for the client to connect")
+        if target is not None or rsp_target is not None:
+            raise click.UsageError("--role client tests a client: leave out --target/--rsp-target")
+    elif role == "local":
+        if listen is None or model is None:
+            raise click.UsageError("--role local needs --listen PORT and the --model to play")
+        if target is not None or rsp_target is not None:
+            raise click.UsageError("--role local tests a local system: leave out the targets")
+    elif listen is not None:
+        raise click.UsageError("--listen is for --role client and --role local")
+    if faults and (target is not None or rsp_target is not None or listen is not None):
+        raise click.UsageError("--fault is for the embedded reference: leave out the targets")
+    if (rcml is not None or site is not None) and target is None:
+        raise click.UsageError("--rcml and --site describe --target: give --target too")
 
 
 def _write_reports(

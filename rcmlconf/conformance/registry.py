@@ -93,6 +93,11 @@ def case(
     return register
 
 
+def is_case_id(text: str) -> bool:
+    """True when `text` has the form of a case ID, whether or not a case has it (a baseline's)."""
+    return _ID.fullmatch(text) is not None
+
+
 def all_cases() -> dict[str, Case]:
     """Every case, by ID, in ID order (the case modules imported on first call)."""
     from rcmlconf.conformance import cases
