@@ -54,6 +54,7 @@ class Fault(enum.Enum):
     REFRESH_REFUSED = "refresh-refused"
     PERMISSION_IGNORED = "permission-ignored"
     PARTIAL_WRITE = "partial-write"
+    CASE_SENSITIVE_TOKENS = "case-sensitive-tokens"
     NO_CHANGE_PUSH = "no-change-push"
     ECHO_OWN_WRITES = "echo-own-writes"
     UNBOUNDED_PUSHES = "unbounded-pushes"
@@ -160,6 +161,11 @@ DESCRIPTIONS: dict[Fault, FaultInfo] = {
     ),
     _F.PERMISSION_IGNORED: _server(
         "reads and writes nodes whatever their permission (no 403)", "R-RCTP-27"
+    ),
+    _F.CASE_SENSITIVE_TOKENS: _server(
+        "compares Content-Type and Transport as written, so Application/RCTP-Values gets 415"
+        " and UDP;MODE=Read 400",
+        "R-RCTP-59",
     ),
     _F.PARTIAL_WRITE: _server(
         "applies the in-range values of an event-type WRITE with one out of range, answering 422",

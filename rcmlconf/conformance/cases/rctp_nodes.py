@@ -23,6 +23,7 @@ from rcmlconf.conformance.picks import (
     RW,
     Named,
     event_access,
+    first,
     missing_path,
     pick,
     writable,
@@ -666,6 +667,29 @@ async def write_out_of_range(ctx: Context) -> None:
 async def write_media_type(ctx: Context) -> None:
     named, body = _valid_write(ctx)
     await _refused(ctx, named, body, 415, [("Content-Type", TEXT_TYPE)])
+
+
+@case(
+    "rctp/node/tokens-in-any-case",
+    "WRITE typed Application/RCTP-Values and SETUP of Transport UDP;Client_Port=P;MODE=Read are "
+    "taken as their lower-case spellings",
+    ["R-RCTP-59"],
+    serial=True,
+)
+async def tokens_in_any_case(ctx: Context) -> None:
+    # D-RCTP-30: the grammar's quoted text, but for methods and the version, in any case.
+    named, body = _valid_write(ctx)
+    probe = await writer(ctx, named)
+    typed = [*named.fields(), ("Content-Type", "Application/RCTP-Values")]
+    answer = await probe.request("WRITE", named.target, typed, body)
+    ctx.expect_status(answer, 200, what="WRITE with Content-Type: Application/RCTP-Values")
+    stream = first(ctx, AccessType.STREAM)
+    if stream is None:
+        raise NotApplicable("the robot has no stream access: only the media type was checked")
+    port = probe.local[1]  # nothing is sent to it before GO
+    transport = f"UDP;Client_Port={port};MODE=Read"
+    answer = await probe.request("SETUP", format_target(stream.path), [("Transport", transport)])
+    ctx.expect_status(answer, 200, what=f"SETUP with Transport: {transport}")
 
 
 @case(

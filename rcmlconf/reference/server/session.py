@@ -260,7 +260,10 @@ class ServerSession(SessionEnd):
             self._privileged(node.path)
         if "Content-Length" not in request.headers:
             raise Refused(411, "a WRITE carries its values, with Content-Length", "R-RCTP-6")
-        if not same_token(request.headers.get("Content-Type"), VALUES_TYPE):  # D-RCTP-30
+        media = request.headers.get("Content-Type")
+        if Fault.CASE_SENSITIVE_TOKENS in self.faults:  # fault: case-sensitive-tokens
+            media = media if media == VALUES_TYPE else None
+        if not same_token(media, VALUES_TYPE):  # D-RCTP-30
             raise Refused(415, f"a WRITE's body is {VALUES_TYPE}", "R-RCTP-6")
         try:
             values = self.robot.codec(target.path, nodes).decode(request.body)
@@ -361,6 +364,8 @@ class ServerSession(SessionEnd):
         if text is None:
             raise Refused(461, "SETUP of a stream access names its Transport", "R-RCTP-57")
         try:
+            if Fault.CASE_SENSITIVE_TOKENS in self.faults and text != text.lower():
+                raise ValueTextError(f"Transport {text!r} is not in lower case")  # fault
             transport = parse_transport(text)
         except ValueTextError as exc:
             raise Refused(400, str(exc), "R-RCTP-38") from None
