@@ -347,6 +347,15 @@ async def content_type(server: ReferenceServer) -> object:
     return answered.headers.get("Content-Type")
 
 
+async def mixed_case_write(server: ReferenceServer) -> object:
+    session = await RawSession.open(server)
+    assert (await ask(session, "ACQUIRE", "/head")).status == 200
+    typed = [("Content-Type", "Application/RCTP-Values")]
+    written = await ask(session, "WRITE", "/head/control/tilt", typed, b"\x00\x07")
+    session.close()
+    return written.status
+
+
 async def bad_framing(server: ReferenceServer) -> object:
     raw = await Raw.open(server)
     await raw.send(b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\nno colon here\r\n\r\n")
@@ -589,6 +598,7 @@ SERVER_CHECKS: dict[Fault, Check] = {
     Fault.OPEN_AFTER_BAD_FRAMING: Check(bad_framing, (400, True), (400, False)),
     Fault.REFRESH_REFUSED: Check(refresh, 200, 455),
     Fault.PERMISSION_IGNORED: _status_check("READ", "/head/control/lcd", 403, 200),
+    Fault.CASE_SENSITIVE_TOKENS: Check(mixed_case_write, 200, 415),
     Fault.PARTIAL_WRITE: Check(partial_write, (422, False, "label"), (422, True, "half")),
     Fault.NO_CHANGE_PUSH: Check(change_push, ["WRITE"], []),
     Fault.ECHO_OWN_WRITES: Check(own_writes, (200, []), (200, ["WRITE"])),
