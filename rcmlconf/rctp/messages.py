@@ -49,6 +49,9 @@ REASONS = {
 
 VALUES_TYPE = "application/rctp-values"
 TEXT_TYPE = "text/plain; charset=utf-8"
+#: D-RCTP-27: a change of a playing event access is pushed (the server's WRITE) within this many
+#: seconds of the change, or of the answer that makes room for it.
+PUSH_DELAY = 0.5
 
 
 @dataclass(frozen=True, slots=True)

@@ -1,0 +1,41 @@
+"""The server cases run on the embedded reference server through a ControlProxy."""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+from collections.abc import Callable
+
+from rcmlconf.conformance.ics import EVERYTHING
+from rcmlconf.conformance.registry import Role, all_cases
+from rcmlconf.conformance.runner import RunOptions, run_cases
+from rcmlconf.conformance.targets import embedded_reference
+from rcmlconf.conformance.verdicts import Result
+from support.control_proxy import Address, ControlProxy
+
+#: The whole run, at most (seconds).
+BOUND = 90.0
+
+
+def server_cases_through(
+    proxy_of: Callable[[Address], ControlProxy], only: str = "rctp/"
+) -> list[Result]:
+    """Every server case whose ID starts with `only`, its control connections through the proxy
+    `proxy_of` makes in front of the embedded reference server."""
+
+    async def scenario() -> list[Result]:
+        async with embedded_reference(EVERYTHING.features) as target:
+            assert target.server is not None
+            proxy = proxy_of(target.server)
+            try:
+                through = dataclasses.replace(target, server=await proxy.start())
+                cases = [
+                    c
+                    for c in all_cases().values()
+                    if c.role is Role.SERVER and c.id.startswith(only)
+                ]
+                return await run_cases(cases, through, RunOptions())
+            finally:
+                await proxy.close()
+
+    return asyncio.run(asyncio.wait_for(scenario(), BOUND))
