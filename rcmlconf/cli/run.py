@@ -19,7 +19,13 @@ from rcmlconf.cli.console import Output
 from rcmlconf.cli.hosts import Address, address_option, listen_option
 from rcmlconf.cli.params import Bounded
 from rcmlconf.cli.run_options import check_reports, loaded, robot_file, site_option, warn_unknown
-from rcmlconf.cli.run_target import CONNECT_WAIT, described, reach
+from rcmlconf.cli.run_target import (
+    CONNECT_WAIT,
+    described,
+    reach,
+    robot_problem,
+    server_problem,
+)
 from rcmlconf.conformance.files import shown
 from rcmlconf.conformance.ics import EVERYTHING, Ics, load_ics
 from rcmlconf.conformance.probes.clients import ClientListener
@@ -195,10 +201,10 @@ def run(
     not tell); not applicable (the target lacks an optional feature, or the robot a kind of
     node); error (the harness or the network failed, not the target).
 
-    Every option and file is checked, and --target reached once, before any case runs.
+    Every option and file is checked, and the targets reached once, before any case runs.
 
     Exit status: 0 when nothing failed but what --baseline lists, 1 when a case failed, 2 for a
-    usage error, a --target that cannot be reached, or when the harness could not do its job.
+    usage error, a target that cannot be reached, or when the harness could not do its job.
 
     \b
     Examples:
@@ -239,7 +245,10 @@ def run(
     external: Target | ClientTarget | LocalTarget | None = None
     if target is not None or rsp_target is not None:
         if target is not None:
-            reach(output, target, CONNECT_WAIT * timeout_scale)
+            wait = CONNECT_WAIT * timeout_scale
+            reach(output, "--target", target, "RCTP over TCP", server_problem(target, wait))
+        if rsp_target is not None:
+            reach(output, "--rsp-target", rsp_target, "RSP over UDP", robot_problem(rsp_target))
         external = _external(output, target, robot, site, rsp_target, played, declared)
     elif listen is not None and played is not None and role == "local":
         external = LocalTarget(listen, played, declared)

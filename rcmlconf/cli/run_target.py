@@ -1,6 +1,11 @@
-"""An RCTP server under test (`run --target`) is reached once before any case runs: a TCP
-connection, closed at once. A server that is not there is then one line and status 2 (the
-harness cannot do its job), not a hundred cases in error that each say the same."""
+"""The implementations under test (`run --target`, `--rsp-target`) are reached once before any
+case runs. One that is not there is then one line and status 2 (the harness cannot do its job),
+not every case in error, or, for a robot that never answers HELLO, failing R-RSP-20.
+
+An RCTP server gets a TCP connection, closed at once. An RSP robot gets one empty datagram, which
+it drops like any packet too short to read (D-RSP-5): a host where nothing listens on the port
+answers it with ICMP "port unreachable", which the socket reports; a silent host says nothing, and
+the cases go on to find out."""
 
 from __future__ import annotations
 
@@ -12,22 +17,53 @@ from rcmlconf.cli.hosts import Address
 
 #: How long the first connection may take, before --timeout-scale (a case's own bound).
 CONNECT_WAIT = 5.0
+#: How long a robot's host has to say "port unreachable": it does at once, or not at all.
+UNREACHABLE_WAIT = 0.5
+_RUNNING = "is the target running, on that port?"
 
 
-def unreachable(address: Address, wait: float) -> str | None:
+def server_problem(address: Address, wait: float) -> str | None:
     """Why no TCP connection to `address` could be made within `wait` seconds, and what to look
     at, or None."""
-    host, port = address
     try:
-        with socket.create_connection((host, port), timeout=wait):
+        with socket.create_connection(address, timeout=wait):
             return None
     except socket.gaierror as error:
-        return f"cannot look {host} up: {error.strerror}; is the name right?"
+        return _unknown(address, error)
     except TimeoutError:
-        why = f"no answer within {wait:g} s"
+        return f"no answer within {wait:g} s; {_RUNNING}"
     except OSError as error:
-        why = (error.strerror or str(error)).lower()
-    return f"{why}; is the target running, on that port?"
+        return f"{(error.strerror or str(error)).lower()}; {_RUNNING}"
+
+
+def robot_problem(address: Address, wait: float = UNREACHABLE_WAIT) -> str | None:
+    """Why a datagram to `address` cannot reach an RSP robot (nothing listens on the port, the
+    name is unknown), or None when nothing says so."""
+    try:
+        family, kind, proto, _, where = socket.getaddrinfo(*address, type=socket.SOCK_DGRAM)[0]
+    except socket.gaierror as error:
+        return _unknown(address, error)
+    with socket.socket(family, kind, proto) as probe:
+        probe.settimeout(wait)
+        try:
+            probe.connect(where)
+            probe.send(b"")
+            probe.recv(1)
+        except ConnectionRefusedError:
+            return f"nothing listens there (the host answered port unreachable); {_RUNNING}"
+        except TimeoutError:
+            return None
+        except OSError as error:
+            return f"{(error.strerror or str(error)).lower()}; {_RUNNING}"
+    return None
+
+
+def reach(output: Output, option: str, address: Address, via: str, problem: str | None) -> None:
+    """The implementation at `address` (given as `option`, reached `via` a protocol) can be
+    reached, or the run ends now (status 2)."""
+    if problem is not None:
+        output.problem("run", f"cannot reach {option} {described(address)} ({via}): {problem}")
+        sys.exit(2)
 
 
 def described(address: Address) -> str:
@@ -36,12 +72,5 @@ def described(address: Address) -> str:
     return f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
 
 
-def reach(output: Output, target: Address, wait: float) -> None:
-    """The server under test answers on its port, or the run ends now (status 2)."""
-    why = unreachable(target, wait)
-    if why is not None:
-        output.problem(
-            "run",
-            f"cannot connect to --target {described(target)} (RCTP over TCP): {why}",
-        )
-        sys.exit(2)
+def _unknown(address: Address, error: socket.gaierror) -> str:
+    return f"cannot look {address[0]} up: {error.strerror}; is the name right?"

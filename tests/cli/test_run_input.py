@@ -12,7 +12,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
-from support.processes import BOUND, COMMAND, run_command
+from support.processes import BOUND, COMMAND, run_command, running
 
 from rcmlconf.cli.cases import cases
 from rcmlconf.cli.run import run
@@ -210,15 +210,44 @@ def test_a_site_path_that_is_not_one_is_refused() -> None:
 # -- 6. a target that is not there --------------------------------------------------------------
 
 
-def test_a_closed_port_is_one_line_naming_the_port_given() -> None:
-    with socket.socket() as probe:
+def free_port(kind: socket.SocketKind) -> int:
+    """A port of 127.0.0.1 nothing listens on (free once the probe is closed)."""
+    with socket.socket(socket.AF_INET, kind) as probe:
         probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]  # free once closed: nothing listens on it
+        port: int = probe.getsockname()[1]
+        return port
+
+
+def test_a_closed_port_is_one_line_naming_the_port_given() -> None:
+    port = free_port(socket.SOCK_STREAM)
     done = run_command("run", "--target", f"127.0.0.1:{port}")
-    line = refusal(done, f"--target 127.0.0.1:{port}", "connection refused")
+    line = refusal(done, f"--target 127.0.0.1:{port} (RCTP over TCP)", "connection refused")
     assert line.endswith("is the target running, on that port?")
     assert f"127.0.0.1:{port + 1}" not in done.stderr
     assert done.stdout == ""
+
+
+def test_a_robot_port_nothing_listens_on_is_one_line_not_failures() -> None:
+    # Before: 5 cases failed R-RSP-20/21 (no answer to HELLO) and 50 were inconclusive, in 96 s.
+    port = free_port(socket.SOCK_DGRAM)
+    done = run_command("run", "--rsp-target", f"127.0.0.1:{port}", "--model", CUBO)
+    refusal(done, f"--rsp-target 127.0.0.1:{port} (RSP over UDP)", "nothing listens there")
+    assert done.stdout == ""
+
+
+def test_a_name_that_cannot_be_looked_up_is_one_line() -> None:
+    done = run_command("run", "--target", "nowhere.invalid")  # RFC 6761: never resolves
+    refusal(done, "--target nowhere.invalid:7330", "cannot look nowhere.invalid up")
+
+
+def test_a_robot_that_is_there_is_tested(tmp_path: Path) -> None:
+    with running(tmp_path, "robot", CUBO, "--port", "0") as robot:
+        address = f"127.0.0.1:{robot.ready['port']}"
+        done = run_command(
+            "run", "--rsp-target", address, "--model", CUBO, "--only", "rsp/session/welcome"
+        )
+    assert done.returncode == 0, done.stderr
+    assert "1 pass" in done.stderr
 
 
 def test_a_target_that_is_there_is_tested() -> None:
@@ -232,7 +261,7 @@ def test_a_target_that_is_there_is_tested() -> None:
             "run", "--target", f"127.0.0.1:{port}", "--only", "rctp/msg/connect",
             "--timeout-scale", "0.2", "--verbose",
         )  # fmt: skip
-    assert "cannot connect to --target" not in done.stderr
+    assert "cannot reach --target" not in done.stderr
     assert "rctp/msg/connect" in done.stdout
 
 

@@ -45,7 +45,7 @@ def test_a_target_that_is_not_there_is_an_error_not_a_failure(tmp_path: Path) ->
     done = run_command("run", "--target", "127.0.0.1:9", "--only", "rctp/msg/connect")
     assert done.returncode == 2, done.stderr
     assert done.stderr.splitlines() == [
-        "rcmlconf run: cannot connect to --target 127.0.0.1:9 (RCTP over TCP): connection"
+        "rcmlconf run: cannot reach --target 127.0.0.1:9 (RCTP over TCP): connection"
         " refused; is the target running, on that port?"
     ]
     assert "fail" not in done.stdout
