@@ -3,9 +3,9 @@ case runs. One that is not there is then one line and status 2 (the harness cann
 not every case in error, or, for a robot that never answers HELLO, failing R-RSP-20.
 
 An RCTP server gets a TCP connection, closed at once. An RSP robot gets one empty datagram, which
-it drops like any packet too short to read (D-RSP-5): a host where nothing listens on the port
-answers it with ICMP "port unreachable", which the socket reports; a silent host says nothing, and
-the cases go on to find out."""
+it drops unanswered, as every packet shorter than the 20-byte header (D-RSP-10, R-RSP-18): a host
+where nothing listens on the port answers it with ICMP "port unreachable", which the socket
+reports; a silent host says nothing, and the cases go on to find out."""
 
 from __future__ import annotations
 
