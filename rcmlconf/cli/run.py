@@ -423,6 +423,10 @@ def _check_roles(
         raise click.UsageError("--fault is for the embedded reference: leave out the targets")
     if (rcml is not None or site is not None) and target is None:
         raise click.UsageError("--rcml and --site describe --target: give --target too")
+    if model is not None and rsp_target is None and role != "local":
+        raise click.UsageError(
+            "--model describes --rsp-target, or the robot --role local plays: give one of them"
+        )
 
 
 def _write_reports(

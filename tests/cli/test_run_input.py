@@ -198,6 +198,11 @@ def test_an_ipv6_target_in_brackets_is_taken() -> None:
     assert "rctp/msg/connect" in done.stdout
 
 
+def test_a_model_without_a_robot_to_describe_is_refused() -> None:
+    # It was ignored: the embedded reference ran, and the user thought their model was used.
+    refusal(run_command("run", "--model", CUBO, *QUICK), "--model describes --rsp-target")
+
+
 def test_a_site_path_that_is_not_one_is_refused() -> None:
     refused_all(
         [
