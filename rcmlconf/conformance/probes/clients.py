@@ -47,7 +47,7 @@ class ClientListener:
         except TimeoutError:
             host, port = self.address
             raise Inconclusive(f"no client connected to {host}:{port} within {wait:g} s") from None
-        probe = ControlProbe(reader, writer, transcript, wait)
+        probe = ControlProbe(reader, writer, transcript, wait).serving()
         peer = probe.peer
         transcript.note(f"{probe.name} a client connected from {peer[0]}:{peer[1]}")
         return probe

@@ -39,6 +39,17 @@ class ControlProbe:
         self.peer: Address = writer.get_extra_info("peername")[:2]
         #: `c1`, `c2`, ...: which connection of the case a transcript line is about.
         self.name = transcript.label("c")
+        #: How the probe answers the peer's own requests that come while it waits for an answer
+        #: (D-RCTP-6 lets either side send requests between answers): a server's WRITE, STOP or
+        #: BYE 200, as a client must (R-RCTP-24); `serving` sets how a client's are answered.
+        self.own_requests: tuple[int, str] = (200, "OK")
+
+    def serving(self) -> ControlProbe:
+        """This probe plays the server of a client under test: the client's own requests that
+        come while a case waits for an answer are answered 503, as a server whose robot cannot
+        be reached now (D-RCTP-15); the case's own exchange goes on."""
+        self.own_requests = (503, "Service Unavailable")
+        return self
 
     @classmethod
     async def open(cls, address: Address, transcript: Transcript, wait: float) -> ControlProbe:
@@ -148,16 +159,17 @@ class ControlProbe:
             self.transcript.packet("tcp", self.peer, self.local, data)
             self._messages.feed(data)
 
-    async def response(self, wait: float | None = None) -> Response:
-        """The next message, which must be a response (the target's own WRITE, STOP or BYE in
-        between are answered 200 and skipped, as a client must, R-RCTP-24)."""
+    async def response(self, wait: float | None = None, closed: str = "R-RCTP-5") -> Response:
+        """The next message, which must be a response: the target's own requests in between are
+        answered (`own_requests`) and skipped, as D-RCTP-6 allows them. A connection closed
+        first breaks `closed`."""
         for _ in range(64):
             found = await self.message(wait)
             if found is None:
-                raise Failed("R-RCTP-5", "an answer", "the connection closed without one")
+                raise Failed(closed, "an answer", "the connection closed without one")
             if isinstance(found, Response):
                 return found
-            await self.answer(found)
+            await self.answer(found, *self.own_requests)
         raise Failed("R-RCTP-5", "an answer", "64 requests of the target's and no answer")
 
     async def next_request(
