@@ -1,0 +1,283 @@
+"""RCTP/2.0 control messages: framing, limits and the small grammars of specs/rctp-2.0.md §2."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from urllib.parse import unquote_to_bytes
+
+from rcml import is_xml_name
+
+VERSION = "RCTP/2.0"
+MAX_START_LINE = 4096
+MAX_HEADER_LINE = 4096
+MAX_HEADER_SECTION = 16384
+MAX_FIELDS = 64
+MAX_BODY = 4194304
+ONCE = ("cseq", "session", "content-length", "content-type", "nodes", "transport")
+METHODS = ("CONNECT", "ACQUIRE", "RELEASE", "READ", "WRITE", "SETUP", "GO", "PAUSE", "STOP", "BYE")
+REASONS = {
+    200: "OK",
+    400: "Bad Request",
+    403: "Forbidden",
+    404: "Not Found",
+    405: "Method Not Allowed",
+    411: "Length Required",
+    413: "Content Too Large",
+    414: "URI Too Long",
+    415: "Unsupported Media Type",
+    422: "Unprocessable Content",
+    431: "Request Header Fields Too Large",
+    454: "Session Not Found",
+    455: "Method Not Valid in This State",
+    461: "Unsupported Transport",
+    470: "Not Acquired",
+    471: "Acquired by Another Session",
+    500: "Internal Server Error",
+    501: "Not Implemented",
+    503: "Service Unavailable",
+    505: "RCTP Version Not Supported",
+}
+
+_TOKEN = re.compile(rb"[!#$%&'*+\-.^_`|~0-9A-Za-z]+")
+_TARGET_CHARS = re.compile(rb"[\x21-\x7e\x80-\xff]+")  # its syntax is checked later
+_VALUE_BAD = re.compile(rb"[\x00-\x08\x0a-\x1f\x7f]")
+_OTHER_VERSION = re.compile(r"RCTP/[0-9]+\.[0-9]+")
+_STATUS = re.compile(rb"RCTP/2\.0 ([0-9]{3}) [\t\x20-\x7e\x80-\xff]*")
+_PCHARS = re.compile(r"(?:[A-Za-z0-9\-._~!$&'()*+,;=:@]|%[0-9A-Fa-f]{2})+")
+_DIGITS = re.compile(r"[0-9]+")
+SESSION_ID = re.compile(r"[A-Za-z0-9$\-_.+]{8,64}")
+
+
+class FrameError(Exception):
+    """A message that cannot be framed: answered (if a request) with status, then the close."""
+
+    def __init__(self, status: int, why: str, cseq: int | None = None, response: bool = False):
+        super().__init__(why)
+        self.status, self.cseq, self.response = status, cseq, response
+
+
+@dataclass
+class Message:
+    start: str  # the start line
+    request: bool
+    method: str = ""
+    target: str = ""
+    version: str = ""
+    status: int = 0
+    fields: list[tuple[str, str]] = field(default_factory=list)  # (lower-case name, value)
+    body: bytes = b""
+    has_length: bool = False
+
+    def all(self, name: str) -> list[str]:
+        return [v for k, v in self.fields if k == name]
+
+    def one(self, name: str) -> str | None:
+        values = self.all(name)
+        return values[0] if values else None
+
+
+class Reader:
+    """Frames messages out of a byte stream; buffers at most one message within the limits."""
+
+    def __init__(self) -> None:
+        self.buf = bytearray()
+        self._head: Message | None = None
+        self._need = 0
+
+    def feed(self, data: bytes) -> None:
+        self.buf += data
+
+    def next(self) -> Message | None:
+        """The next whole message, None when more bytes are needed; raises FrameError."""
+        if self._head is None:
+            end = self.buf.find(b"\r\n\r\n")
+            if end < 0:
+                self._check_partial()
+                return None
+            head = bytes(self.buf[: end + 2])
+            self._head, self._need = _parse_head(head)
+            del self.buf[: end + 4]
+        if len(self.buf) < self._need:
+            return None
+        msg, self._head = self._head, None
+        msg.body = bytes(self.buf[: self._need])
+        del self.buf[: self._need]
+        return msg
+
+    def _check_partial(self) -> None:
+        """Limits and bare line feeds found before the header section is complete."""
+        buf = self.buf
+        first = buf.find(b"\n")
+        response = buf.startswith(b"RCTP/")
+        if first < 0:
+            if len(buf) > MAX_START_LINE + 1:
+                raise FrameError(414, "start line above 4,096 bytes", response=response)
+            return
+        if first == 0 or buf[first - 1] != 0x0D:
+            raise FrameError(400, "a line ending in a bare LF", response=response)
+        if first - 1 > MAX_START_LINE:
+            raise FrameError(414, "start line above 4,096 bytes", response=response)
+        pos, fields, total = first + 1, 0, 0
+        while True:
+            nl = buf.find(b"\n", pos)
+            if nl < 0:
+                if (
+                    len(buf) - pos > MAX_HEADER_LINE + 1
+                    or total + len(buf) - pos > MAX_HEADER_SECTION
+                ):
+                    raise FrameError(
+                        431, "header line or section above the limits", response=response
+                    )
+                return
+            if nl == pos or buf[nl - 1] != 0x0D:
+                raise FrameError(400, "a line ending in a bare LF", response=response)
+            total += nl + 1 - pos
+            fields += 1
+            if nl - 1 - pos > MAX_HEADER_LINE or total > MAX_HEADER_SECTION or fields > MAX_FIELDS:
+                raise FrameError(431, "header line or section above the limits", response=response)
+            pos = nl + 1
+
+
+def _parse_head(head: bytes) -> tuple[Message, int]:
+    lines = head.split(b"\r\n")[:-1]
+    start = lines[0]
+    response = start.startswith(b"RCTP/")
+    if b"\n" in head.replace(b"\r\n", b""):
+        raise FrameError(400, "a line ending in a bare LF", response=response)
+    if len(start) > MAX_START_LINE:
+        raise FrameError(414, "start line above 4,096 bytes", response=response)
+    header_lines = lines[1:]
+    section = sum(len(x) + 2 for x in header_lines)
+    if len(header_lines) > MAX_FIELDS or section > MAX_HEADER_SECTION:
+        raise FrameError(431, "header section above the limits", response=response)
+    if any(len(x) > MAX_HEADER_LINE for x in header_lines):
+        raise FrameError(431, "header line above 4,096 bytes", response=response)
+    fields: list[tuple[str, str]] = []
+    for line in header_lines:
+        if line[:1] in (b" ", b"\t"):
+            raise FrameError(400, "obsolete line folding", response=response)
+        name, colon, value = line.partition(b":")
+        if not colon or not _TOKEN.fullmatch(name):
+            raise FrameError(400, f"bad header line {line[:60]!r}", response=response)
+        value = value.strip(b" \t")
+        if _VALUE_BAD.search(value) or b"\r" in value:
+            raise FrameError(400, "control character in a field value", response=response)
+        fields.append((name.decode("ascii").lower(), value.decode("latin-1")))
+    cseq = _cseq_of(fields)
+    if any(k == "transfer-encoding" for k, _ in fields):
+        raise FrameError(400, "Transfer-Encoding is not used", cseq, response)
+    lengths = {v for k, v in fields if k == "content-length"}
+    if len(lengths) > 1:
+        raise FrameError(400, "Content-Length fields disagree", cseq, response)
+    need = 0
+    if lengths:
+        text = lengths.pop()
+        if not _DIGITS.fullmatch(text):
+            raise FrameError(400, "bad Content-Length", cseq, response)
+        need = int(text)
+        if need > MAX_BODY:
+            raise FrameError(413, "Content-Length above 4,194,304", cseq, response)
+        if len(text) > 10:
+            raise FrameError(400, "bad Content-Length", cseq, response)
+    if response:
+        match = _STATUS.fullmatch(start)
+        if not match:
+            raise FrameError(400, "bad status line", response=True)
+        msg = Message(start.decode("latin-1"), False, status=int(match.group(1)), fields=fields)
+    else:
+        parts = start.split(b" ")
+        if (
+            len(parts) != 3
+            or not _TOKEN.fullmatch(parts[0])
+            or not _TARGET_CHARS.fullmatch(parts[1])
+        ):
+            raise FrameError(400, "bad request line", cseq)
+        method, target, version = (p.decode("latin-1") for p in parts)
+        if version != VERSION and not _OTHER_VERSION.fullmatch(version):
+            raise FrameError(400, "bad version", cseq)
+        msg = Message(start.decode("latin-1"), True, method, target, version, fields=fields)
+    msg.has_length = bool(any(k == "content-length" for k, _ in fields))
+    return msg, need
+
+
+def _cseq_of(fields: list[tuple[str, str]]) -> int | None:
+    values = [v for k, v in fields if k == "cseq"]
+    return parse_cseq(values[0]) if len(values) == 1 else None
+
+
+def parse_cseq(text: str) -> int | None:
+    if not re.fullmatch(r"[0-9]{1,10}", text):
+        return None
+    value = int(text)
+    return value if 1 <= value <= 2147483647 else None
+
+
+def parse_target(target: str) -> str | None:
+    """A request-target as a decoded path, "*" or "/"; None when it breaks D-RCTP-7."""
+    if target in ("*", "/"):
+        return target
+    if not target.startswith("/"):
+        return None
+    names = []
+    for segment in target[1:].split("/"):
+        name = decode_name(segment)
+        if name is None:
+            return None
+        names.append(name)
+    return "/" + "/".join(names)
+
+
+def decode_name(segment: str) -> str | None:
+    """A percent-encoded path segment as a node name, None unless it is an XML Name."""
+    if not _PCHARS.fullmatch(segment):
+        return None
+    try:
+        name = unquote_to_bytes(segment).decode("utf-8")
+    except UnicodeDecodeError:
+        return None
+    return name if is_xml_name(name) else None
+
+
+def parse_session(text: str) -> str | None:
+    """The session-id of a Session field (a timeout parameter may follow)."""
+    sid, _, rest = text.partition(";")
+    if rest and not re.fullmatch(r"[ \t]*timeout=[0-9]{1,5}", rest):
+        return None
+    return sid if SESSION_ID.fullmatch(sid) else None
+
+
+def parse_transport(text: str) -> dict[str, str] | None:
+    """A Transport field as its parameters; None when it breaks the grammar of §2.1."""
+    parts = text.split(";")
+    if parts[0].strip().lower() != "udp":
+        return None
+    params: dict[str, str] = {}
+    for part in parts[1:]:
+        key, eq, value = part.strip().partition("=")
+        key, value = key.lower(), value.lower()
+        if not eq or key in params:
+            return None
+        if key in ("client_port", "server_port"):
+            if not re.fullmatch(r"[0-9]{1,5}", value) or not 1 <= int(value) <= 65535:
+                return None
+        elif key == "tag":
+            if not re.fullmatch(r"[0-9a-f]{8}", value):
+                return None
+        elif key == "mode":
+            if value not in ("read", "write", "both"):
+                return None
+        elif key == "stream":
+            if not re.fullmatch(r"[0-9]{1,3}", value):
+                return None
+        else:
+            return None
+        params[key] = value
+    return params
+
+
+def build(start: str, headers: list[tuple[str, str]], body: bytes = b"", ctype: str = "") -> bytes:
+    lines = [start, *(f"{k}: {v}" for k, v in headers)]
+    if body:
+        lines += [f"Content-Type: {ctype}", f"Content-Length: {len(body)}"]
+    return ("\r\n".join(lines) + "\r\n\r\n").encode("utf-8") + body
