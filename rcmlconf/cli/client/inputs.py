@@ -85,7 +85,10 @@ def check_rcml(text: str) -> str:
     if not text:
         raise ValueTextError("'' is empty: give the robot's RCML file or its http(s) URL")
     if _CONTROLS.search(text):
-        raise ValueTextError(f"{shown(text)} holds a control character")
+        # A file's name is shown whole where it fits a line: the part cut off may be the part
+        # that holds the newline.
+        named = repr(text) if len(text) <= 300 else shown(text)
+        raise ValueTextError(f"{named} holds a control character")
     if is_http_url(text):
         try:
             parts = urlsplit(text)
