@@ -100,7 +100,8 @@ def listen_option(host: str) -> Callable[..., Address | None]:
 
 
 def _port(text: str, whole: str) -> int:
-    if not (text.isascii() and text.isdigit() and 0 < int(text) < 65536):
+    # Five digits at most: int() refuses a few thousand (ValueError, not a usage error).
+    if not (text.isascii() and text.isdigit() and len(text) <= 5 and 0 < int(text) < 65536):
         _fail(whole, "is not a port 1 to 65535" if text == whole else "has no port 1 to 65535")
     return int(text)
 

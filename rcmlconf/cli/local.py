@@ -19,10 +19,11 @@ import click
 
 from rcmlconf.cli.client.values import parse_typed_value, values_json, values_text
 from rcmlconf.cli.console import Output
+from rcmlconf.cli.hosts import Address, address_option
 from rcmlconf.cli.interrupts import Interrupts
 from rcmlconf.cli.models import load_or_exit
 from rcmlconf.cli.params import DAY, Bounded, seconds
-from rcmlconf.cli.rsp_options import ENCRYPTIONS, Address, address_of, psk_option, read_psk
+from rcmlconf.cli.rsp_options import ENCRYPTIONS, psk_option, read_psk
 from rcmlconf.errors import EncodeError, ValueTextError
 from rcmlconf.reference.rsp.robot import DEFAULT_PORT
 from rcmlconf.reference.rsp.simulacrum import NoSession, Simulacrum
@@ -55,7 +56,7 @@ _REFUSED = (KeyError, TypeError, ValueError, EncodeError, Backlog)
     "robot",
     required=True,
     metavar="HOST[:PORT]",
-    callback=address_of(DEFAULT_PORT),
+    callback=address_option(DEFAULT_PORT),
     help=f"The robot's address (port {DEFAULT_PORT} if not given, D-RSP-9).",
 )
 @click.option(

@@ -1,16 +1,16 @@
-"""What `rcmlconf robot` and `rcmlconf local` share: encryption, the key, addresses."""
+"""What `rcmlconf robot` and `rcmlconf local` share: encryption, the key, the host."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 
 import click
 
+from rcmlconf.cli.hosts import host_problem
+from rcmlconf.conformance.files import one_line
 from rcmlconf.rsp.codec import Encryption
 from rcmlconf.rsp.security import KEY_SIZE, key_from_file
-
-Address = tuple[str, int]
+from rcmlconf.wording import shorten
 
 #: D-RSP-21's AEADs by the names the options take.
 ENCRYPTIONS = {
@@ -48,57 +48,13 @@ def _bad_key(path: Path, why: str) -> click.BadParameter:
     return click.BadParameter(f"{str(path)!r} {why}", param_hint="'--psk-file'")
 
 
-def parse_address(text: str, default_port: int) -> Address:
-    """HOST[:PORT], [IPv6][:PORT]."""
-    host, port = text, default_port
-    if text.startswith("["):
-        host, bracket, rest = text[1:].partition("]")
-        if not bracket:
-            raise click.BadParameter(f"{text!r}: an IPv6 address in [ ] has no ]")
-        if rest:
-            port = _port(rest.removeprefix(":"), text)
-    elif text.count(":") == 1:
-        host, _, number = text.partition(":")
-        port = _port(number, text)
-    return checked_host(host, text), port
-
-
-def checked_host(host: str, whole: str) -> str:
-    """`host` if it could be looked up: Python encodes a name by IDNA before it asks the resolver,
-    and fails there (UnicodeError, not OSError) on an empty label (`a..b`) or one over 63
-    characters."""
-    if not host:
-        raise click.BadParameter(f"{whole!r} has no host")
-    try:
-        host.encode("idna")
-    except UnicodeError:
-        raise click.BadParameter(
-            f"{whole!r} is not a host name or address (a dot-separated label is empty, longer"
-            " than 63 characters or not text)"
-        ) from None
-    return host
-
-
-def address_of(default_port: int) -> Callable[[click.Context, click.Parameter, str], Address]:
-    """A callback making an option's HOST[:PORT] an address, or a usage error naming it."""
-
-    def convert(ctx: click.Context, param: click.Parameter, value: str) -> Address:
-        return parse_address(value, default_port)
-
-    return convert
-
-
 def host_only(ctx: click.Context, param: click.Parameter, value: str) -> str:
-    """A callback checking an option's HOST as `checked_host` does."""
-    return checked_host(value, value)
-
-
-def _port(text: str, whole: str) -> int:
-    # ASCII digits, five at most: str.isdigit() also takes `²`, which int() refuses, and int()
-    # refuses a few thousand digits too.
-    if not (text.isascii() and text.isdigit() and len(text) <= 5 and 0 < int(text) < 65536):
-        raise click.BadParameter(f"{whole!r}: the port must be 1 to 65535")
-    return int(text)
+    """A click callback: the option's HOST, an IP address or a host name (`cli.hosts`), or a
+    usage error naming it (`a..b` was refused by Python's resolver with UnicodeError)."""
+    problem = host_problem(value)
+    if problem is not None:
+        raise click.BadParameter(f"'{one_line(shorten(value, 80))}' {problem}")
+    return value
 
 
 psk_option = click.option(
