@@ -9,8 +9,8 @@ def shorten(text: str, limit: int = 40) -> str:
 
 
 def plural(count: int, noun: str) -> str:
-    """`1 error`, `2 errors`."""
-    return f"{count} {noun}{'' if count == 1 else 's'}"
+    """`1 error`, `2 errors`, `12,345 frames`."""
+    return f"{count:,} {noun}{'' if count == 1 else 's'}"
 
 
 def indefinite(noun: str) -> str:

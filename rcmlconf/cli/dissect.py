@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
 
 import click
 
-from rcmlconf.cli.console import Output
+from rcmlconf.cli.console import Output, printable
 from rcmlconf.cli.models import load_or_exit
 from rcmlconf.diagnostics import Diagnostic
 from rcmlconf.dissect import Dissector, Options, Record, Severity
@@ -18,6 +19,7 @@ from rcmlconf.pcap.reader import Capture, CaptureError
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rsp.model import RobotModel
 from rcmlconf.validate.validator import InvalidRobot, Validator
+from rcmlconf.wording import plural
 
 #: Lines written to the console at once: one write per batch, not per message.
 BATCH = 2048
@@ -30,6 +32,26 @@ def _decode_as(
         return tuple(parse_decode_as(value) for value in values)
     except ValueError as error:
         raise click.BadParameter(str(error)) from None
+
+
+def _writable(ctx: click.Context, param: click.Parameter, path: Path | None) -> Path | None:
+    """--plot's FILE, once it is known to open for writing: refused before the capture is read,
+    not after a long dissection. The file is not emptied; one made by the test is removed."""
+    if path is None:
+        return None
+    try:
+        try:
+            os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+        except FileExistsError:
+            # O_NONBLOCK: a FIFO without a reader is refused, not waited for.
+            os.close(os.open(path, os.O_WRONLY | os.O_NONBLOCK))
+        else:
+            path.unlink()
+    except OSError as exc:
+        raise click.BadParameter(
+            f"'{printable(str(path))}' cannot be written: {exc.strerror or exc}"
+        ) from None
+    return path
 
 
 def _load_model(path: Path, warnings: list[Diagnostic]) -> RobotModel | RcmlDocument:
@@ -48,6 +70,31 @@ def _load_model(path: Path, warnings: list[Diagnostic]) -> RobotModel | RcmlDocu
     return model
 
 
+def _models(
+    output: Output, paths: tuple[Path, ...]
+) -> tuple[RobotModel | None, RcmlDocument | None]:
+    """--model's robot model and RCML, each loaded and checked. Two of a kind are refused: only one
+    of them could be used."""
+    rsp_model: RobotModel | None = None
+    rcml: RcmlDocument | None = None
+    first: dict[str, Path] = {}
+    for path in paths:
+        model = load_or_exit(output, "dissect", path, _load_model)
+        what = "robot model" if isinstance(model, RobotModel) else "RCML document"
+        if what in first:
+            raise click.BadParameter(
+                f"'{printable(str(first[what]))}' and '{printable(str(path))}' are both a {what}:"
+                " give one robot model and one RCML at most",
+                param_hint="'--model'",
+            )
+        first[what] = path
+        if isinstance(model, RobotModel):
+            rsp_model = model
+        else:
+            rcml = model
+    return rsp_model, rcml
+
+
 @click.command()
 @click.argument("capture", metavar="FILE", type=click.Path(dir_okay=False, path_type=Path))
 @click.option(
@@ -57,7 +104,7 @@ def _load_model(path: Path, warnings: list[Diagnostic]) -> RobotModel | RcmlDocu
     metavar="FILE",
     type=click.Path(exists=True, dir_okay=False, path_type=Path),
     help="The robot model (.rmodel) to decode RSP payloads with, and/or the robot's RCML (.rcml)"
-    " to decode data-stream values and READ/WRITE bodies with. Repeatable: one of each.",
+    " to decode data-stream values and READ/WRITE bodies with. Repeatable: one of each at most.",
 )
 @click.option(
     "--format",
@@ -84,16 +131,18 @@ def _load_model(path: Path, warnings: list[Diagnostic]) -> RobotModel | RcmlDocu
 @click.option(
     "--plot",
     type=click.Path(dir_okay=False, path_type=Path),
+    callback=_writable,
     metavar="FILE.png",
-    help="Also draw inter-arrival time and latency over time per stream (needs matplotlib:"
-    " the `plot` extra).",
+    help="Also draw inter-arrival time and latency over time per stream, as a PNG image written"
+    " to FILE.png as named (needs matplotlib: the `plot` extra).",
 )
 @click.option("-q", "--quiet", is_flag=True, help="Print the analysis only, no line per message.")
 @click.option(
     "-V",
     "verbose",
     is_flag=True,
-    help="The full field tree of each message (the scapy layers).",
+    help="The full field tree of each message (the scapy layers), as text and without the"
+    " analysis: not with --plot or --format json.",
 )
 def dissect(
     capture: Path,
@@ -131,15 +180,13 @@ def dissect(
       rcmlconf dissect --model cubo.rmodel --format json cubo.pcapng > cubo.jsonl
       rcmlconf dissect --decode-as rsp=9000 --plot streams.png -q lab.pcap
     """
+    if verbose and (plot is not None or output_format == "json"):
+        raise click.UsageError(
+            "-V prints each message's field tree as text, and no analysis:"
+            " leave out --plot and --format json, or -V"
+        )
     output = Output()
-    rsp_model: RobotModel | None = None
-    rcml: RcmlDocument | None = None
-    for path in models:
-        model = load_or_exit(output, "dissect", path, _load_model)
-        if isinstance(model, RobotModel):
-            rsp_model = model
-        else:
-            rcml = model
+    rsp_model, rcml = _models(output, models)
     options = Options(rsp_model, rcml, decode_as, not no_heuristics, plot is not None)
     try:
         opened = Capture.open(capture)
@@ -170,10 +217,14 @@ def dissect(
         status = max(status, _plot(output, dissector, plot, capture))
     warnings = sum(1 for f in analysis.findings if f.severity is Severity.WARNING)
     messages = sum(analysis.capture.messages.values())
+    counts = (
+        (analysis.capture.frames, "frame"),
+        (messages, "message"),
+        (analysis.errors, "error"),
+        (warnings, "warning"),
+    )
     output.summary(
-        f"{capture}: {analysis.capture.frames:,} frames, {messages:,} messages,"
-        f" {analysis.errors} errors, {warnings} warnings",
-        ok=status == 0,
+        f"{capture}: {', '.join(plural(count, noun) for count, noun in counts)}", ok=status == 0
     )
     sys.exit(status)
 
@@ -232,10 +283,10 @@ def _plot(output: Output, dissector: Dissector, path: Path, capture: Path) -> in
     except ImportError:
         output.problem("dissect", "--plot needs matplotlib: pip install 'rcmlconf[plot]'")
         return 2
-    except (OSError, ValueError) as exc:
-        output.problem("dissect", f"--plot {path}: {exc}")
+    except OSError as exc:  # /dev/full, a disk that fills: known only once written
+        output.problem("dissect", f"--plot {path}: cannot be written: {exc.strerror or exc}")
         return 2
-    output.notice(f"{path}: {drawn} streams drawn")
+    output.notice(f"{path}: {plural(drawn, 'stream')} drawn")
     return 0
 
 

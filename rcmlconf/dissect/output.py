@@ -509,7 +509,7 @@ def analysis_lines(analysis: Analysis) -> Iterator[tuple[str, str]]:
     yield (
         (
             f"  capture {capture.name} ({capture.format}): {plural(capture.frames, 'frame')}{span};"
-            f" messages: {messages}; {capture.other:,} frames of other traffic"
+            f" messages: {messages}; {plural(capture.other, 'frame')} of other traffic"
         ),
         "",
     )
@@ -519,7 +519,7 @@ def analysis_lines(analysis: Analysis) -> Iterator[tuple[str, str]]:
     for frame, offset, reason in capture.problems:
         yield f"  frame {frame} (file byte {offset}): {reason}", "yellow"
     if capture.problems_left_out:
-        yield f"  ... and {capture.problems_left_out:,} more frames like these", "yellow"
+        yield f"  ... and {plural(capture.problems_left_out, 'more frame')} like these", "yellow"
     if analysis.control:
         yield "RCTP control connections", "bold"
         for control in analysis.control:
@@ -540,14 +540,14 @@ def analysis_lines(analysis: Analysis) -> Iterator[tuple[str, str]]:
     yield (
         (
             f"Findings: {plural(len(analysis.findings) + left, 'finding')}"
-            f" ({analysis.errors} errors)"
+            f" ({plural(analysis.errors, 'error')})"
         ),
         "bold",
     )
     for finding in analysis.findings:
         yield finding_text(finding), _STYLE[finding.severity]
     for (severity, rule), count in sorted(analysis.left_out.items(), key=lambda i: i[0][1]):
-        yield f"  ... and {count:,} more {severity.value}s [{rule}]", _STYLE[severity]
+        yield f"  ... and {plural(count, 'more ' + severity.value)} [{rule}]", _STYLE[severity]
 
 
 _STYLE = {Severity.ERROR: "bold red", Severity.WARNING: "yellow", Severity.NOTE: ""}
@@ -604,8 +604,8 @@ def _stream_lines(stream: StreamReport) -> Iterator[tuple[str, str]]:
         (
             f"  {LABELS[stream.protocol]} {stream.source} → {stream.destination} {kind}"
             f" {stream.session}{label}: {plural(stream.packets, 'packet')},"
-            f" {stream.bytes:,} bytes, {stream.lost} lost, {stream.late} late (reordered),"
-            f" {stream.duplicates} duplicates, {plural(stream.gaps, 'gap')}"
+            f" {plural(stream.bytes, 'byte')}, {stream.lost} lost, {stream.late} late (reordered),"
+            f" {plural(stream.duplicates, 'duplicate')}, {plural(stream.gaps, 'gap')}"
             + (f" (largest {stream.largest_gap})" if stream.gaps else "")
             + f"; jitter {_ms(stream.jitter)}, inter-arrival {_ms(stream.interarrival_mean)} mean,"
             f" {_ms(stream.interarrival_max)} max [{stream.rule}]"
@@ -630,7 +630,8 @@ def _heartbeat_lines(beats: HeartbeatReport) -> Iterator[tuple[str, str]]:
     )
     yield (
         (
-            f"  tag {beats.tag} {beats.requester} → {beats.answerer}: {beats.requests} requests,"
+            f"  tag {beats.tag} {beats.requester} → {beats.answerer}:"
+            f" {plural(beats.requests, 'request')},"
             f" {beats.answered} answered; {trip}{offset} [R-RCTP-50]"
         ),
         "",

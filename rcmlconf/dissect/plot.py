@@ -13,6 +13,7 @@ from pathlib import Path
 
 from rcmlconf.dissect.records import LABELS
 from rcmlconf.dissect.streams import Stream
+from rcmlconf.wording import plural
 
 #: Streams drawn, at most: the ones with the most packets.
 MAX_STREAMS = 8
@@ -59,9 +60,10 @@ def plot_streams(streams: Sequence[Stream], path: Path, title: str) -> int:
                 axis.set_xlabel("seconds from the first packet")
     if not drawn:
         axes[0][0].text(0.5, 0.5, "no stream of two packets or more", ha="center")
-    suffix = f" ({left_out} more streams not drawn)" if left_out > 0 else ""
+    suffix = f" ({plural(left_out, 'more stream')} not drawn)" if left_out > 0 else ""
     figure.suptitle(f"{title}{suffix}", fontsize=10)
     figure.tight_layout()
-    figure.savefig(path, dpi=100)
+    # PNG whatever the name's suffix: matplotlib would take it for the format, or add .png.
+    figure.savefig(path, dpi=100, format="png")
     plt.close(figure)
     return len(drawn)

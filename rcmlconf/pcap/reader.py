@@ -31,6 +31,7 @@ from types import TracebackType
 from typing import Final
 
 from rcmlconf.errors import ProtocolError
+from rcmlconf.wording import plural
 
 LINKTYPE_NULL: Final = 0
 LINKTYPE_ETHERNET: Final = 1
@@ -164,7 +165,7 @@ class Capture:
 
 def _detect(data: bytes | mmap.mmap) -> str:
     if len(data) < 4:
-        raise CaptureError(f"{len(data)} bytes: too short for a pcap or pcapng file", 0)
+        raise CaptureError(f"{plural(len(data), 'byte')}: too short for a pcap or pcapng file", 0)
     (magic,) = struct.unpack_from("<I", data, 0)
     if magic in _PCAP_MAGIC:
         if len(data) < _PCAP_HEADER:
@@ -204,8 +205,8 @@ def _pcap_records(data: bytes | mmap.mmap) -> Iterator[Record]:
         end = start + captured
         if end > size:
             raise CaptureError(
-                f"record of {captured} bytes runs past the end of the file"
-                f" ({size - start} bytes left)",
+                f"record of {plural(captured, 'byte')} runs past the end of the file"
+                f" ({plural(size - start, 'byte')} left)",
                 offset + 8,
             )
         yield seconds + fraction * unit, linktype, start, end, length
@@ -279,7 +280,9 @@ def _pcapng_records(data: bytes | mmap.mmap) -> Iterator[Record]:
             interface = _interface(interfaces, number, body)
             start = body + 20
             if captured > body_end - start:
-                raise CaptureError(f"packet of {captured} bytes does not fit its block", body + 12)
+                raise CaptureError(
+                    f"packet of {plural(captured, 'byte')} does not fit its block", body + 12
+                )
             last_time = ((high << 32) | low) / interface.divisor + interface.offset
             yield last_time, interface.linktype, start, start + captured, length
         elif kind == _SPB:
@@ -302,7 +305,9 @@ def _pcapng_records(data: bytes | mmap.mmap) -> Iterator[Record]:
             interface = _interface(interfaces, number, body)
             start = body + 20
             if captured > body_end - start:
-                raise CaptureError(f"packet of {captured} bytes does not fit its block", body + 12)
+                raise CaptureError(
+                    f"packet of {plural(captured, 'byte')} does not fit its block", body + 12
+                )
             last_time = ((high << 32) | low) / interface.divisor + interface.offset
             yield last_time, interface.linktype, start, start + captured, length
         elif kind == _IDB:
@@ -361,7 +366,9 @@ def _interface_options(
         if code == _OPT_END:
             break
         if length > end - value:
-            raise CaptureError(f"option {code} of {length} bytes runs past its block", offset)
+            raise CaptureError(
+                f"option {code} of {plural(length, 'byte')} runs past its block", offset
+            )
         if code == _OPT_TSRESOL and length >= 1:
             resolution = data[value]
             exponent = resolution & 0x7F

@@ -78,6 +78,9 @@ def test_errors_found_exit_1(broken: Path) -> None:
     assert done.returncode == 1
     assert "RSP malformed malformed: header of 3 bytes" in done.stdout
     assert "error: [R-RSP-13]" in done.stdout
+    # One of each, said so.
+    assert "Findings: 1 finding (1 error)" in done.stdout.splitlines()
+    assert done.stderr == f"{broken}: 1 frame, 1 message, 1 error, 0 warnings\n"
 
 
 def test_json_lines_then_the_analysis(good: Path) -> None:
@@ -175,10 +178,96 @@ def test_plot(good: Path, tmp_path: Path) -> None:
     done = run("--plot", str(image), "-q", str(capture))
     assert done.returncode == 0, done.stderr
     assert image.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "1 streams drawn" in done.stderr
+    assert f"{image}: 1 stream drawn" in done.stderr
     bad = run("--plot", str(tmp_path / "no" / "such" / "dir.png"), "-q", str(capture))
     assert bad.returncode == 2
     assert "--plot" in bad.stderr
+
+
+@pytest.fixture
+def stream(tmp_path: Path) -> Path:
+    """A capture of one data stream of 50 packets."""
+    capture = tmp_path / "stream.pcap"
+    capture.write_bytes(
+        pcap(
+            [
+                (
+                    1.0 + i * 0.02,
+                    ipv4_udp(SERVER, CLIENT, DATA[:2] + i.to_bytes(2, "big") + DATA[4:]),
+                )
+                for i in range(50)
+            ]
+        )
+    )
+    return capture
+
+
+def test_plot_writes_the_path_as_given(stream: Path, tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib")
+    image = tmp_path / "streams"  # no .png: written as it is named, as PNG all the same
+    done = run("--plot", str(image), "-q", str(stream))
+    assert done.returncode == 0, done.stderr
+    assert image.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not image.with_name("streams.png").exists()
+    assert f"{image}: 1 stream drawn" in done.stderr
+
+
+def test_a_plot_path_that_cannot_be_written_is_refused_before_dissecting(
+    stream: Path, tmp_path: Path
+) -> None:
+    # Below a regular file: no process can write there, root neither.
+    unwritable = stream / "streams.png"
+    done = run("--plot", str(unwritable), str(stream))
+    assert done.returncode == 2
+    assert done.stdout == ""  # not one message dissected
+    assert done.stderr.splitlines()[-1] == (
+        f"Error: Invalid value for '--plot': '{unwritable}' cannot be written: Not a directory"
+    )
+
+
+def test_an_existing_plot_file_is_left_as_it_is_when_dissecting_fails(tmp_path: Path) -> None:
+    kept = tmp_path / "kept.png"
+    kept.write_bytes(b"an earlier plot")
+    garbage = tmp_path / "garbage.pcap"
+    garbage.write_bytes(b"not a capture")
+    assert run("--plot", str(kept), str(garbage)).returncode == 2
+    assert kept.read_bytes() == b"an earlier plot"
+    fresh = tmp_path / "fresh.png"
+    assert run("--plot", str(fresh), str(garbage)).returncode == 2
+    assert not fresh.exists()  # the writability test left nothing behind
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+def test_plot_to_dev_full_is_one_line_and_makes_no_other_file(stream: Path) -> None:
+    pytest.importorskip("matplotlib")
+    beside = Path("/dev/full.png")
+    before = beside.exists()
+    done = run("--plot", "/dev/full", "-q", str(stream))
+    assert done.returncode == 2
+    assert "rcmlconf dissect: --plot /dev/full: cannot be written: No space left on device" in (
+        done.stderr.splitlines()
+    )
+    assert beside.exists() == before
+
+
+@pytest.mark.parametrize("option", [["--plot", "x.png"], ["--format", "json"]])
+def test_verbose_takes_no_plot_or_json(good: Path, tmp_path: Path, option: list[str]) -> None:
+    done = run("-V", *option, str(good), cwd=tmp_path)
+    assert done.returncode == 2
+    assert done.stdout == ""
+    assert done.stderr.splitlines()[-1] == (
+        "Error: -V prints each message's field tree as text, and no analysis: leave out --plot"
+        " and --format json, or -V"
+    )
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_counts_of_one_are_singular(tmp_path: Path) -> None:
+    one = tmp_path / "one.pcap"
+    one.write_bytes(pcap([(1.0, ipv4_udp(LOCAL, ROBOT, HELLO))]))
+    done = run("-q", str(one))
+    assert done.returncode == 0, done.stderr
+    assert done.stderr == f"{one}: 1 frame, 1 message, 0 errors, 0 warnings\n"
 
 
 def test_verbose_prints_each_message_and_its_field_tree_from_the_scapy_layers(good: Path) -> None:
@@ -199,3 +288,26 @@ def test_verbose_prints_each_message_and_its_field_tree_from_the_scapy_layers(go
     assert "read up to there" in broken.stderr
     assert broken.stdout.count("###[ RCTP Re") == done.stdout.count("###[ RCTP Re") == 2
     assert "###[ RSP ]###" in broken.stdout
+
+
+def test_two_models_of_a_kind_are_refused(good: Path) -> None:
+    """Only one robot model and one RCML can be used: a second of a kind is not silently
+    dropped."""
+    done = run("--model", str(CUBO), "--model", str(ROVER), "--model", str(CUBO), str(good))
+    assert done.returncode == 2
+    assert done.stdout == ""
+    assert done.stderr.splitlines()[-1] == (
+        f"Error: Invalid value for '--model': '{CUBO}' and '{CUBO}' are both a robot model: give"
+        " one robot model and one RCML at most"
+    )
+
+
+@pytest.mark.parametrize("verbose", [[], ["-V"]])
+def test_a_capture_of_one_byte_is_one_line(good: Path, tmp_path: Path, verbose: list[str]) -> None:
+    cut = tmp_path / "cut.pcap"
+    cut.write_bytes(good.read_bytes()[:1])
+    done = run(*verbose, str(cut))
+    assert done.returncode == 2
+    assert done.stderr.splitlines() == [
+        f"rcmlconf dissect: {cut}: 1 byte: too short for a pcap or pcapng file (byte 0)"
+    ]

@@ -4,13 +4,16 @@ findings, never exceptions."""
 
 from __future__ import annotations
 
+import contextlib
+
 from hypothesis import given
 from hypothesis import strategies as st
-from support.pcaps import TcpFlow, dissect, ipv4_udp, pcap
+from support.pcaps import TcpFlow, dissect, epb, idb, ipv4_udp, pcap, shb
 
 from rcmlconf.dissect import Dissector, Options
 from rcmlconf.dissect.output import JsonFormat, TextFormat, analysis_json, analysis_lines
 from rcmlconf.pcap.reader import Capture, CaptureError
+from rcmlconf.scapy_layers import capture as layers
 
 PORTS = st.sampled_from([7330, 7340, 9999])
 
@@ -82,3 +85,32 @@ def test_any_order_of_messages(messages: list[bytes], sides: list[bool]) -> None
     everything(pcap(flow.frames))
     result = dissect(pcap(flow.frames))
     assert len(result.records) == len(messages) or any(r.malformed for r in result.records)
+
+
+def _one_of_each() -> list[tuple[float, bytes]]:
+    """Frames of a control connection, an RSP HELLO and a data-stream packet."""
+    flow = TcpFlow(("10.0.0.2", 40000), ("10.0.0.7", 7330)).handshake()
+    flow.send(flow.client, b"CONNECT /rover RCTP/2.0\r\nCSeq: 1\r\n\r\n")
+    flow.send(flow.server, b"RCTP/2.0 200 OK\r\nCSeq: 1\r\nSession: abcdefgh1234\r\n\r\n")
+    hello = bytes.fromhex("0100010001000000000000000000000000000000") + bytes(18)
+    data = bytes.fromhex("020100010badcafeebe6bf40800000000101000400000001")
+    return [
+        *flow.frames,
+        (flow.time + 0.01, ipv4_udp(("10.0.0.2", 50000), ("10.0.0.7", 7340), hello)),
+        (flow.time + 0.02, ipv4_udp(("10.0.0.7", 7330), ("10.0.0.2", 40000), data)),
+    ]
+
+
+def _pcapng(frames: list[tuple[float, bytes]]) -> bytes:
+    return shb() + idb(101) + b"".join(epb(0, int(t * 1e6), f) for t, f in frames)
+
+
+def test_a_capture_cut_at_every_length() -> None:
+    """Each prefix of a pcap and of a pcapng file is no capture or a capture read up to its
+    break, by the dissector and by the scapy layers (`dissect -V`, sniff) alike."""
+    frames = _one_of_each()
+    for whole in (pcap(frames), _pcapng(frames)):
+        for length in range(len(whole)):
+            everything(whole[:length])
+            with contextlib.suppress(CaptureError):
+                list(layers.messages(Capture(whole[:length])))
