@@ -47,11 +47,19 @@ CANNOT_CAPTURE = 2
     help="Also decode PORT as PROTO: rctp (the TCP control connection), rctp-data (the UDP "
     "data stream) or rsp (UDP).",
 )
+@click.option(
+    "--filter",
+    "only",
+    metavar="EXPR",
+    help="Capture only what both sniff's own filter (RCTP's TCP ports, and UDP) and EXPR let "
+    "through. EXPR is in tcpdump's syntax: 'udp port 9000', 'host 10.0.0.7'.",
+)
 def sniff(
     interface: str | None,
     count: int | None,
     model_path: Path | None,
     decode_as: tuple[str, ...],
+    only: str | None,
 ) -> None:
     """Capture RCTP/2.0 and RSP traffic live and print one line per message as it arrives:
     time, endpoints, then the method and target or the status of a control message, or the
@@ -59,17 +67,18 @@ def sniff(
 
     RCTP's control connection is read on TCP port 7330 and reassembled (messages split across
     segments, pipelined); its data stream on the UDP ports SETUP negotiates (seen in the
-    Transport fields) and 7330; RSP on UDP port 7340. Capturing needs root or CAP_NET_RAW.
+    Transport fields) and 7330; RSP on UDP port 7340. Capturing needs root or CAP_NET_RAW, and
+    libpcap (to compile the kernel's filter).
 
     \b
     Exit status: 0 done (--count reached or Ctrl-C); 1 invalid model;
-      2 capture not permitted, no such interface, or a usage error.
+      2 capture not permitted, no libpcap, no such interface, or a usage error.
 
     \b
     Examples:
       sudo rcmlconf sniff -i lo
       sudo rcmlconf sniff -i eth0 --model cubo.rmodel --count 100
-      sudo rcmlconf sniff -i lo --decode-as rsp=9000
+      sudo rcmlconf sniff -i lo --decode-as rsp=9000 --filter 'udp port 9000'
     """
     output = Output()
     model = None
@@ -86,8 +95,8 @@ def sniff(
         ports = [capture.parse_decode_as(text) for text in decode_as]
     except ValueError as error:
         raise click.BadParameter(str(error), param_hint="--decode-as") from None
-    bpf = _bpf(ports)
-    socket = _open(output, interface, bpf)
+    bpf = _bpf(ports, only)
+    socket = _open(output, interface, bpf, only)
     rsp.use_model(model)
     dissector = capture.Dissector(ports)
     shown = 0
@@ -113,26 +122,29 @@ def sniff(
     output.summary(f"{plural(shown, 'message')} in {plural(frames, 'frame')}", ok=True)
 
 
-def _bpf(ports: list[tuple[str, int]]) -> str:
+def _bpf(ports: list[tuple[str, int]], only: str | None) -> str:
     """The kernel's filter: RCTP's control connection on its TCP ports, and UDP, since the data
-    stream's ports are negotiated (D-RCTP-18) and learned from the control messages."""
+    stream's ports are negotiated (D-RCTP-18) and learned from the control messages; and the
+    user's --filter."""
     from rcmlconf.scapy_layers.capture import DEFAULT_TCP, RCTP
 
     tcp = sorted({*DEFAULT_TCP, *(port for proto, port in ports if proto == RCTP)})
-    return " or ".join([*(f"tcp port {port}" for port in tcp), "udp"])
+    ours = " or ".join([*(f"tcp port {port}" for port in tcp), "udp"])
+    return ours if only is None else f"({ours}) and ({only})"
 
 
-def _open(output: Output, interface: str | None, bpf: str) -> Any:
+def _open(output: Output, interface: str | None, bpf: str, only: str | None) -> Any:
     """A capturing socket; the one line that says why not, and exit 2."""
     import scapy.arch  # noqa: F401  (sets conf.L2listen)
     from scapy.config import conf
     from scapy.interfaces import get_if_list
 
-    name = interface or str(conf.iface)
+    name = interface if interface is not None else str(conf.iface)
     if name not in get_if_list():
         known = ", ".join(sorted(get_if_list()))
         output.problem("sniff", f"no interface {name!r} (this machine has {known})")
         sys.exit(CANNOT_CAPTURE)
+    _compile(output, name, bpf, only)
     # Loopback shows each packet twice, going out and coming in: a socket that drops what goes
     # out sees it once, as tcpdump does. Elsewhere both directions are wanted.
     flags = conf.ifaces.dev_from_name(name).flags
@@ -151,6 +163,28 @@ def _open(output: Output, interface: str | None, bpf: str) -> Any:
         "(sudo setcap cap_net_raw,cap_net_admin+eip $(readlink -f $(which python3)))",
     )
     sys.exit(CANNOT_CAPTURE)
+
+
+def _compile(output: Output, name: str, bpf: str, only: str | None) -> None:
+    """Compile the filter as the capture will (libpcap, through scapy), before capturing: a bad
+    --filter is a usage error, and a machine without libpcap is told so, in one line."""
+    from scapy.arch.common import compile_filter, free_filter
+    from scapy.error import Scapy_Exception
+
+    try:
+        free_filter(compile_filter(bpf, iface=name))
+    except ImportError:
+        output.problem(
+            "sniff",
+            f"capture on {name} needs libpcap to compile its filter: install it (Debian:"
+            " apt-get install libpcap0.8)",
+        )
+        sys.exit(CANNOT_CAPTURE)
+    except Scapy_Exception as exc:
+        # sniff's own part always compiles: what does not is the user's.
+        if only is None:
+            raise
+        raise click.BadParameter(f"{only!r}: {exc}", param_hint="'--filter'") from None
 
 
 def _linktype(layer: Any, data: bytes) -> int:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ctypes.util
 import json
 import os
 import selectors
@@ -76,7 +77,7 @@ def _can_capture() -> bool:
     except (AttributeError, OSError):
         return False
     probe.close()
-    return True
+    return ctypes.util.find_library("pcap") is not None
 
 
 def _wait_for_line(process: subprocess.Popen[str], text: str) -> str:
@@ -94,57 +95,67 @@ def _wait_for_line(process: subprocess.Popen[str], text: str) -> str:
     raise AssertionError(f"no line with {text!r}")
 
 
-@pytest.mark.skipif(not _can_capture(), reason="needs the right to capture (root)")
+def _free_udp_port() -> socket.socket:
+    """A UDP socket on a free loopback port: the port is the test's own while it is open."""
+    bound = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    bound.bind(("127.0.0.1", 0))
+    return bound
+
+
+@pytest.mark.skipif(not _can_capture(), reason="needs the right to capture (root) and libpcap")
 def test_live_capture_prints_a_line_per_message_and_stops_at_count() -> None:
+    """Hermetic: other tests send RSP on loopback too, so the capture decodes the test's own
+    port and lets through nothing else (--filter); a port decoded but not let through shows
+    that the filter holds."""
+    own, other = _free_udp_port(), _free_udp_port()
+    port, elsewhere = own.getsockname()[1], other.getsockname()[1]
     process = subprocess.Popen(
-        [*COMMAND, "-i", "lo", "--count", "3", "--model", str(CUBO)],
+        [
+            *COMMAND,
+            *("-i", "lo", "--count", "3", "--model", str(CUBO)),
+            *("--decode-as", f"rsp={port}", "--decode-as", f"rsp={elsewhere}"),
+            *("--filter", f"udp port {port}"),
+        ],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
     )
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     try:
         _wait_for_line(process, "capturing on lo")
-        sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        server = socket.socket()
-        server.bind(("127.0.0.1", 0))
-        server.listen()
-        port = server.getsockname()[1]
-        try:
-            sender.sendto(HELLO, ("127.0.0.1", 7340))
-            sender.sendto(DOWNLINK, ("127.0.0.1", 7340))
-            # Not RCTP or RSP: not shown.
-            sender.sendto(b"not ours", ("127.0.0.1", 9))
-            with socket.create_connection(("127.0.0.1", port)):
-                pass
-            deadline = time.monotonic() + BOUND
-            while process.poll() is None and time.monotonic() < deadline:
-                sender.sendto(HELLO, ("127.0.0.1", 7340))
-                time.sleep(0.1)
-        finally:
-            sender.close()
-            server.close()
+        sender.sendto(HELLO, ("127.0.0.1", elsewhere))  # decoded, but filtered out
+        sender.sendto(HELLO, ("127.0.0.1", port))
+        sender.sendto(DOWNLINK, ("127.0.0.1", port))
+        deadline = time.monotonic() + BOUND
+        while process.poll() is None and time.monotonic() < deadline:
+            sender.sendto(HELLO, ("127.0.0.1", port))
+            time.sleep(0.1)
         out, err = process.communicate(timeout=BOUND)
     finally:
+        for open_socket in (sender, own, other):
+            open_socket.close()
         if process.poll() is None:
             process.kill()
             process.communicate()
     assert process.returncode == 0, err
     lines = out.splitlines()
     assert len(lines) == 3
-    assert "127.0.0.1:" in lines[0]
     assert lines[0].endswith(
-        "-> 127.0.0.1:7340 RSP HELLO seq=0 session=0x000000000000 period 20 ms"
+        f"-> 127.0.0.1:{port} RSP HELLO seq=0 session=0x000000000000 period 20 ms"
     )
-    assert "RSP DOWNLINK seq=1042" in lines[1]
+    assert f"-> 127.0.0.1:{port} RSP DOWNLINK seq=1042" in lines[1]
     assert "leftWheel" in lines[1]
+    assert f"-> 127.0.0.1:{port} RSP HELLO" in lines[2]
     assert "3 messages in" in err
     assert "Traceback" not in err
 
 
-@pytest.mark.skipif(not _can_capture(), reason="needs the right to capture (root)")
+@pytest.mark.skipif(not _can_capture(), reason="needs the right to capture (root) and libpcap")
 def test_ctrl_c_ends_cleanly_with_a_count() -> None:
+    own = _free_udp_port()
+    port = own.getsockname()[1]
     process = subprocess.Popen(
-        [*COMMAND, "-i", "lo", "--decode-as", "rsp=7341"],
+        [*COMMAND, "-i", "lo", "--decode-as", f"rsp={port}", "--filter", f"udp port {port}"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -154,10 +165,45 @@ def test_ctrl_c_ends_cleanly_with_a_count() -> None:
         process.send_signal(signal.SIGINT)  # as Ctrl-C
         out, err = process.communicate(timeout=BOUND)
     finally:
+        own.close()
         if process.poll() is None:
             process.kill()
             process.communicate()
     assert process.returncode == 0, err
     assert out == ""
-    assert "0 messages in" in err
+    assert "0 messages in 0 frames" in err
     assert "Traceback" not in err
+
+
+def test_a_filter_that_does_not_compile_is_a_usage_error() -> None:
+    result = CliRunner().invoke(sniff, ["-i", "lo", "--filter", "udp prt 5"])
+    assert result.exit_code == 2
+    assert "Error: Invalid value for '--filter': 'udp prt 5': " in result.stderr
+    assert "Traceback" not in result.output
+
+
+def test_an_empty_interface_name_is_no_interface() -> None:
+    result = CliRunner().invoke(sniff, ["-i", ""])
+    assert result.exit_code == 2
+    assert result.stderr.startswith("rcmlconf sniff: no interface '' (this machine has ")
+
+
+def test_without_libpcap_capture_is_one_line_and_exit_2() -> None:
+    """libpcap compiles the capture's filter: a machine without it (its ctypes module cannot be
+    loaded, as here where the import is refused) is told so, not given a traceback."""
+    without = COMMAND[2].replace(
+        "import sys;", "import sys; sys.modules['scapy.libs.winpcapy'] = None;"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", without, "-i", "lo"],
+        capture_output=True,
+        text=True,
+        timeout=BOUND,
+        check=False,
+    )
+    assert done.returncode == 2, done.stderr
+    assert done.stderr == (
+        "rcmlconf sniff: capture on lo needs libpcap to compile its filter: install it (Debian:"
+        " apt-get install libpcap0.8)\n"
+    )
+    assert done.stdout == ""
