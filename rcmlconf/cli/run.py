@@ -7,6 +7,7 @@ import contextlib
 import json
 import sys
 import time
+from collections import Counter
 from collections.abc import AsyncIterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -22,6 +23,7 @@ from rcmlconf.cli.run_options import check_reports, loaded, robot_file, site_opt
 from rcmlconf.cli.run_target import (
     CONNECT_WAIT,
     described,
+    fetched_robot,
     reach,
     robot_problem,
     server_problem,
@@ -30,7 +32,7 @@ from rcmlconf.conformance.files import shown
 from rcmlconf.conformance.ics import EVERYTHING, Ics, load_ics
 from rcmlconf.conformance.probes.clients import ClientListener
 from rcmlconf.conformance.probes.locals import LocalListener
-from rcmlconf.conformance.registry import Case, all_cases
+from rcmlconf.conformance.registry import Case, Role, all_cases
 from rcmlconf.conformance.reports.baseline import load_baseline, mark_known
 from rcmlconf.conformance.reports.json_report import to_json
 from rcmlconf.conformance.reports.junit import to_junit
@@ -49,6 +51,7 @@ from rcmlconf.rctp.url import DEFAULT_PORT as RCTP_PORT
 from rcmlconf.reference.faults import Fault, describe, faults_named
 from rcmlconf.rsp.model import RobotModel
 from rcmlconf.validate.validator import load_robot, load_robot_model
+from rcmlconf.wording import plural
 
 #: D-RSP-9.
 RSP_PORT = 7340
@@ -116,6 +119,12 @@ _STYLE = {
 )
 @click.option("--list", "list_only", is_flag=True, help="List the cases that would run; run none.")
 @click.option(
+    "--strict",
+    is_flag=True,
+    help="An inconclusive case fails the run (status 1), as in h2spec's strict mode: a case that"
+    " could not tell is not a pass.",
+)
+@click.option(
     "--only", multiple=True, metavar="GLOB", help="Run the cases whose ID matches (* ? [seq])."
 )
 @click.option("--skip", multiple=True, metavar="GLOB", help="Leave out the cases whose ID matches.")
@@ -178,6 +187,7 @@ def run(
     role: str,
     listen: Address | None,
     list_only: bool,
+    strict: bool,
     only: tuple[str, ...],
     skip: tuple[str, ...],
     repeat: int,
@@ -203,8 +213,9 @@ def run(
 
     Every option and file is checked, and the targets reached once, before any case runs.
 
-    Exit status: 0 when nothing failed but what --baseline lists, 1 when a case failed, 2 for a
-    usage error, a target that cannot be reached, or when the harness could not do its job.
+    Exit status: 0 when nothing failed but what --baseline lists, 1 when a case failed (or, with
+    --strict, was inconclusive), 2 for a usage error, a target that cannot be reached, a run in
+    which no case passed or failed, or when the harness could not do its job.
 
     \b
     Examples:
@@ -229,7 +240,8 @@ def run(
     registry = all_cases()
     chosen = chosen_cases(registry.values(), only, skip)
     if list_only:
-        list_cases(output, chosen)
+        roles = _roles(role, target, rsp_target, listen)
+        list_cases(output, [c for c in chosen if roles is None or c.role in roles])
         return
     if baseline is not None:
         warn_unknown(output, baseline, known, registry)
@@ -247,6 +259,7 @@ def run(
         if target is not None:
             wait = CONNECT_WAIT * timeout_scale
             reach(output, "--target", target, "RCTP over TCP", server_problem(target, wait))
+            robot = robot or fetched_robot(output, target, wait)
         if rsp_target is not None:
             reach(output, "--rsp-target", rsp_target, "RSP over UDP", robot_problem(rsp_target))
         external = _external(output, target, robot, site, rsp_target, played, declared)
@@ -273,7 +286,10 @@ def run(
     settings = {"seed": seed, "repeat": repeat, "timeout_scale": timeout_scale, "impair": impair}
     _write_reports(output, results, registry, tested, settings, started, junit, json_file)
     _report(output, results, registry, tested)
-    sys.exit(_exit_status(results))
+    status, why = _exit_status(results, strict)
+    if why:
+        output.problem("run", why)
+    sys.exit(status)
 
 
 async def _run(
@@ -288,10 +304,7 @@ async def _run(
     async with _target(external, declared, faults) as target:
         cases = [c for c in chosen if under_test(c, target)]
         if len(cases) < len(chosen):
-            output.notice(
-                f"{len(chosen) - len(cases)} of the cases chosen test a role {target.name} "
-                "does not play (give --target or --rsp-target); they are left out"
-            )
+            output.notice(_left_out([c for c in chosen if c not in cases], target.name))
         with output.progress(len(cases) * options.repeat, "cases") as step:
 
             def done(result: Result) -> None:
@@ -352,6 +365,22 @@ async def _target(
         yield reference
 
 
+#: How a run tests each role: what to give `run` for it.
+_HOW = {
+    Role.SERVER: "an RCTP server: --target",
+    Role.ROBOT: "an RSP robot: --rsp-target",
+    Role.CLIENT: "an RCTP client: --role client --listen",
+    Role.LOCAL: "an RSP local system: --role local --listen",
+}
+
+
+def _left_out(cases: Sequence[Case], tested: str) -> str:
+    """Which of the cases chosen test a role `tested` does not play, and how to test it."""
+    roles = Counter(case.role for case in cases)
+    each = "; ".join(f"{plural(n, 'case')} of {_HOW[role]}" for role, n in roles.items())
+    return f"left out, as {tested} does not play their role: {each}"
+
+
 def _external(
     output: Output,
     target: Address | None,
@@ -361,8 +390,6 @@ def _external(
     rsp_model: RobotModel | None,
     declared: Ics,
 ) -> Target:
-    if target is not None and robot is None:
-        output.notice("no --rcml: the cases that need the robot's nodes are not applicable")
     names = [described(address) for address in (target, rsp_target) if address is not None]
     return Target(
         server=target,
@@ -483,8 +510,34 @@ def _table(output: Output, results: list[Result], registry: dict[str, Case]) -> 
         output.err.line([(f"{area:<16}", ""), *cells])
 
 
-def _exit_status(results: list[Result]) -> int:
+def _roles(
+    role: str, target: Address | None, rsp_target: Address | None, listen: Address | None
+) -> set[Role] | None:
+    """The roles a run with these options tests; None: every one (the embedded reference)."""
+    if target is not None or rsp_target is not None:
+        return {r for r, given in ((Role.SERVER, target), (Role.ROBOT, rsp_target)) if given}
+    if listen is not None:
+        return {Role.CLIENT if role == "client" else Role.LOCAL}
+    return None
+
+
+def _exit_status(results: list[Result], strict: bool) -> tuple[int, str]:
+    """The run's exit status, and why where the table does not say it: 1 for a failure the
+    baseline does not list (or, `strict`, an inconclusive case); 2 for an error, or a run in which
+    no case passed or failed: it tested nothing, and must not pass a CI gate."""
     fresh = new_failures(results)
     if any(r.verdict is Verdict.FAIL for r in fresh):
-        return 1
-    return 2 if fresh else 0
+        return 1, ""
+    if fresh:
+        return 2, ""
+    decided = [r for r in results if r.verdict in (Verdict.PASS, Verdict.FAIL)]
+    if results and not decided:
+        found = Counter(r.verdict.value for r in results)
+        shown = ", ".join(f"{n} {verdict}" for verdict, n in found.most_common())
+        reason = Counter(r.reason for r in results if r.reason).most_common(1)
+        first = f"; most often: {reason[0][0]}" if reason else ""
+        return 2, f"no case passed or failed ({shown}): nothing was tested{first}"
+    unsure = [r for r in results if r.verdict is Verdict.INCONCLUSIVE and not r.known]
+    if strict and unsure:
+        return 1, f"--strict: {plural(len(unsure), 'case')} inconclusive"
+    return 0, ""

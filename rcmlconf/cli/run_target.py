@@ -14,6 +14,9 @@ import sys
 
 from rcmlconf.cli.console import Output
 from rcmlconf.cli.hosts import Address
+from rcmlconf.rcml.model import RcmlDocument
+from rcmlconf.rctp.url import RctpUrl
+from rcmlconf.reference.client.files import NoModel, from_index
 
 #: How long the first connection may take, before --timeout-scale (a case's own bound).
 CONNECT_WAIT = 5.0
@@ -74,3 +77,16 @@ def described(address: Address) -> str:
 
 def _unknown(address: Address, error: socket.gaierror) -> str:
     return f"cannot look {address[0]} up: {error.strerror}; is the name right?"
+
+
+def fetched_robot(output: Output, address: Address, wait: float) -> RcmlDocument:
+    """--target's RCML when --rcml is not given: the one the server's files list (D-RCTP-29), as
+    a client given only an RCTP URL looks for it; or the run ends now (status 2): without the
+    robot's nodes the cases could test little, and CONNECT's site path would be a guess."""
+    try:
+        robot = from_index(RctpUrl(*address, "/"), wait, hint="give --rcml ROBOT.rcml")
+    except NoModel as problem:
+        output.problem("run", f"--target {described(address)} without --rcml: {problem}")
+        sys.exit(2)
+    output.notice(f"the robot's RCML: {robot.title or robot.site.path}, from its files (D-RCTP-29)")
+    return robot

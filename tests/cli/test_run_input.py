@@ -16,6 +16,7 @@ from support.processes import BOUND, COMMAND, run_command, running
 
 from rcmlconf.cli.cases import cases
 from rcmlconf.cli.run import run
+from rcmlconf.conformance.targets import REFERENCE_RCML
 
 ROOT = Path(__file__).resolve().parents[2]
 ROVER = str(ROOT / "rcmlconf/reference/robots/rover/rover.rcml")
@@ -263,8 +264,8 @@ def test_a_target_that_is_there_is_tested() -> None:
         # It takes the connection and never answers: the case errs or fails on its own, but the
         # run gets past the first connection and reports on the case.
         done = run_command(
-            "run", "--target", f"127.0.0.1:{port}", "--only", "rctp/msg/connect",
-            "--timeout-scale", "0.2", "--verbose",
+            "run", "--target", f"127.0.0.1:{port}", "--rcml", str(REFERENCE_RCML),
+            "--only", "rctp/msg/connect", "--timeout-scale", "0.2", "--verbose",
         )  # fmt: skip
     assert "cannot reach --target" not in done.stderr
     assert "rctp/msg/connect" in done.stdout

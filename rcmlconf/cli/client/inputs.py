@@ -17,6 +17,7 @@ from rcmlconf.errors import ValueTextError
 from rcmlconf.rctp.reader import LIMITS
 from rcmlconf.rctp.targets import format_target, parse_target
 from rcmlconf.rctp.url import RctpUrl, parse_rctp_url
+from rcmlconf.reference.client.files import is_http_url
 from rcmlconf.wording import shorten
 
 #: The longest request-target the client may send. Its longest methods are CONNECT, ACQUIRE and
@@ -72,12 +73,6 @@ def _fits(path: str, what: str) -> None:
     wire = len(format_target(path))
     if wire > MAX_TARGET:
         raise ValueTextError(f"{what} is {wire:,} bytes percent-encoded; {_TARGET_LIMIT}")
-
-
-def is_http_url(text: str) -> bool:
-    """Whether --rcml names an http(s) URL rather than a file."""
-    scheme, colon, _ = text.partition(":")
-    return bool(colon) and scheme.lower() in ("http", "https")
 
 
 def check_rcml(text: str) -> str:

@@ -17,12 +17,12 @@ from typing import Any, NoReturn
 import click
 
 from rcmlconf.cli.client.inputs import check_url
-from rcmlconf.cli.client.robot import NoModel, load_model
 from rcmlconf.cli.console import Output
 from rcmlconf.errors import ValueTextError
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rctp.url import RctpUrl
 from rcmlconf.reference.client.adapter import Client, RctpError
+from rcmlconf.reference.client.files import NoModel, load_model
 
 #: What a command does in its session; its exit status.
 Work = Callable[[Client], Awaitable[int]]

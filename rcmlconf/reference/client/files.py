@@ -1,9 +1,10 @@
-"""The robot's RCML, which the client needs to encode and decode values (bodies carry no types).
+"""The robot's RCML, which a client needs to encode and decode values (bodies carry no types).
 
-From `--rcml` (a file, or an http(s) URL), or else the way a browser finds it (paper Fig. 5):
+From a file or an http(s) URL the user names, or else the way a browser finds it (paper Fig. 5):
 a server lists the robot's files on HTTP at the port after RCTP's (D-RCTP-29), so the client
 reads that index and takes its one `.rcml` link. Nothing fetched may exceed a document's limit
-(16 MiB, D-XML-5), and every fetched document is validated like a local one.
+(16 MiB, D-XML-5), and every fetched document is validated like a local one. The reference
+client's command line and the conformance run (`run --target` without `--rcml`) both use it.
 """
 
 from __future__ import annotations
@@ -15,7 +16,6 @@ from html.parser import HTMLParser
 from pathlib import Path
 from urllib.parse import urljoin, urlsplit
 
-from rcmlconf.cli.client.inputs import is_http_url
 from rcmlconf.errors import RcmlconfError
 from rcmlconf.markup.document import MAX_DOCUMENT_BYTES
 from rcmlconf.rcml.model import RcmlDocument
@@ -30,10 +30,17 @@ class NoModel(RcmlconfError):
     """The RCML could not be had or is not valid; the message says which and why."""
 
 
+def is_http_url(text: str) -> bool:
+    """Whether `text` names an http(s) URL rather than a file."""
+    scheme, colon, _ = text.partition(":")
+    return bool(colon) and scheme.lower() in ("http", "https")
+
+
 def load_model(url: RctpUrl, rcml: str | None, timeout: float) -> RcmlDocument:
-    """The model `--rcml` names, or the one the robot's files index links to."""
+    """The model `rcml` names (a file or an http(s) URL), or else the one the robot's files
+    index links to (D-RCTP-29)."""
     if rcml is None:
-        return _from_index(url, timeout)
+        return from_index(url, timeout)
     if is_http_url(rcml):
         return _from_url(rcml, timeout)
     try:
@@ -42,17 +49,20 @@ def load_model(url: RctpUrl, rcml: str | None, timeout: float) -> RcmlDocument:
         raise NoModel(str(exc)) from None
 
 
-def _from_index(url: RctpUrl, timeout: float) -> RcmlDocument:
+def from_index(url: RctpUrl, timeout: float, hint: str = _HINT) -> RcmlDocument:
+    """The model the robot's files index at the port after RCTP's links to (D-RCTP-29)."""
     index = url.files_url  # D-RCTP-29
     try:
         page = _fetch(index, timeout)
     except NoModel as exc:
-        raise NoModel(f"{exc}; {_HINT}") from None
+        raise NoModel(
+            f"{exc} (the robot's files, at the port after RCTP's: D-RCTP-29); {hint}"
+        ) from None
     links = _Links()
     links.feed(page.decode("utf-8", "replace"))
     found = sorted({link for href in links.hrefs if (link := _rcml_link(index, href))})
     if len(found) != 1:
-        raise NoModel(f"{index} links to {plural(len(found), 'RCML file')}, not one; {_HINT}")
+        raise NoModel(f"{index} links to {plural(len(found), 'RCML file')}, not one; {hint}")
     return _from_url(found[0], timeout)
 
 
