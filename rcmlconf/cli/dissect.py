@@ -11,6 +11,7 @@ import click
 
 from rcmlconf.cli.console import Output, printable
 from rcmlconf.cli.models import load_or_exit
+from rcmlconf.cli.stdin import standard_input
 from rcmlconf.diagnostics import Diagnostic
 from rcmlconf.dissect import Dissector, Options, Record, Severity
 from rcmlconf.dissect.classify import parse_decode_as
@@ -96,7 +97,9 @@ def _models(
 
 
 @click.command()
-@click.argument("capture", metavar="FILE", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument(
+    "capture", metavar="FILE", type=click.Path(dir_okay=False, allow_dash=True, path_type=Path)
+)
 @click.option(
     "--model",
     "models",
@@ -156,6 +159,9 @@ def dissect(
 ) -> None:
     """Decode a pcap or pcapng capture of RCTP/2.0 and RSP, and analyse it.
 
+    FILE is a capture file, or a pipe: - for standard input (tcpdump -w - | rcmlconf dissect -),
+    which is read whole first (1 GiB at most).
+
     RCTP control connections (TCP 7330), the data stream (UDP: the ports SETUP's Transport
     names, and 7330) and RSP (UDP 7340) are found by port, by --decode-as, and by the look of
     each flow's first packet. Each message is one summary line (time, endpoints, protocol,
@@ -189,7 +195,7 @@ def dissect(
     rsp_model, rcml = _models(output, models)
     options = Options(rsp_model, rcml, decode_as, not no_heuristics, plot is not None)
     try:
-        opened = Capture.open(capture)
+        opened = _open(capture)
     except OSError as exc:
         output.problem("dissect", f"cannot read {capture}: {exc.strerror or exc}")
         sys.exit(2)
@@ -227,6 +233,13 @@ def dissect(
         f"{capture}: {', '.join(plural(count, noun) for count, noun in counts)}", ok=status == 0
     )
     sys.exit(status)
+
+
+def _open(capture: Path) -> Capture:
+    """The capture FILE names: - is standard input."""
+    if str(capture) != "-":
+        return Capture.open(capture)
+    return Capture.read(standard_input(), "-")
 
 
 class RecordLines:

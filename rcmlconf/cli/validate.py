@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import errno
 import gc
 import sys
 from pathlib import Path
@@ -10,11 +9,12 @@ from pathlib import Path
 import click
 
 from rcmlconf.cli.console import Output, printable
+from rcmlconf.cli.stdin import standard_input
 from rcmlconf.markup.document import MAX_DOCUMENT_BYTES
 from rcmlconf.validate.languages import EXTENSIONS
 from rcmlconf.validate.report import summary_line, to_json
 from rcmlconf.validate.validator import DEFAULT_MAX_FINDINGS, FileReport, Validator
-from rcmlconf.wording import plural
+from rcmlconf.wording import one_of, plural
 
 #: The argument, as click names it in a usage error.
 _PATHS = "'PATH...'"
@@ -54,22 +54,15 @@ def _files(paths: tuple[str, ...], allow_empty: bool) -> list[str]:
     files = _expand(paths)
     if not files and not allow_empty:
         # Only directories can hold nothing: a file or - given is always checked.
-        *others, last = (f"*{extension}" for extension in sorted(EXTENSIONS))
+        patterns = [f"*{extension}" for extension in sorted(EXTENSIONS)]
         # click's message does not go through Output: the names are made printable here.
         where = ", ".join(f"'{printable(path)}'" for path in paths)
         raise click.BadParameter(
-            f"nothing to check: no {', '.join(others)} or {last} file below {where}"
+            f"nothing to check: no {one_of(patterns)} file below {where}"
             " (--allow-empty accepts that)",
             param_hint=_PATHS,
         )
     return files
-
-
-def _read_stdin() -> bytes:
-    """Standard input, one byte more than a document may hold: enough to tell one too large."""
-    if sys.stdin is None:  # started with standard input closed (`<&-`)
-        raise OSError(errno.EBADF, "standard input is closed")
-    return sys.stdin.buffer.read(MAX_DOCUMENT_BYTES + 1)
 
 
 @click.command()
@@ -158,7 +151,9 @@ def validate(
     for name in files:
         try:
             if name == "-":
-                report = validator.validate_bytes(_read_stdin(), "<stdin>")
+                # One byte more than a document may hold: enough to tell one too large.
+                data = standard_input().read(MAX_DOCUMENT_BYTES + 1)
+                report = validator.validate_bytes(data, "<stdin>")
             else:
                 report = validator.validate_file(Path(name))
         except OSError as exc:

@@ -23,12 +23,13 @@ from __future__ import annotations
 import mmap
 import os
 import socket
+import stat
 import struct
 from collections import OrderedDict
 from collections.abc import Iterator
 from pathlib import Path
 from types import TracebackType
-from typing import Final
+from typing import BinaryIO, Final
 
 from rcmlconf.errors import ProtocolError
 from rcmlconf.wording import plural
@@ -67,6 +68,9 @@ _PCAP_MAGIC = {
     0x4D3CB2A1: (">", 1e-9),
 }
 _PCAP_HEADER = 24
+#: What a capture read from a pipe or a device may hold (in memory); a file is mapped instead.
+MAX_STREAM: Final = 1 << 30
+_CHUNK = 1 << 20
 _SHB = 0x0A0D0D0A
 _IDB = 1
 _OPB = 2
@@ -100,7 +104,11 @@ class Capture:
     def open(cls, path: str | os.PathLike[str]) -> Capture:
         """Map the file; OSError when it cannot be read, CaptureError when it is no capture."""
         with Path(path).open("rb") as file:
-            size = os.fstat(file.fileno()).st_size
+            status = os.fstat(file.fileno())
+            if not stat.S_ISREG(status.st_mode):
+                # A pipe or a device (/dev/stdin, <(tcpdump -w -)) says it holds 0 bytes.
+                return cls.read(file, str(path))
+            size = status.st_size
             if size == 0:
                 return cls(b"", str(path))
             mapped = mmap.mmap(file.fileno(), 0, access=mmap.ACCESS_READ)
@@ -109,6 +117,24 @@ class Capture:
         except CaptureError:
             mapped.close()
             raise
+
+    @classmethod
+    def read(cls, stream: BinaryIO, name: str, limit: int = MAX_STREAM) -> Capture:
+        """A capture from a stream, read as it comes: its header is checked before the rest is
+        read, so that /dev/zero or /dev/urandom is refused at once; at most `limit` bytes."""
+        head = stream.read(_PCAP_HEADER)
+        _detect(head)  # a header cut short is only read so when the stream ends there
+        chunks, size = [head], len(head)
+        while size <= limit and (chunk := stream.read(_CHUNK)):
+            chunks.append(chunk)
+            size += len(chunk)
+        if size > limit:
+            raise CaptureError(
+                f"more than {limit:,} bytes from a pipe or a device: save the capture to a file,"
+                " which is read whatever its size",
+                limit,
+            )
+        return cls(b"".join(chunks), name)
 
     def close(self) -> None:
         if self._mmap is not None:

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import json
-import os
 import re
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from support.processes import run_without_stdin
 from support.xml_vectors import XML_VECTORS
 
 SCRIPT = Path(sys.executable).parent / "rcmlconf"
@@ -113,16 +113,7 @@ def test_binary_standard_input_is_one_invalid_document() -> None:
 
 
 def test_closed_standard_input_cannot_be_read() -> None:
-    done = subprocess.run(
-        [*COMMAND, "validate", "-"],
-        stdin=subprocess.DEVNULL,
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
-        # The child starts with its descriptor 0 closed, as `rcmlconf validate - <&-`.
-        preexec_fn=lambda: os.close(0),
-    )
+    done = run_without_stdin(*COMMAND, "validate", "-")
     assert done.returncode == 2
     assert done.stderr.splitlines() == [
         "error: cannot read -: standard input is closed",

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 from support.pcaps import TcpFlow, ipv4_udp, pcap
+from support.processes import run_without_stdin
 
 ROOT = Path(__file__).parents[2]
 CUBO = ROOT / "rcmlconf" / "reference" / "robots" / "cubo" / "cubo.rmodel"
@@ -311,3 +312,54 @@ def test_a_capture_of_one_byte_is_one_line(good: Path, tmp_path: Path, verbose: 
     assert done.stderr.splitlines() == [
         f"rcmlconf dissect: {cut}: 1 byte: too short for a pcap or pcapng file (byte 0)"
     ]
+
+
+def test_standard_input_is_read_as_a_capture(good: Path) -> None:
+    done = subprocess.run(
+        [sys.executable, "-c", MAIN, "dissect", "-q", "-"],
+        input=good.read_bytes(),
+        capture_output=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.decode() == "-: 7 frames, 4 messages, 0 errors, 0 warnings\n"
+
+
+@pytest.mark.parametrize(
+    ("data", "reason"),
+    [
+        (
+            bytes(range(256)) * 8,
+            "not a pcap or pcapng file (it starts with 00010203, no capture format's magic number)",
+        ),
+        (b"\xd4\xc3", "2 bytes: too short for a pcap or pcapng file"),
+    ],
+    ids=["binary", "two bytes"],
+)
+def test_binary_standard_input_is_one_line(data: bytes, reason: str) -> None:
+    done = subprocess.run(
+        [sys.executable, "-c", MAIN, "dissect", "-"],
+        input=data,
+        capture_output=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 2
+    assert done.stderr.decode().splitlines() == [f"rcmlconf dissect: -: {reason} (byte 0)"]
+
+
+@pytest.mark.skipif(not Path("/dev/zero").exists(), reason="needs /dev/zero")
+def test_an_endless_device_is_no_capture() -> None:
+    done = run("/dev/zero")
+    assert done.returncode == 2
+    assert done.stderr.splitlines() == [
+        "rcmlconf dissect: /dev/zero: not a pcap or pcapng file (it starts with 00000000, no"
+        " capture format's magic number) (byte 0)"
+    ]
+
+
+def test_closed_standard_input_cannot_be_read() -> None:
+    done = run_without_stdin(sys.executable, "-c", MAIN, "dissect", "-")
+    assert done.returncode == 2
+    assert done.stderr == "rcmlconf dissect: cannot read -: standard input is closed\n"

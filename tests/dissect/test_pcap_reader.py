@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import contextlib
 import io
+import os
 import struct
+from pathlib import Path
 
 import pytest
 from hypothesis import given
@@ -130,6 +132,34 @@ def test_open_maps_the_file(tmp_path) -> None:  # type: ignore[no-untyped-def]
     empty.write_bytes(b"")
     with pytest.raises(CaptureError):
         Capture.open(empty)
+
+
+@pytest.mark.skipif(not Path("/proc/self/fd").exists(), reason="needs Linux /proc")
+def test_a_pipe_is_read_as_it_comes() -> None:
+    """A pipe (/dev/stdin, <(tcpdump -w -)) has no size to map: it is read, not taken for an
+    empty file."""
+    data = pcap([(1.0, DATAGRAM)])
+    read, write = os.pipe()
+    try:
+        os.write(write, data)  # less than a pipe holds
+        os.close(write)
+        with Capture.open(f"/proc/self/fd/{read}") as capture:
+            assert [f for _, _, f in capture.frames()] == [DATAGRAM]
+    finally:
+        os.close(read)
+
+
+@pytest.mark.skipif(not Path("/dev/zero").exists(), reason="needs /dev/zero")
+def test_an_endless_device_is_refused_by_its_first_bytes() -> None:
+    with pytest.raises(CaptureError, match=r"not a pcap or pcapng file \(it starts with 00000000"):
+        Capture.open("/dev/zero")
+
+
+def test_a_stream_is_read_up_to_a_limit() -> None:
+    data = pcap([(1.0, DATAGRAM)] * 40)
+    assert len(list(Capture.read(io.BytesIO(data), "pipe", limit=len(data)).frames())) == 40
+    with pytest.raises(CaptureError, match=f"more than {len(data) - 1:,} bytes from a pipe"):
+        Capture.read(io.BytesIO(data), "pipe", limit=len(data) - 1)
 
 
 # -- pcapng ------------------------------------------------------------------------------------

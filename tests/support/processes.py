@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -61,3 +62,16 @@ def run_command(*args: str) -> subprocess.CompletedProcess[str]:
     )
     assert "Traceback" not in done.stderr, done.stderr
     return done
+
+
+def run_without_stdin(*argv: str) -> subprocess.CompletedProcess[str]:
+    """`argv` started with its standard input closed, as a shell's `command <&-`."""
+    return subprocess.run(
+        argv,
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        text=True,
+        timeout=BOUND,
+        check=False,
+        preexec_fn=lambda: os.close(0),  # descriptor 0 is DEVNULL until then
+    )
