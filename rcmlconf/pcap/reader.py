@@ -105,12 +105,10 @@ class Capture:
         """Map the file; OSError when it cannot be read, CaptureError when it is no capture."""
         with Path(path).open("rb") as file:
             status = os.fstat(file.fileno())
-            if not stat.S_ISREG(status.st_mode):
-                # A pipe or a device (/dev/stdin, <(tcpdump -w -)) says it holds 0 bytes.
+            if not stat.S_ISREG(status.st_mode) or status.st_size == 0:
+                # A pipe or a device (/dev/stdin, <(tcpdump -w -)), like a file of /proc, says it
+                # holds 0 bytes, whatever it gives: nothing to map, but a stream to read.
                 return cls.read(file, str(path))
-            size = status.st_size
-            if size == 0:
-                return cls(b"", str(path))
             mapped = mmap.mmap(file.fileno(), 0, access=mmap.ACCESS_READ)
         try:
             return cls(mapped, str(path))

@@ -363,3 +363,16 @@ def test_closed_standard_input_cannot_be_read() -> None:
     done = run_without_stdin(sys.executable, "-c", MAIN, "dissect", "-")
     assert done.returncode == 2
     assert done.stderr == "rcmlconf dissect: cannot read -: standard input is closed\n"
+
+
+@pytest.mark.skipif(not Path("/proc/self/mem").exists(), reason="needs Linux /proc")
+def test_an_unreadable_capture_is_one_line(tmp_path: Path) -> None:
+    # Reading /proc/self/mem at offset 0 fails (EIO) for root too, where chmod 000 would not; the
+    # name has a newline, shown escaped on the one line.
+    unreadable = tmp_path / "new\nline.pcap"
+    unreadable.symlink_to("/proc/self/mem")
+    done = run(str(unreadable))
+    assert done.returncode == 2
+    assert done.stderr.splitlines() == [
+        f"rcmlconf dissect: cannot read {tmp_path}/new\\nline.pcap: Input/output error"
+    ]
