@@ -32,7 +32,7 @@ from rcmlconf.conformance.files import shown
 from rcmlconf.conformance.ics import EVERYTHING, Ics, load_ics
 from rcmlconf.conformance.probes.clients import ClientListener
 from rcmlconf.conformance.probes.locals import LocalListener
-from rcmlconf.conformance.registry import Case, Role, all_cases
+from rcmlconf.conformance.registry import SESSION_WAIT, Case, Role, all_cases
 from rcmlconf.conformance.reports.baseline import load_baseline, mark_known
 from rcmlconf.conformance.reports.json_report import to_json
 from rcmlconf.conformance.reports.junit import to_junit
@@ -136,6 +136,16 @@ _STYLE = {
     show_default=True,
     help="Multiply every case's timeout (a slow target, a loaded CI machine).",
 )
+@click.option(
+    "--session-wait",
+    type=Bounded(SESSION_WAIT, 3600),
+    default=SESSION_WAIT,
+    show_default=True,
+    metavar="SECONDS",
+    help="The longest session timeout (D-RCTP-11) the five cases that wait one out wait for;"
+    " a server announcing longer makes them inconclusive. A server's is 60 s unless it says"
+    " otherwise: give 60 to wait for it, at about a minute a case.",
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="Seeds every impairment.")
 @click.option(
     "--impair",
@@ -192,6 +202,7 @@ def run(
     skip: tuple[str, ...],
     repeat: int,
     timeout_scale: float,
+    session_wait: float,
     seed: int,
     impair: str | None,
     concurrency: int,
@@ -245,7 +256,9 @@ def run(
         return
     if baseline is not None:
         warn_unknown(output, baseline, known, registry)
-    options = RunOptions(timeout_scale, seed, concurrency, repeat, impairment, capture)
+    options = RunOptions(
+        timeout_scale, seed, concurrency, repeat, impairment, capture, session_wait
+    )
     if capture is not None:
         try:
             capture.mkdir(parents=True, exist_ok=True)

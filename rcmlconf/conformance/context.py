@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, TypeVar
 
 from rcmlconf.conformance.probes.control import ControlProbe
-from rcmlconf.conformance.registry import Case
+from rcmlconf.conformance.registry import SESSION_WAIT, Case
 from rcmlconf.conformance.targets import Target
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
@@ -48,21 +48,39 @@ class Context:
     _channels: list[ImpairedChannel] = field(default_factory=list)
     #: How late the harness's loop ran (the run's), for `expect(..., timing=True)`.
     loop_watch: LoopWatch | None = None
+    #: --session-wait: the longest session timeout the case waits out (D-RCTP-11).
+    session_wait: float = SESSION_WAIT
     #: The RSP robot the runner took for the case before it started (`rsp`).
     taken: Address | None = None
     #: When the case started, in loop time.
     started: float = field(default_factory=lambda: asyncio.get_running_loop().time())
 
     @property
+    def timeout(self) -> float:
+        """The case's time, scaled: its own, and for a case that waits out the server's session
+        timeout, what --session-wait adds."""
+        extra = self.session_wait - SESSION_WAIT if self.case.waits_session else 0.0
+        return (self.case.timeout + max(extra, 0.0)) * self.scale
+
+    @property
     def wait(self) -> float:
-        """How long to wait for one answer: a third of the case's time, scaled."""
-        return self.case.timeout * self.scale / 3
+        """How long to wait for one answer: a third of the case's time."""
+        return self.timeout / 3
 
     @property
     def left(self) -> float:
-        """Seconds left of the case's timeout (scaled): what its waits may still take."""
-        deadline = self.started + self.case.timeout * self.scale
-        return deadline - asyncio.get_running_loop().time()
+        """Seconds left of the case's time: what its waits may still take."""
+        return self.started + self.timeout - asyncio.get_running_loop().time()
+
+    def waited_session(self, announced: int) -> int:
+        """`announced`, the session timeout a CONNECT answer gives (D-RCTP-11), if the run waits
+        that long; inconclusive otherwise, saying how to wait for it."""
+        if announced > self.session_wait:
+            raise Inconclusive(
+                f"the session timeout is {announced} s and the run waits out"
+                f" {self.session_wait:g} s at most: --session-wait {announced} waits for it"
+            )
+        return announced
 
     @property
     def impairment(self) -> Impairment:

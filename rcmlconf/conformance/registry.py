@@ -34,6 +34,9 @@ class Role(enum.Enum):
 
 
 CaseFunction = Callable[["Context"], Awaitable[None]]
+#: The longest session timeout (D-RCTP-11) the cases that wait one out wait for, by default
+#: (`run --session-wait`): a server that announces longer makes them inconclusive.
+SESSION_WAIT = 5.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -54,6 +57,9 @@ class Case:
     #: client connection): they run one after another, beside the rest.
     serial: bool
     run: CaseFunction
+    #: Waits out the server's session timeout: its time grows by what --session-wait adds to
+    #: SESSION_WAIT.
+    waits_session: bool = False
 
     @property
     def area(self) -> str:
@@ -74,6 +80,7 @@ def case(
     impairment: str | None = None,
     features: Iterable[str] = (),
     serial: bool = False,
+    waits_session: bool = False,
 ) -> Callable[[CaseFunction], CaseFunction]:
     """Register the decorated coroutine function as a case."""
 
@@ -86,7 +93,16 @@ def case(
         if not found:
             raise ValueError(f"case {id} names no requirement")
         _CASES[id] = Case(
-            id, purpose, found, role, timeout, impairment, tuple(features), serial, run
+            id,
+            purpose,
+            found,
+            role,
+            timeout,
+            impairment,
+            tuple(features),
+            serial,
+            run,
+            waits_session,
         )
         return run
 

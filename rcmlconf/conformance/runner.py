@@ -11,7 +11,7 @@ from pathlib import Path
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.loopwatch import LoopWatch
-from rcmlconf.conformance.registry import Case, Role
+from rcmlconf.conformance.registry import SESSION_WAIT, Case, Role
 from rcmlconf.conformance.targets import Target
 from rcmlconf.conformance.transcript import Address
 from rcmlconf.conformance.verdicts import CaseStop, Failed, Result, Verdict
@@ -33,6 +33,8 @@ class RunOptions:
     impair: Impairment | None = None
     #: --capture: a pcap of each case's traffic is written here.
     capture: Path | None = None
+    #: --session-wait: the longest session timeout (D-RCTP-11) the cases wait out.
+    session_wait: float = SESSION_WAIT
 
 
 def under_test(case: Case, target: Target) -> bool:
@@ -75,12 +77,13 @@ async def run_case(
     ctx = Context(case, target, options.timeout_scale, options.seed, pool, options.impair)
     ctx.loop_watch = watch
     ctx.taken = robot
+    ctx.session_wait = options.session_wait
     started = time.monotonic()
     try:
         missing = [f for f in case.features if f not in target.features]
         if missing:
             return _result(case, ctx, started, run, Verdict.NOT_APPLICABLE, _lacks(missing))
-        await asyncio.wait_for(case.run(ctx), case.timeout * options.timeout_scale)
+        await asyncio.wait_for(case.run(ctx), ctx.timeout)
     except Failed as failed:
         excuse = ctx.excuse()
         return Result(
@@ -97,7 +100,7 @@ async def run_case(
     except CaseStop as stop:
         return _result(case, ctx, started, run, stop.verdict, stop.reason)
     except TimeoutError:
-        seconds = case.timeout * options.timeout_scale
+        seconds = ctx.timeout
         return Result(
             case.id,
             Verdict.FAIL,

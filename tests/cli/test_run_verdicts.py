@@ -8,6 +8,7 @@ from pathlib import Path
 
 from support.processes import run_command, running
 
+from rcmlconf.conformance.registry import all_cases
 from rcmlconf.conformance.targets import REFERENCE_RCML, REFERENCE_RMODEL
 
 
@@ -82,8 +83,25 @@ def test_the_cases_left_out_say_how_to_test_their_role(tmp_path: Path) -> None:
         done = run_command(
             "run", "--rsp-target", target, "--model", str(REFERENCE_RMODEL), "--only", "rsp/[lm]*"
         )
+    local = sum(1 for case in all_cases() if case.startswith("rsp/local"))
     left = [line for line in done.stderr.splitlines() if line.startswith("left out")]
     assert left == [
-        f"left out, as {target} does not play their role: 14 cases of an RSP local system:"
+        f"left out, as {target} does not play their role: {local} cases of an RSP local system:"
         " --role local --listen"
     ]
+
+
+def test_session_wait_waits_out_a_longer_session_timeout(tmp_path: Path) -> None:
+    """A server announcing 7 s: the session cases say how to wait for it, and with
+    --session-wait 7 they do, and pass (the default waits 5 s)."""
+    serve = ("serve", str(REFERENCE_RCML), "--port", "0", "--http-port", "0")
+    with running(tmp_path, *serve, "--session-timeout", "7") as up:
+        port = str(up.ready["rctp"]).rsplit(":", 1)[1].split("/")[0]
+        target = ["--target", f"127.0.0.1:{port}", "--rcml", str(REFERENCE_RCML)]
+        case = ["--only", "rctp/session/timeout-bye", "--json", str(tmp_path / "r.json")]
+        short = run_command("run", *target, *case, "--verbose")
+        waited = run_command("run", *target, *case, "--session-wait", "7")
+    assert "--session-wait 7 waits for it" in short.stdout + short.stderr
+    assert short.returncode == 2  # nothing passed or failed
+    assert waited.returncode == 0, waited.stdout + waited.stderr
+    assert waited.stderr.splitlines()[-1].endswith("1 results: 1 pass")
