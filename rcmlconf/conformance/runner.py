@@ -155,6 +155,10 @@ async def run_cases(
         # A robot case waits for a free robot before it takes a slot, and its clock starts
         # only then: one robot under test serves the robot cases one after another.
         robot = await robots.get() if needs_robot(case, target) else None
+        if case.role is Role.LOCAL and target.locals is not None:
+            # Likewise a local case starts once the local system under test is done with the
+            # session of the case before (D-RSP-24: one at a time): not the case's time either.
+            await target.locals.settled()
         try:
             async with gate:
                 result = await run_case(case, target, options, run, robots, watch, robot)

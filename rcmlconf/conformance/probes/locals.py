@@ -7,12 +7,22 @@ before a case asked is kept with its repeats, so the case sees them all; one its
 given up on (no repeat for longer than D-RSP-12's interval) is forgotten. The embedded reference
 has a `summon` that starts one run of the scenario (`reference_local`) whenever a case waits.
 
+A case's session ends with the case (BYE, or REFUSED to a HELLO left unanswered). A local system
+under test runs one session at a time (D-RSP-24), so the next case can have one only once the
+local system is done with that one: `LocalListener.settled`, which the runner awaits before a local
+case's clock starts (as a robot case waits for a free robot), waits until it is: a new HELLO came,
+or the old session's own BYE, or the old run is over by D-RSP-24 step 5 (10 s after WELCOME). A
+local system that goes on with a session after the robot's BYE breaks R-RSP-22
+(rsp/local/bye-ends fails it); it costs the cases after it time, not their verdicts. What the old
+session sent after the BYE is noted in the transcript of the case that waited.
+
 A `LocalProbe` is one such session, the robot's side of it: the case answers the HELLO (`welcome`,
 a WELCOME signed with a wrong key, or `refuse`), reads what the local system sends (`next`,
 `expect`, `packets`: each datagram read by the core's codec and, in an encrypted session, opened
 with the session's keys; one that cannot be read fails the case, the next time it waits, under the
 rule the codec names), and sends UPLINKs, ACKs and BYE numbered, stamped and sealed by the core's
-`SessionWire`. Like a robot it acknowledges each command and memory command at once (R-RSP-26),
+`SessionWire` (`forged`: one the local system must drop, naming another session or with a body no
+robot sends). Like a robot it acknowledges each command and memory command at once (R-RSP-26),
 but those of the devices in `withheld`, and memory commands while it announces no free buffer
 (R-RSP-31); it gives `free` in every packet's buffer byte and, while `beating`, sends an UPLINK with
 an empty Device Map every 5 periods (D-RSP-13). Every datagram both ways is in the case's
@@ -30,7 +40,7 @@ from typing import TYPE_CHECKING
 
 from rcmlconf.conformance.probes.datagrams import DatagramLog
 from rcmlconf.conformance.probes.impaired import ImpairedPath
-from rcmlconf.conformance.probes.rsp import Datagram, summary
+from rcmlconf.conformance.probes.rsp import Datagram, newer, sequence_of, summary
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Failed, HarnessError, Inconclusive
 from rcmlconf.errors import ProtocolError
@@ -82,6 +92,7 @@ LOCAL_TYPES = frozenset(
 _SEALED_NEVER = frozenset({PacketType.HELLO, PacketType.WELCOME, PacketType.REFUSED})
 _SESSION_BITS = 48
 _NONCE_AT = HEADER_SIZE
+_SESSION_AT, _LAST_AT = 11, 17
 
 
 def _repeated(data: bytes) -> bool:
@@ -92,6 +103,41 @@ def _repeated(data: bytes) -> bool:
 
 def _is_hello(data: bytes) -> bool:
     return len(data) > 4 and data[4] == PacketType.HELLO
+
+
+@dataclass
+class _Ended:
+    """A session a case ended (BYE) or refused, which the local system must be done with before
+    the next case can have one (`LocalListener.settled`)."""
+
+    source: Address
+    session_id: int
+    #: The sequence number of the robot's BYE; None when no session was opened.
+    bye: int | None
+    #: When the case ended it, and its T (loop time, seconds).
+    at: float
+    period: float
+    #: When the local system's run is over at the latest (D-RSP-24 step 5).
+    deadline: float
+    #: Datagrams of the session the local system sent after it had the BYE (R-RSP-22).
+    went_on: int = 0
+    last: float = 0.0
+    #: Its own BYE came: the session is over.
+    over: bool = False
+
+    def heard(self, data: bytes, now: float) -> bool:
+        """Take a datagram from the session's source; whether it ends the session (its BYE)."""
+        if len(data) < HEADER_SIZE or int.from_bytes(data[_SESSION_AT:_LAST_AT]) != self.session_id:
+            return False
+        if data[4] == PacketType.BYE:
+            self.over = True
+            return True
+        last = int.from_bytes(data[_LAST_AT : _LAST_AT + 2])
+        # Sent after it had the BYE: it says so (R-RSP-15), or came two periods after it.
+        if (self.bye is not None and newer(last, self.bye)) or now > self.at + 2 * self.period:
+            self.went_on += 1
+            self.last = now
+        return False
 
 
 @dataclass
@@ -136,6 +182,9 @@ class LocalListener:
         self._taken: set[tuple[Address, bytes]] = set()
         #: The newest probe of each source: where its datagrams but new HELLOs go.
         self._bound: dict[Address, LocalProbe] = {}
+        #: The sessions cases ended since the last `accept` (`settled`).
+        self._ended: list[_Ended] = []
+        #: Set by a HELLO, or by the BYE of an ended session: what `accept` and `settled` await.
         self._hello = asyncio.Event()
         self._tasks: set[asyncio.Task[None]] = set()
 
@@ -166,7 +215,13 @@ class LocalListener:
         if not _is_hello(data) or len(data) < _NONCE_AT + NONCE_SIZE:
             if probe is not None:
                 probe._arrived(data, now)
-            return  # else: of a session no case holds (one that ended): nobody listens
+                return
+            # Else of a session no case holds: one that ended, which the local system may go on
+            # with (R-RSP-22). Nobody answers; `settled` hears it.
+            for ended in self._ended:
+                if ended.source == source and ended.heard(data, now):
+                    self._hello.set()
+            return
         nonce = data[_NONCE_AT : _NONCE_AT + NONCE_SIZE]
         if probe is not None and probe.nonce == nonce:
             probe._arrived(data, now)
@@ -189,6 +244,39 @@ class LocalListener:
                 continue
             return entry
         return None
+
+    async def settled(self) -> None:
+        """Until the local system under test is done with the sessions the cases before ended:
+        it sent a new HELLO, or the BYE of each, or its run is over by D-RSP-24 step 5. Bounded
+        by that step (a run ends 10 s after WELCOME). Without a wait when the harness summons a
+        new local system for each case (the embedded reference)."""
+        if self._summon is not None:
+            return
+        busy = [e for e in self._ended if not e.over]
+        while busy and self._next_live() is None:
+            remaining = max(e.deadline for e in busy) - self.now
+            if remaining <= 0:
+                return
+            self._hello.clear()
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._hello.wait(), remaining)
+            busy = [e for e in busy if not e.over]
+
+    def _ending(self, ended: _Ended) -> None:
+        self._ended.append(ended)
+
+    def _went_on(self, transcript: Transcript) -> None:
+        """Note what the sessions the cases before ended sent after their BYE (R-RSP-22)."""
+        for ended in self._ended:
+            if ended.went_on:
+                host, port = ended.source
+                transcript.note(
+                    f"the local system at {host}:{port} went on with session"
+                    f" {ended.session_id:#x} after the robot's BYE (R-RSP-22): {ended.went_on}"
+                    f" datagrams, the last {ended.last - ended.at:.2f} s after it; this case"
+                    f" began when it was done with it, {self.now - ended.at:.2f} s after the BYE"
+                )
+        self._ended.clear()
 
     async def accept(
         self,
@@ -227,6 +315,7 @@ class LocalListener:
             channel = ImpairedChannel(impairment, seed)
             probe._forward = ImpairedPath(channel, probe._leave, asyncio.get_running_loop())
         self._bound[entry.source] = probe
+        self._went_on(transcript)
         host, port = entry.source
         transcript.note(f"a local system at {host}:{port} opens a session (nonce {key[1].hex()})")
         for at, data in entry.datagrams:
@@ -285,6 +374,10 @@ class LocalProbe(DatagramLog):
         self.wire: SessionWire | None = None
         #: T in force, seconds (WELCOME's; the model's before).
         self.period = self.model.period
+        #: When WELCOME was given (loop time), None before.
+        self.opened_at: float | None = None
+        #: The sequence number of the robot's BYE, once sent.
+        self.bye_sequence: int | None = None
         #: The free memory-command buffers every packet gives (D-RSP-19).
         self.free = self.model.command_buffers
         #: Devices (positions) whose occurrences the probe does not acknowledge.
@@ -293,6 +386,8 @@ class LocalProbe(DatagramLog):
         self.beating = True
         self._arrival = asyncio.Event()
         self._opener: Sealer | None = None
+        #: What seals the robot's packets of an encrypted session, for `forged`.
+        self._sealer: Sealer | None = None
         self._tracker = SequenceTracker()
         self._beat: asyncio.TimerHandle | None = None
         #: The WELCOME or REFUSED given, sent again to a repeat of the HELLO (D-RSP-12).
@@ -460,13 +555,16 @@ class LocalProbe(DatagramLog):
             self.wire = wire
             self.period = period / 1000
             self.state = "open"
+            self.opened_at = self.now
             if signed:
                 assert self.psk is not None
                 wire.secure(self.psk, self.nonce, robot_nonce)
-                down = session_key(
-                    self.psk, self.nonce, robot_nonce, wire.session_id, Direction.DOWNLINK
-                )
-                self._opener = Sealer(encryption, down)
+                keys = {
+                    way: session_key(self.psk, self.nonce, robot_nonce, wire.session_id, way)
+                    for way in Direction
+                }
+                self._opener = Sealer(encryption, keys[Direction.DOWNLINK])
+                self._sealer = Sealer(encryption, keys[Direction.UPLINK])
             self._arm()
         return data
 
@@ -486,12 +584,43 @@ class LocalProbe(DatagramLog):
 
     def packet(self, kind: PacketType, body: Body) -> bytes:
         """The session's next packet from the robot, sent."""
-        wire = self.wire
-        if wire is None or self.state != "open":
-            raise HarnessError(f"no open session to send a {kind.name} in")
-        data = wire.build(kind, body, self.now, self.free, self.psk)
+        data = self._wire(kind).build(kind, body, self.now, self.free, self.psk)
         self.send(data, self._line(data, body))
         return data
+
+    def forged(
+        self,
+        kind: PacketType,
+        body: Body,
+        what: str,
+        *,
+        session_id: int | None = None,
+        alter: Callable[[bytes], bytes] | None = None,
+    ) -> bytes:
+        """The session's next packet from the robot made one the local system must drop unread
+        (R-RSP-18): naming `session_id`, its body's bytes changed by `alter` (before sealing, in
+        an encrypted session: it authenticates, and is malformed all the same). Sent, `what` in
+        the transcript; the bytes sent."""
+        wire = self._wire(kind)
+        index = wire.sent
+        data = wire.build(kind, body, self.now, self.free, self.psk)
+        head, rest = data[:HEADER_SIZE], data[HEADER_SIZE:]
+        sealer = self._sealer
+        if sealer is not None:
+            rest = sealer.open(head, rest, index)
+        if session_id is not None:
+            head = head[:_SESSION_AT] + session_id.to_bytes(6) + head[_LAST_AT:]
+        if alter is not None:
+            rest = alter(rest)
+        if sealer is not None:
+            rest = sealer.seal(head, rest, index)
+        self.send(head + rest, f"{what}: {self._line(head + rest)}")
+        return head + rest
+
+    def _wire(self, kind: PacketType) -> SessionWire:
+        if self.wire is None or self.state != "open":
+            raise HarnessError(f"no open session to send a {kind.name} in")
+        return self.wire
 
     def uplink(self, items: Iterable[Item] = ()) -> bytes:
         """An UPLINK of `items` (in any order: sorted into model order)."""
@@ -508,6 +637,7 @@ class LocalProbe(DatagramLog):
         sent: list[bytes] = []
         self.send_intact(lambda: sent.append(self.packet(PacketType.BYE, Bye(reason))))
         self.state = "ended"
+        self.bye_sequence = sequence_of(sent[-1])
         return sent[-1]
 
     def _line(self, data: bytes, body: Body | None = None) -> str:
@@ -553,13 +683,24 @@ class LocalProbe(DatagramLog):
             bye = Bye(ByeReason.CLOSED)
             data = self.wire.build(PacketType.BYE, bye, self.now, self.free, self.psk)
             self.send(data, "BYE (the case ends)")
+            self.bye_sequence = sequence_of(data)
         elif self.state == "hello" and self.hellos:
             self.refuse(RefusedReason.BUSY)
+        self.listener._ending(self._record())
         self.closed = True
         if self._beat is not None:
             self._beat.cancel()
             self._beat = None
         self.listener._unbind(self)
+
+    def _record(self) -> _Ended:
+        """The session as the case leaves it. The local system's run is over 10 s after WELCOME
+        at the latest (D-RSP-24 step 5), or at once after a REFUSED or a HELLO left unanswered."""
+        opened = self.opened_at
+        deadline = (opened + SCENARIO_LIFETIME if opened is not None else self.now) + STALE
+        return _Ended(
+            self.peer, self.session_id, self.bye_sequence, self.now, self.period, deadline
+        )
 
 
 # -- the scenario (D-RSP-24) ----------------------------------------------------------------------

@@ -1,0 +1,160 @@
+"""What an RSP local system does with what it receives (rcmlconf.conformance.cases.
+rsp_local_receiving): the cases pass the embedded reference's local system and an independent one
+(tests/foreign/rsp_local, written from specs/ alone), and each fails that independent one when it
+is told to make the fault the case is aimed at, naming the requirement the fault breaks. A local
+system that goes on with its session after the robot's BYE fails rsp/local/bye-ends, and the case
+after it still has a session of its own (`LocalListener.settled`), where it had been inconclusive
+("no local system sent a HELLO"). Real processes on loopback: `rcmlconf run --role local` and the
+independent local system's `main.py --loop`; and, in this process, what the probe forges in an
+encrypted session, read by the reference local system."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import socket
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+from support.processes import COMMAND
+
+from rcmlconf.conformance.cases.rsp_local import occurrence
+from rcmlconf.conformance.probes.locals import LocalListener
+from rcmlconf.conformance.probes.rsp import Datagram, first
+from rcmlconf.conformance.targets import REFERENCE_RMODEL
+from rcmlconf.conformance.transcript import Transcript
+from rcmlconf.reference.rsp.simulacrum import Simulacrum
+from rcmlconf.rsp.codec import Encryption, MapBody, PacketType
+from rcmlconf.rsp.model import DeviceKind
+from rcmlconf.rsp.security import KEY_SIZE
+from rcmlconf.rsp.session import events
+from rcmlconf.validate.validator import load_robot_model
+
+FOREIGN = Path(__file__).parents[1] / "foreign" / "rsp_local"
+MODEL = FOREIGN / "robot.rmodel"
+#: The fault of the independent local system each case is aimed at, and what it must fail with.
+AIMED = {
+    "rsp/local/other-session-dropped": ("no-session-check", "R-RSP-18"),
+    "rsp/local/trailing-bytes-dropped": ("trailing-bytes", "R-RSP-18"),
+    "rsp/local/bad-bool-dropped": ("bool-lenient", "R-RCML-30"),
+    "rsp/local/replay-dropped": ("no-replay-list", "R-RSP-18"),
+    "rsp/local/outside-window-dropped": ("window-65", "R-RSP-18"),
+    "rsp/local/late-buffer-ignored": ("late-states", "R-RSP-19"),
+    "rsp/local/ack-at-once": ("ack-deferred", "R-RSP-26"),
+}
+#: A run, at most (seconds): the BYE test waits out a session that goes on for 10 s.
+BOUND = 60.0
+
+Results = dict[str, dict[str, Any]]
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def run(tmp_path: Path, *options: str) -> Results:
+    """`rcmlconf run OPTIONS --json`: each result by case."""
+    report = tmp_path / "run.json"
+    done = subprocess.run(
+        [*COMMAND, "run", *options, "--json", str(report)],
+        capture_output=True,
+        text=True,
+        timeout=BOUND,
+        check=False,
+    )
+    assert "Traceback" not in done.stderr, done.stderr
+    assert done.returncode in (0, 1), done.stdout + done.stderr
+    return {r["case"]: r for r in json.loads(report.read_text())["results"]}
+
+
+def run_foreign(tmp_path: Path, cases: list[str], *faults: str) -> Results:
+    """The cases against the independent local system making `faults`, run after run."""
+    port = free_udp_port()
+    wrong = [option for fault in faults for option in ("--fault", fault)]
+    robot = ["--robot", f"127.0.0.1:{port}", "--model", str(MODEL)]
+    local = subprocess.Popen(
+        [sys.executable, str(FOREIGN / "main.py"), *robot, "--loop", *wrong],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        only = [option for case in cases for option in ("--only", case)]
+        return run(tmp_path, "--role", "local", "--listen", str(port), "--model", str(MODEL), *only)
+    finally:
+        local.terminate()  # it ends its session with BYE and exits 0
+        _, err = local.communicate(timeout=BOUND)
+        assert local.returncode == 0, err
+
+
+def verdicts(results: Results) -> dict[str, str]:
+    return {case: result["verdict"] for case, result in results.items()}
+
+
+def test_the_receiving_cases_pass_the_embedded_reference(tmp_path: Path) -> None:
+    results = run(tmp_path, *(option for case in AIMED for option in ("--only", case)))
+    assert verdicts(results) == dict.fromkeys(AIMED, "pass"), results
+
+
+def test_the_receiving_cases_pass_an_independent_local_system(tmp_path: Path) -> None:
+    results = run_foreign(tmp_path, list(AIMED))
+    assert verdicts(results) == dict.fromkeys(AIMED, "pass"), results
+
+
+@pytest.mark.parametrize("case", AIMED)
+def test_each_case_fails_the_local_system_making_its_fault(tmp_path: Path, case: str) -> None:
+    fault, requirement = AIMED[case]
+    result = run_foreign(tmp_path, [case], fault)[case]
+    assert (result["verdict"], result["requirement"]) == ("fail", requirement), result
+
+
+def test_a_session_going_on_after_bye_fails_bye_ends_and_the_next_case_has_its_own(
+    tmp_path: Path,
+) -> None:
+    cases = ["rsp/local/bye-ends", "rsp/local/every-period"]  # run in this order (by ID)
+    results = run_foreign(tmp_path, cases, "bye-ignored")
+    bye, after = (results[case] for case in cases)
+    assert (bye["verdict"], bye["requirement"]) == ("fail", "R-RSP-22"), bye
+    assert after["verdict"] == "pass", after
+
+
+async def forged_in_a_sealed_session() -> tuple[list[events.PacketDropped], Datagram | None]:
+    """The reference local system in an AES-256-GCM session with a probe that forges an UPLINK
+    with a byte after its payloads, then one naming another session, then sends it well-formed:
+    what the reference dropped, and its ACK of the well-formed one."""
+    model = load_robot_model(REFERENCE_RMODEL)
+    psk = os.urandom(KEY_SIZE)
+    listener = LocalListener(model, psk)
+    await listener.start("127.0.0.1", 0)
+    local = Simulacrum(model, listener.address, encryption=Encryption.AES_256_GCM, psk=psk)
+    opening = asyncio.ensure_future(local.open())
+    try:
+        probe = await listener.accept(Transcript(), 5.0)
+        probe.welcome()
+        await asyncio.wait_for(opening, 5.0)
+        memory = first(model, DeviceKind.MEMORY_EVENT)
+        body = MapBody((occurrence(memory, 0),))
+        probe.forged(PacketType.UPLINK, body, "longer", alter=lambda plain: plain + b"\x00")
+        probe.forged(PacketType.UPLINK, body, "elsewhere", session_id=probe.session_id ^ 1 or 2)
+        probe.uplink(body.items)
+        ack = await probe.next(PacketType.ACK, wait=5.0)
+    finally:
+        opening.cancel()
+        await local.aclose()
+        await listener.close()
+    return [e for e in local.history if isinstance(e, events.PacketDropped)], ack
+
+
+def test_what_is_forged_in_a_sealed_session_authenticates_and_is_dropped_for_its_fault() -> None:
+    dropped, ack = asyncio.run(forged_in_a_sealed_session())
+    assert [(e.rule, e.reason) for e in dropped] == [
+        ("R-RSP-16", "1 bytes after the last payload"),
+        ("R-RSP-18", "a packet of another session"),
+    ]
+    assert ack is not None
