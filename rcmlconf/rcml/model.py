@@ -10,7 +10,7 @@ them, and a frozen dataclass costs three times as much to create.
 from __future__ import annotations
 
 import enum
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -135,7 +135,8 @@ class RcmlDocument:
     contact: str | None = None
     links: tuple[Link, ...] = ()
     meta: tuple[Meta, ...] = ()
-    #: Every node by path (D-RCML-3).
+    #: Every node by path (D-RCML-3), in document order: the loader adds each node as it meets
+    #: it (the data nodes of an access before the access), the one place that order is kept.
     nodes: Mapping[str, Node] = field(default_factory=dict, compare=False, repr=False)
 
     def node(self, path: str) -> Node | None:
@@ -151,6 +152,12 @@ class RcmlDocument:
         if isinstance(node, AccessNode):
             return node.data
         return ()
+
+    def in_document_order(self, nodes: Iterable[DataNode]) -> tuple[DataNode, ...]:
+        """Data nodes in the order their elements stand in the document. Nothing on the wire
+        follows that order (D-RCML-4); it tells an implementation that does (R-RCML-29)."""
+        order = {path: index for index, path in enumerate(self.nodes)}
+        return tuple(sorted(nodes, key=lambda node: order[node.path]))
 
     def data_nodes(self) -> Iterator[DataNode]:
         return (n for n in self.nodes.values() if isinstance(n, DataNode))

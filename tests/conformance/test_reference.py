@@ -17,6 +17,8 @@ from rcmlconf.specs import requirements
 
 #: The documents whose every MUST needs a case (issue "The conformance harness").
 RUNTIME_DOCUMENTS = ("rctp-2.0.md", "rsp.md")
+#: The flaws of conformance.flaws the embedded reference's robots have no node for.
+_LACKED = ("bool-byte", "item-count", "not-utf8", "over-size", "past-end")
 #: Cases the reference cannot make applicable, and why.
 NOT_APPLICABLE = {
     # Its robots offer every AEAD of D-RSP-21: there is none to refuse.
@@ -24,6 +26,13 @@ NOT_APPLICABLE = {
     # CUBO's speaker has no monitor (D-RSP-23): what it plays cannot be seen.
     "rsp/audio/in-order",
     "rsp/audio/late-dropped",
+    # The rover has no writable bool, string, bytes or array node, and no event access that it
+    # can write whose RCML puts its nodes out of canonical order; CUBO's DOWNLINKs carry no bool,
+    # string or array, and it has no floating-point effector with a monitor (test_value_cases
+    # runs these on the test robot's server, and the independent one's).
+    *(f"rctp/value/{kind}-{flaw}" for kind in ("write", "data") for flaw in _LACKED),
+    "rctp/value/canonical-order-write",
+    *(f"rsp/value/{flaw}" for flaw in ("bool-byte", "item-count", "nan", "not-utf8")),
 }
 
 

@@ -390,7 +390,7 @@ def _nack(
 # -- writing and reading back ---------------------------------------------------------------------
 
 
-class _Writing:
+class Writing:
     """A stream access set up with mode both, its privilege held and playing: what the server
     applies of the DATA the case writes shows in the DATA it sends back, on the nodes that are
     both readable and writable (`watched`)."""
@@ -413,8 +413,12 @@ class _Writing:
         self.window = max(min(QUIET, 0.4 * set_up.write_timeout), 2 * _interval(set_up))
 
     @classmethod
-    async def open(cls, ctx: Context) -> _Writing:
-        control, probe, set_up = await _set_up_writing(ctx, _writable(ctx, _observable), "both")
+    async def open(
+        cls, ctx: Context, where: Callable[[AccessNode], bool] = lambda _: True
+    ) -> Writing:
+        """On the first stream access whose writing can be read back and `where` holds of."""
+        access = _writable(ctx, lambda a: _observable(a) and where(a))
+        control, probe, set_up = await _set_up_writing(ctx, access, "both")
         writing = cls(ctx, control, probe, set_up)
         await _request(ctx, control, "GO", set_up)
         first = await writing.readback()
@@ -1357,7 +1361,7 @@ async def packet_timestamp(ctx: Context) -> None:
     serial=True,
 )
 async def stale_data_ignored(ctx: Context) -> None:
-    writing = await _Writing.open(ctx)
+    writing = await Writing.open(ctx)
     _, other = await writing.two_values()
     newest = writing.probe.last_sequence
     # Not newer: the same number, one behind, and 32,768 behind (RFC 1982's edge).
@@ -1375,7 +1379,7 @@ async def stale_data_ignored(ctx: Context) -> None:
     serial=True,
 )
 async def undecodable_data_ignored(ctx: Context) -> None:
-    writing = await _Writing.open(ctx)
+    writing = await Writing.open(ctx)
     _, other = await writing.two_values()
     body = writing.writer.encode(other)
     for broken in (body + b"\x00", body[:-1], b""):
@@ -1395,7 +1399,7 @@ async def out_of_range_data_ignored(ctx: Context) -> None:
     access = _writable(ctx, _observable)
     if not any(_outside(n) is not None for n in access.writable()):
         raise NotApplicable(f"no writable node of {access.path} has a range to leave")
-    writing = await _Writing.open(ctx)
+    writing = await Writing.open(ctx)
     _, other = await writing.two_values()
     node = next(n for n in access.writable() if _outside(n) is not None)
     outside = _outside(node)
