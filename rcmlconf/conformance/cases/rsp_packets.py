@@ -269,27 +269,28 @@ async def replayed(ctx: Context) -> None:
 
 @case(
     "rsp/header/outside-window",
-    "A packet 70 behind the newest is dropped; one 50 behind, never seen, is handled",
+    "A packet 65 behind the newest is dropped; one exactly 64 behind, never seen, is handled",
     ["R-RSP-18", "R-RSP-26"],
     role=Role.ROBOT,
 )
 async def outside_window(ctx: Context) -> None:
+    # D-RSP-15: "more than 64 behind" is dropped, so the window's edge is between 64 and 65.
     probe, raw = await raw_session(ctx)
     command = first(probe.model, DeviceKind.COMMAND)
     raw.skip(100)
     if await taken(probe, raw) is None:  # the robot's newest must be this one
         raise Inconclusive("no UPLINK after the DOWNLINK 100 ahead")
     newest = sequence_of(raw.last)
-    raw.rewind(newest - 70)
+    raw.rewind(newest - 65)
     start = probe.mark()
     raw.downlink([occurrence(command, 0)])
     await probe.listen(probe.quiet)
     stale = [d for d in probe.packets(PacketType.ACK, after=start) if d.acks(command.position)]
-    ctx.expect(not stale, "a packet 70 behind dropped unread (no ACK)", "an ACK", "R-RSP-18")
-    ack = await late_acked(probe, raw, command, 0, newest - 50, resume=newest + 1)
+    ctx.expect(not stale, "a packet 65 behind dropped unread (no ACK)", "an ACK", "R-RSP-18")
+    ack = await late_acked(probe, raw, command, 0, newest - 64, resume=newest + 1)
     ctx.expect(
         ack is not None,
-        "the command of a late packet 50 behind acknowledged (D-RSP-15)",
+        "the command of a late packet exactly 64 behind acknowledged (D-RSP-15)",
         "no ACK",
         "R-RSP-26",
     )

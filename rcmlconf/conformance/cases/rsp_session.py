@@ -3,6 +3,7 @@ D-RSP-12, D-RSP-13, R-RSP-20 to R-RSP-22). The harness plays the local system.""
 
 from __future__ import annotations
 
+import functools
 import os
 
 from rcmlconf.conformance.context import Context
@@ -45,8 +46,12 @@ _AEADS = {
 }
 
 
-def _other_model(model_id: int) -> int:
-    return model_id % 65535 + 1
+def _other_models(model_id: int) -> tuple[int, int]:
+    """Two model IDs other than `model_id` (1 to 65,535, D-RSP-6): one that differs in its low
+    byte, one that differs in its high byte only, so that a robot that compares one byte of the
+    two is caught either way."""
+    high = model_id ^ 0x0100 or 0x0300
+    return model_id % 65535 + 1, high
 
 
 def _refused(ctx: Context, answer: Datagram, reason: RefusedReason, requirement: str) -> None:
@@ -148,7 +153,8 @@ async def fresh_session_ids(ctx: Context) -> None:
 
 @case(
     "rsp/session/unknown-model",
-    "A HELLO of another model ID is refused (1) with its model ID and encryption byte echoed",
+    "HELLOs of other model IDs (another low byte, another high byte) are refused (1) with their"
+    " model ID and encryption byte echoed",
     ["R-RSP-21"],
     role=Role.ROBOT,
 )
@@ -170,14 +176,14 @@ async def _unknown_model_refused(ctx: Context, encryption: Encryption) -> None:
     """A HELLO of another model ID (signed with the pre-shared key, if known, when `encryption` is
     an AEAD) must be refused (1) with its model ID and encryption byte echoed (D-RSP-12)."""
     probe = await open_probe(ctx)
-    other = _other_model(probe.model.model_id)
     period = round(probe.model.period * 1000)
-    hello = hello_packet(other, encryption, os.urandom(NONCE_SIZE), period, psk=probe.psk)
-    answer = await probe.expect_answer_to(
-        lambda: probe.send(hello), _ANSWERS, "R-RSP-21", expected="REFUSED"
-    )
-    _refused(ctx, answer, RefusedReason.UNKNOWN_MODEL, "R-RSP-21")
-    _echoes(ctx, answer, other, int(encryption), "R-RSP-21")
+    for other in _other_models(probe.model.model_id):
+        hello = hello_packet(other, encryption, os.urandom(NONCE_SIZE), period, psk=probe.psk)
+        answer = await probe.expect_answer_to(
+            functools.partial(probe.send, hello), _ANSWERS, "R-RSP-21", expected="REFUSED"
+        )
+        _refused(ctx, answer, RefusedReason.UNKNOWN_MODEL, "R-RSP-21")
+        _echoes(ctx, answer, other, int(encryption), "R-RSP-21")
 
 
 @case(
@@ -300,7 +306,8 @@ async def repeated_hello(ctx: Context) -> None:
 
 @case(
     "rsp/session/bye",
-    "After BYE the robot sends nothing more of the session and takes another local system",
+    "After BYE (reason shutdown) the robot sends nothing more of the session and takes another"
+    " local system",
     ["R-RSP-22"],
     role=Role.ROBOT,
 )
@@ -309,7 +316,9 @@ async def bye(ctx: Context) -> None:
     sensor = reported(probe.model, 1)[0]
     if await taken(probe, raw, flags(probe.model, sensor)) is None:
         raise Inconclusive("the robot sent no UPLINK before BYE")
-    sequence = sequence_of(raw.bye())
+    # Reason 2 (shutdown): every case's closing BYE says 0 (closed), and a BYE ends the session
+    # whatever its reason (D-RSP-12).
+    sequence = sequence_of(raw.bye(ByeReason.SHUTDOWN))
     uplinks = await probe.received_within(probe.quiet, PacketType.UPLINK)
     late = [d for d in uplinks if newer(d.header.last_received, sequence)]
     ctx.expect(not late, "no UPLINK after the robot took BYE", f"{len(late)} UPLINKs")
