@@ -10,8 +10,9 @@ Each fault lives where such a bug would: a check of `Fault.X in faults` at one s
 server's session, privileges or robot, or of the RSP robot's endpoint (each marked
 `# fault: NAME`); the faults of the control connection's bytes are one rewrite of what the server
 writes (`rewrite_control`, applied in the adapter's flush); those of the data stream a subclass of
-the core's endpoint (`reference.server.faulty_stream`). Without faults nothing of this runs: the
-reference behaves exactly as it does without this module.
+the core's endpoint (`reference.server.faulty_stream`); those of values a codec the server reads
+and writes bodies with (`faulty_codec`, and `loose_model` for the robot's packets). Without faults
+nothing of this runs: the reference behaves exactly as it does without this module.
 
 Never for a real robot: a faulty server or robot breaks the protocols on purpose.
 """
@@ -19,11 +20,18 @@ Never for a real robot: a faulty server or robot breaks the protocols on purpose
 from __future__ import annotations
 
 import enum
-from collections.abc import Iterable
-from dataclasses import dataclass
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, replace
 from typing import Literal
 
+from rcmlconf.buffer import Buffer
+from rcmlconf.rcml.model import DataNode, RcmlDocument
+from rcmlconf.rctp.bodies import ValuesCodec
 from rcmlconf.rctp.messages import REASONS
+from rcmlconf.rsp.model import Field as RspField
+from rcmlconf.rsp.model import RobotModel
+from rcmlconf.values import DATA_TYPES, Kind, Value, ValueType
+from rcmlconf.values.types import MAX_SIZE
 
 Implementation = Literal["server", "robot"]
 
@@ -49,6 +57,13 @@ class Fault(enum.Enum):
     NO_ALLOW = "no-allow"
     NO_TIMEOUT_BYE = "no-timeout-bye"
     NO_CONTENT_TYPE = "no-content-type"
+    # -- the server: the values of bodies and payloads (faulty_codec) ---------------------------
+    # The first two show only on a robot with a writable bool, string or bytes node, which the
+    # embedded reference's rover lacks: the test of the harness serves the test robot for them.
+    BOOL_NONZERO_TRUE = "bool-nonzero-true"
+    STRING_SIZE_UNCHECKED = "string-size-unchecked"
+    DOCUMENT_ORDER_VALUES = "document-order-values"
+    NAN_IN_RANGE = "nan-in-range"
     # -- the server: sessions, nodes and privileges ----------------------------------------------
     OPEN_AFTER_BAD_FRAMING = "open-after-bad-framing"
     REFRESH_REFUSED = "refresh-refused"
@@ -88,6 +103,7 @@ class Fault(enum.Enum):
     CLEAR_BUFFER_IGNORED = "clear-buffer-ignored"
     SILENT_TIMEOUT = "silent-timeout"
     NO_STOP_ON_LOSS = "no-stop-on-loss"
+    PAYLOAD_SIZE_UNCHECKED = "payload-size-unchecked"
 
     @property
     def info(self) -> FaultInfo:
@@ -150,6 +166,27 @@ DESCRIPTIONS: dict[Fault, FaultInfo] = {
         "R-RCTP-21",
     ),
     _F.NO_CONTENT_TYPE: _server("sends bodies without Content-Type", "R-RCTP-6"),
+    _F.BOOL_NONZERO_TRUE: _server(
+        "takes a bool byte other than 0x00 and 0x01 in a WRITE body or DATA payload as true",
+        "R-RCML-30",
+        "R-RCTP-28",
+        "R-RCTP-58",
+    ),
+    _F.STRING_SIZE_UNCHECKED: _server(
+        "takes a string or bytes value longer than its node's size in a WRITE body or DATA payload",
+        "R-RCML-30",
+        "R-RCTP-28",
+        "R-RCTP-58",
+    ),
+    _F.DOCUMENT_ORDER_VALUES: _server(
+        "writes and reads the values of READ, WRITE and data-change bodies in the nodes'"
+        " document order, not canonical order (Nodes still lists them canonically)",
+        "R-RCML-29",
+    ),
+    _F.NAN_IN_RANGE: _server(
+        "checks a WRITE's values against min and max with < and >, which NaN passes",
+        "R-RCTP-28",
+    ),
     _F.OPEN_AFTER_BAD_FRAMING: _server(
         "keeps the connection open after a message it could not frame or take (and answers"
         " nothing more)",
@@ -279,6 +316,10 @@ DESCRIPTIONS: dict[Fault, FaultInfo] = {
     _F.NO_STOP_ON_LOSS: _robot(
         "goes on driving the effectors whose onLoss is zero while the link is lost", "R-RSP-36"
     ),
+    _F.PAYLOAD_SIZE_UNCHECKED: _robot(
+        "takes a DOWNLINK whose string or bytes field is longer than its size, not dropping it",
+        "R-RSP-18",
+    ),
 }
 
 SERVER_FAULTS = frozenset(f for f in Fault if f.implementation == "server")
@@ -306,8 +347,12 @@ STREAM_FAULTS = frozenset(
         Fault.SHORT_INTERVAL_ACCEPTED,
         Fault.UNKNOWN_PAYLOAD_DROPS,
         Fault.FLOW_ANSWERS_FORGOTTEN,
+        Fault.BOOL_NONZERO_TRUE,
+        Fault.STRING_SIZE_UNCHECKED,
     }
 )
+#: The faults of decoding values: READ and WRITE bodies (`faulty_codec`), DATA (faulty_stream).
+LENIENT_VALUES = frozenset({Fault.BOOL_NONZERO_TRUE, Fault.STRING_SIZE_UNCHECKED})
 
 
 def names(implementation: Implementation) -> list[str]:
@@ -388,3 +433,99 @@ def _rewrite(
     eol = b"\n" if Fault.BARE_LF in faults else b"\r\n"
     lines = [start] + [n + b": " + v for n, v in fields if n.lower() not in dropped]
     return eol.join(lines) + eol + eol + body
+
+
+# -- values: how the server and the robot read them ------------------------------------------------
+
+
+class FaultyCodec(ValuesCodec[DataNode]):
+    """The values of some data nodes in the order given, decoded as `LENIENT_VALUES` say: a bool
+    is any byte (true unless 0x00), a string or bytes any length the prefix claims."""
+
+    def __init__(
+        self, nodes: Sequence[DataNode], where: str, rule: str, faults: frozenset[Fault]
+    ) -> None:
+        super().__init__(nodes, where, rule, canonical=False)
+        lenient = faults & LENIENT_VALUES
+        #: The bools read as uint8: their values go back and forth as numbers.
+        self._bools = frozenset(
+            n.name
+            for n in self.nodes
+            if n.type.base.kind is Kind.BOOL and Fault.BOOL_NONZERO_TRUE in lenient
+        )
+        loose = [_loose(n, lenient) for n in self.nodes]
+        self._loose = ValuesCodec(loose, where, rule, canonical=False)
+
+    def push(self, buf: Buffer, values: Mapping[str, Value]) -> None:
+        loose = dict(values)
+        for name in self._bools & loose.keys():
+            value = loose[name]
+            loose[name] = tuple(map(int, value)) if isinstance(value, tuple) else int(value)
+        self._loose.push(buf, loose)
+
+    def pull(self, buf: Buffer) -> dict[str, Value]:
+        values = self._loose.pull(buf)
+        for name in self._bools:  # fault: bool-nonzero-true
+            value = values[name]
+            values[name] = tuple(v != 0 for v in value) if isinstance(value, tuple) else value != 0
+        return values
+
+
+def _loose(node: DataNode, faults: frozenset[Fault]) -> DataNode:
+    """The node as a decoder with `faults` reads it: a bool as a uint8, any size the largest."""
+    base, count, size = node.type.base, node.type.count, node.type.size
+    if base.kind is Kind.BOOL and Fault.BOOL_NONZERO_TRUE in faults:
+        base = DATA_TYPES["uint8"]
+    if base.sized and Fault.STRING_SIZE_UNCHECKED in faults:  # fault: string-size-unchecked
+        size = MAX_SIZE
+    return node._replace(type=ValueType(base, count, size))
+
+
+def faulty_codec(
+    model: RcmlDocument,
+    nodes: Sequence[DataNode],
+    where: str,
+    rule: str,
+    faults: frozenset[Fault],
+) -> ValuesCodec[DataNode]:
+    """The codec of READ and WRITE bodies of `nodes`, broken as `faults` say; the core's
+    without them."""
+    if Fault.DOCUMENT_ORDER_VALUES in faults:  # fault: document-order-values
+        return FaultyCodec(model.in_document_order(nodes), where, rule, faults)
+    if faults & LENIENT_VALUES:
+        return FaultyCodec(sorted(nodes, key=lambda node: node.name), where, rule, faults)
+    return ValuesCodec(nodes, where, rule)
+
+
+def faulty_stream_codec(
+    codec: ValuesCodec[DataNode], faults: frozenset[Fault]
+) -> ValuesCodec[DataNode]:
+    """A DATA codec of the data stream's, decoding as `LENIENT_VALUES` say."""
+    return FaultyCodec(codec.nodes, codec.where, codec.rule, faults)
+
+
+def nan_blind(node: DataNode, value: Value) -> str | None:
+    """`DataNode.out_of_range` as a range check written with `<` and `>` is: NaN compares false
+    with everything, so it passes (fault: nan-in-range)."""
+    items = value if isinstance(value, tuple) else (value,)
+    for item in items:
+        if not isinstance(item, int | float) or isinstance(item, bool):
+            continue
+        if (node.minimum is not None and item < node.minimum) or (
+            node.maximum is not None and item > node.maximum
+        ):
+            return f"{item!r} is outside {node.path}'s range {node.minimum} to {node.maximum}"
+    return None
+
+
+def loose_model(model: RobotModel) -> RobotModel:
+    """The robot model as a robot with `payload-size-unchecked` reads packets: every string
+    and bytes field of the largest size."""
+
+    def field(found: RspField) -> RspField:
+        if not found.type.base.sized:
+            return found
+        return found._replace(type=ValueType(found.type.base, found.type.count, MAX_SIZE))
+
+    devices = tuple(d._replace(fields=tuple(map(field, d.fields))) for d in model.devices)
+    return replace(model, devices=devices, by_name={d.name: d for d in devices})

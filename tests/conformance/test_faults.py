@@ -12,14 +12,18 @@ every_case=True)` runs every case for every fault, for a full table of what catc
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Iterable
+import contextlib
+import dataclasses
+from collections.abc import AsyncIterator, Iterable
 
 import pytest
+from support.robots import TESTBOT, robot
+from support.servers import serving
 
 from rcmlconf.conformance.ics import EVERYTHING
 from rcmlconf.conformance.registry import Case, Role, all_cases
 from rcmlconf.conformance.runner import RunOptions, run_cases
-from rcmlconf.conformance.targets import embedded_reference
+from rcmlconf.conformance.targets import REFERENCE_SESSION_TIMEOUT, Target, embedded_reference
 from rcmlconf.conformance.verdicts import Result, Verdict
 from rcmlconf.reference.faults import Fault
 
@@ -30,6 +34,9 @@ BOUND = 55.0
 #: Faults that only a longer case shows: rsp/session/timeout-bye waits for the robot's 10 s
 #: session timeout, which fits its time only with --timeout-scale 2.5.
 OPTIONS = {Fault.SILENT_TIMEOUT: RunOptions(timeout_scale=2.5)}
+#: Faults of reading values that only a robot with writable bool, string and bytes nodes shows:
+#: the embedded reference's rover has none, so its server is the test robot's for them.
+TESTBOT_FAULTS = frozenset({Fault.BOOL_NONZERO_TRUE, Fault.STRING_SIZE_UNCHECKED})
 
 
 def cases_for(fault: Fault) -> list[Case]:
@@ -46,13 +53,29 @@ async def run_fault(
     cases = cases_for(fault)
     aimed = [case for case in cases if set(case.requirements) & set(fault.requirements)]
     rest = [case for case in cases if case not in aimed]
-    async with gate, embedded_reference(EVERYTHING.features, frozenset({fault})) as target:
+    async with gate, reference(fault) as target:
         if every_case:
             return await run_cases(cases, target, options)
         results = await run_cases(aimed, target, options)
         if not failures(results):
             results += await run_cases(rest, target, options)
         return results
+
+
+@contextlib.asynccontextmanager
+async def reference(fault: Fault) -> AsyncIterator[Target]:
+    """The embedded reference making `fault`; its RCTP server the test robot's for
+    `TESTBOT_FAULTS`."""
+    async with embedded_reference(EVERYTHING.features, frozenset({fault})) as target:
+        if fault not in TESTBOT_FAULTS:
+            yield target
+            return
+        settings = {"faults": frozenset({fault}), "session_timeout": REFERENCE_SESSION_TIMEOUT}
+        async with serving(TESTBOT, **settings) as server:
+            model = robot(TESTBOT)
+            yield dataclasses.replace(
+                target, server=("127.0.0.1", server.port), robot=model, site_path=model.site.path
+            )
 
 
 async def run_faults(

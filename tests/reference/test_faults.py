@@ -87,7 +87,8 @@ def test_every_fault_is_described_kebab_case_and_names_requirements_of_specs() -
         assert fault.requirements, fault
         for requirement in fault.requirements:
             assert requirement in known, (fault, requirement)
-        protocol = "R-RCTP-" if fault.implementation == "server" else "R-RSP-"
+        # A server's faults may break RCML's rules for implementations too (R-RCML-29, -30).
+        protocol = ("R-RCTP-", "R-RCML-") if fault.implementation == "server" else ("R-RSP-",)
         assert all(r.startswith(protocol) for r in fault.requirements), fault
     assert len(SERVER_FAULTS) >= 20
     assert len(ROBOT_FAULTS) >= 6
@@ -575,6 +576,41 @@ async def repeated_flow(server: ReferenceServer) -> object:
     return first == second
 
 
+VALUES = [("Content-Type", "application/rctp-values")]
+
+
+async def write_settings(server: ReferenceServer, name: str, body: bytes) -> object:
+    """The status of a WRITE of one node of /drive/settings, and the node's value read after."""
+    session = await RawSession.open(server)
+    assert (await ask(session, "ACQUIRE", "/drive")).status == 200
+    written = await ask(session, "WRITE", SETTINGS, [("Nodes", name), *VALUES], body)
+    read = await ask(session, "READ", SETTINGS, [("Nodes", name)])
+    session.close()
+    return written.status, server.robot.codec(SETTINGS, nodes(SETTINGS, name)).decode(read.body)
+
+
+async def settings_read_whole(server: ReferenceServer) -> object:
+    """The body of a READ of /drive/settings, after each node was written alone."""
+    session = await RawSession.open(server)
+    assert (await ask(session, "ACQUIRE", "/drive")).status == 200
+    for name, body in (("enabled", b"\x01"), ("label", b"\x00\x01x"), ("mode", b"\x02")):
+        assert (
+            await ask(session, "WRITE", SETTINGS, [("Nodes", name), *VALUES], body)
+        ).status == 200
+    read = await ask(session, "READ", SETTINGS)
+    session.close()
+    return read.body
+
+
+async def write_nan(server: ReferenceServer) -> object:
+    session = await RawSession.open(server)
+    assert (await ask(session, "ACQUIRE", "/head")).status == 200
+    nan = bytes.fromhex("7ff8000000000000")  # a float64 NaN; /head/control/volume is 0 to 1
+    written = await ask(session, "WRITE", "/head/control/volume", VALUES, nan)
+    session.close()
+    return written.status
+
+
 def _status_check(method: str, target: str, clean: int, faulty: int) -> Check:
     return Check(lambda server: status_of(server, method, target), clean, faulty)
 
@@ -617,6 +653,20 @@ SERVER_CHECKS: dict[Fault, Check] = {
     Fault.SHORT_INTERVAL_ACCEPTED: Check(short_interval, "Nack", "IntervalSetAck"),
     Fault.UNKNOWN_PAYLOAD_DROPS: Check(unknown_payload, 1, 0),
     Fault.FLOW_ANSWERS_FORGOTTEN: Check(repeated_flow, True, False),
+    Fault.BOOL_NONZERO_TRUE: Check(
+        lambda s: write_settings(s, "enabled", b"\x02"),
+        (422, {"enabled": False}),
+        (200, {"enabled": True}),
+    ),
+    Fault.STRING_SIZE_UNCHECKED: Check(
+        lambda s: write_settings(s, "label", b"\x00\x21" + b"a" * 33),
+        (422, {"label": "label"}),
+        (200, {"label": "a" * 33}),
+    ),
+    Fault.DOCUMENT_ORDER_VALUES: Check(
+        settings_read_whole, b"\x01\x00\x01x\x02", b"\x02\x01\x00\x01x"
+    ),
+    Fault.NAN_IN_RANGE: Check(write_nan, 422, 200),
 }
 
 
@@ -865,6 +915,22 @@ def link_lost(local: Local) -> object:
     return moving, local.robot.effectors(local.now)["leftWheel"]["speed"]
 
 
+def long_image(local: Local) -> object:
+    """A DOWNLINK whose LCD image is a byte longer than its size, with a command."""
+    lcd = CUBO.device("lcd")
+    assert lcd is not None
+    size = lcd.fields[0].type.size
+    data = local.wire.build(
+        PacketType.DOWNLINK,
+        MapBody((Item(lcd.position, None, {"image": b"a" * size}), fire(3))),
+        local.now,
+    )
+    local.send(
+        data.replace(size.to_bytes(2) + b"a" * size, (size + 1).to_bytes(2) + b"a" * (size + 1))
+    )
+    return local.acks()
+
+
 @dataclass(frozen=True)
 class RobotCheck:
     scenario: Callable[[Local], object]
@@ -901,6 +967,7 @@ ROBOT_CHECKS: dict[Fault, RobotCheck] = {
     ),
     Fault.SILENT_TIMEOUT: RobotCheck(silent_peer, ([_bye(ByeReason.TIMEOUT)], True), ([], True)),
     Fault.NO_STOP_ON_LOSS: RobotCheck(link_lost, (100, 0), (100, 100)),
+    Fault.PAYLOAD_SIZE_UNCHECKED: RobotCheck(long_image, [], [(FIRE, 3)]),
 }
 
 

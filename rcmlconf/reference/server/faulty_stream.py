@@ -12,18 +12,27 @@ from dataclasses import replace
 from typing import Any
 
 from rcmlconf.errors import ProtocolError
-from rcmlconf.rctp.datastream.endpoint import Address, Endpoint
+from rcmlconf.rcml.model import AccessNode
+from rcmlconf.rctp.datastream.endpoint import Address, Endpoint, Stream
 from rcmlconf.rctp.datastream.events import PacketDropped
 from rcmlconf.rctp.datastream.flow import FlowMessage, HeartbeatAck, IntervalSet, IntervalSetAck
 from rcmlconf.rctp.datastream.order import SequenceTracker
 from rcmlconf.rctp.datastream.packets import EncodedPayload, UnknownPayload, pull_packet
-from rcmlconf.reference.faults import Fault
+from rcmlconf.reference.faults import LENIENT_VALUES, Fault, faulty_stream_codec
 
 
 class FaultyEndpoint(Endpoint):
     def __init__(self, faults: frozenset[Fault], *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.faults = faults
+
+    def add_stream(self, stream_id: int, access: AccessNode, mode: str) -> Stream:
+        stream = super().add_stream(stream_id, access, mode)
+        if self.faults & LENIENT_VALUES:  # fault: bool-nonzero-true, string-size-unchecked
+            stream.codecs = {
+                d: faulty_stream_codec(c, self.faults) for d, c in stream.codecs.items()
+            }
+        return stream
 
     def receive_datagram(self, data: bytes, addr: Address, now: float) -> bool:
         faults = self.faults

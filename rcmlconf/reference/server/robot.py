@@ -18,7 +18,7 @@ from rcmlconf.rctp.datastream.flow import Direction
 from rcmlconf.rctp.datastream.values import stream_codec
 from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
 from rcmlconf.reference.drivers import Driver
-from rcmlconf.reference.faults import Fault
+from rcmlconf.reference.faults import Fault, faulty_codec
 from rcmlconf.reference.server.privileges import Privileges
 from rcmlconf.values import Value
 
@@ -100,7 +100,9 @@ class Robot:
         if codec is None:
             if len(self._codecs) >= _CODECS_KEPT:
                 self._codecs.clear()
-            codec = self._codecs[key] = ValuesCodec(nodes, where, "R-RCTP-28")
+            codec = self._codecs[key] = faulty_codec(
+                self.model, nodes, where, "R-RCTP-28", self.faults
+            )  # the core's ValuesCodec without faults
         return codec
 
     def command(self, by: ServerSession, values: Mapping[str, Value], now: float) -> None:

@@ -48,7 +48,7 @@ from rcmlconf.rctp.messages import TEXT_TYPE, VALUES_TYPE, Request
 from rcmlconf.rctp.states import Role, SessionState, StreamState
 from rcmlconf.rctp.targets import STAR, Target, format_target
 from rcmlconf.reference.ends import SessionEnd
-from rcmlconf.reference.faults import STREAM_FAULTS, Fault
+from rcmlconf.reference.faults import STREAM_FAULTS, Fault, nan_blind
 from rcmlconf.reference.server.faulty_stream import FaultyEndpoint
 from rcmlconf.reference.server.robot import Robot
 from rcmlconf.wording import shorten
@@ -270,7 +270,10 @@ class ServerSession(SessionEnd):
         except ProtocolError as error:
             raise Refused(422, f"{error.reason} (body byte {error.offset})", "R-RCTP-28") from None
         for node in nodes:
-            problem = node.out_of_range(values[node.name])
+            if Fault.NAN_IN_RANGE in self.faults:  # fault: nan-in-range
+                problem = nan_blind(node, values[node.name])
+            else:
+                problem = node.out_of_range(values[node.name])
             if problem is not None:
                 if Fault.PARTIAL_WRITE in self.faults:  # fault: partial-write
                     fine = [n for n in nodes if n.out_of_range(values[n.name]) is None]

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 from rcmlconf.errors import ProtocolError
 from rcmlconf.rctp.datastream.order import Arrival, SequenceTracker
-from rcmlconf.reference.faults import Fault
+from rcmlconf.reference.faults import Fault, loose_model
 from rcmlconf.rsp.codec import (
     CLEAR_BUFFER,
     Bye,
@@ -123,7 +123,9 @@ class RobotEndpoint:
         if any(e is not Encryption.NONE for e in encryptions) and psk is None:
             raise ValueError("encrypted sessions need the robot's pre-shared key")
         self.model = model
-        self.codec = codec_for(model)
+        # fault: payload-size-unchecked (packets read as a model with no size limit would be)
+        loose = Fault.PAYLOAD_SIZE_UNCHECKED in faults
+        self.codec = codec_for(loose_model(model) if loose else model)
         self.encryptions = encryptions
         self._psk = psk
         self._min_period_ms = round((model.period if min_period is None else min_period) * 1000)
