@@ -107,6 +107,47 @@ def test_a_correct_server_of_every_kind_of_node_passes_them_all(tmp_path: Path) 
     assert {"rctp/value/canonical-order-read", "rctp/value/canonical-order-write"} <= passed
 
 
+#: A robot streaming a node of each kind of flaw both ways: none of the others does.
+STREAMER = """<?xml version="1.0" encoding="UTF-8"?>
+<rcml version="2.0" site="rctp://127.0.0.1/">
+  <access name="io" type="stream" readInterval="0.02" writeInterval="0.02"
+          readTimeout="1" writeTimeout="1">
+    <data name="flag" type="bool"/>
+    <data name="label" type="string" size="8"/>
+    <data name="level" type="uint8" count="2" min="0" max="9"/>
+    <data name="gain" type="float32" min="-1" max="1"/>
+  </access>
+</rcml>
+"""
+
+
+@pytest.mark.parametrize(
+    ("fault", "caught"),
+    [
+        ((), {}),
+        (("bool-nonzero-true",), {"rctp/value/data-bool-byte": "R-RCTP-58"}),
+        (("string-size-unchecked",), {"rctp/value/data-over-size": "R-RCTP-58"}),
+    ],
+)
+def test_data_payloads_of_every_flaw_are_ignored_whole(
+    tmp_path: Path, fault: tuple[str, ...], caught: dict[str, str]
+) -> None:
+    """Every DATA case applies to this robot; a server that applies a payload with a bool byte
+    0x02 or a string over its size fails the case of that flaw (what comes next of a server
+    holding a string over its size is garbled for the cases after it: not judged here)."""
+    rcml = tmp_path / "streamer.rcml"
+    rcml.write_text(STREAMER)
+    faults = [a for name in fault for a in ("--fault", name)]
+    with running(tmp_path, "serve", str(rcml), "--port", "0", "--no-http", *faults) as server:
+        address = str(server.ready["rctp"]).removeprefix("rctp://").split("/")[0]
+        only = next(iter(caught), "rctp/value/data-*")
+        found = against(address, rcml, only, tmp_path / "run.json")
+    assert failed(found) == caught
+    if not caught:
+        assert {verdict for verdict, _, _ in found.values()} == {"pass"}
+        assert len(found) == 7
+
+
 def test_a_server_using_document_order_fails_both_order_cases(tmp_path: Path) -> None:
     args = ("serve", str(TESTBOT), "--port", "0", "--http-port", "0")
     with running(tmp_path, *args, "--fault", "document-order-values") as server:

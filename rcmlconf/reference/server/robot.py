@@ -18,7 +18,7 @@ from rcmlconf.rctp.datastream.flow import Direction
 from rcmlconf.rctp.datastream.values import stream_codec
 from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
 from rcmlconf.reference.drivers import Driver
-from rcmlconf.reference.faults import Fault, faulty_codec
+from rcmlconf.reference.faults import LENIENT_VALUES, Fault, faulty_codec, faulty_stream_codec
 from rcmlconf.reference.server.privileges import Privileges
 from rcmlconf.values import Value
 
@@ -88,6 +88,8 @@ class Robot:
             codec = self._stream_codecs.get(key)
             if codec is None:
                 codec = self._stream_codecs[key] = stream_codec(access, direction)
+                if self.faults & LENIENT_VALUES:  # what it took leniently, it sends back
+                    codec = self._stream_codecs[key] = faulty_stream_codec(codec, self.faults)
             body = self._bodies[key] = codec.encode(self.values(codec.nodes))
         return body
 
