@@ -41,8 +41,8 @@ _OCCURRENCES = (DeviceKind.EVENT, DeviceKind.MEMORY_EVENT)
 #: rsp/local/ack-at-once asks for a T this long at least (scaled), so that R-RSP-26's half a
 #: period leaves a loaded machine room: a robot may raise HELLO's period (D-RSP-13).
 ACK_AT_ONCE_PERIOD = 0.3
-#: A late UPLINK's place behind the newest: inside the window of D-RSP-15, and outside it.
-INSIDE, OUTSIDE = 60, 65
+#: A late UPLINK's place behind the newest: the window's edge (D-RSP-15: 64 read, 65 dropped).
+INSIDE, OUTSIDE = 64, 65
 
 
 def _model(ctx: Context) -> RobotModel:
@@ -330,7 +330,7 @@ async def replay_dropped(ctx: Context) -> None:
 
 @local_case(
     "rsp/local/outside-window-dropped",
-    "An UPLINK 65 behind the newest is dropped; one 60 behind, never seen, is handled",
+    "An UPLINK 65 behind the newest is dropped; one 64 behind, never seen, is handled",
     ["R-RSP-18", "R-RSP-26"],
 )
 async def outside_window_dropped(ctx: Context) -> None:
