@@ -66,7 +66,7 @@ def generate(model_path: Path, output_path: Path | None) -> None:
         messages.problem(_COMMAND, f"{model_path}: {exc}")
         sys.exit(1)
     if output_path is None:
-        output.out.line([(text.removesuffix("\n"), "")])
+        output.out.file.write(text)  # the module exactly as -o writes it, not lines for a terminal
         return
     try:
         output_path.write_text(text, encoding="utf-8")
