@@ -17,7 +17,7 @@ from pathlib import Path
 
 import click
 
-from rcmlconf.cli.client.values import parse_typed_value, values_json, values_text
+from rcmlconf.cli.client.values import parse_typed_value, values_json
 from rcmlconf.cli.console import Output
 from rcmlconf.cli.hosts import Address, address_option
 from rcmlconf.cli.interrupts import Interrupts
@@ -33,6 +33,7 @@ from rcmlconf.rsp.reliable import Backlog
 from rcmlconf.rsp.session import events
 from rcmlconf.validate.validator import load_robot_model
 from rcmlconf.values import Value
+from rcmlconf.values.shown import values_text
 from rcmlconf.wording import indefinite, one_of, plural
 
 Assignments = tuple[tuple[str, str], ...]

@@ -13,23 +13,15 @@ each payload one run of values among others in a packet (`pull`, `push`).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Generic, Protocol, TypeVar
+from typing import Generic, TypeVar
 
 from rcmlconf.buffer import Buffer
 from rcmlconf.errors import EncodeError, ProtocolError
-from rcmlconf.values import Value, ValueType
+from rcmlconf.values import Value
 from rcmlconf.values.binary import Puller, Pusher, codec_for
+from rcmlconf.values.shown import Typed
 
-
-class Typed(Protocol):
-    """What holds a value: an RCML data node, an RSP field."""
-
-    @property
-    def name(self) -> str: ...
-
-    @property
-    def type(self) -> ValueType: ...
-
+__all__ = ["Node", "Typed", "ValuesCodec"]
 
 Node = TypeVar("Node", bound=Typed)
 

@@ -9,7 +9,7 @@ import click
 from rcmlconf.cli.client.live import clock_text, deadline_after, how_long, next_event
 from rcmlconf.cli.client.requests import access_of
 from rcmlconf.cli.client.running import Options, Work
-from rcmlconf.cli.client.values import parse_assignments, values_json, values_text
+from rcmlconf.cli.client.values import parse_assignments, values_json
 from rcmlconf.cli.interrupts import Interrupts
 from rcmlconf.errors import ValueTextError
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, RcmlDocument
@@ -17,6 +17,7 @@ from rcmlconf.rctp.datastream.clock import unix_from_ntp
 from rcmlconf.reference.client.adapter import Client, RctpError
 from rcmlconf.reference.client.session import Closed, ServerRequest, StreamLost, StreamValues
 from rcmlconf.values import Value
+from rcmlconf.values.shown import values_text
 from rcmlconf.wording import plural
 
 

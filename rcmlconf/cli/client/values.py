@@ -22,12 +22,10 @@ from rcmlconf.values import (
     ValueType,
     format_value_text,
     parse_value_text,
+    shown,
 )
 
 _LONGEST_REASON = 200
-#: C0 and C1 controls and DEL: a robot's string must not move the terminal's cursor or change
-#: its colours, so these are shown escaped (`\x1b`).
-_CONTROLS = {c: f"\\x{c:02x}" for c in (*range(0x20), *range(0x7F, 0xA0))}
 
 
 def parse_node_value(node: DataNode, text: str) -> Value:
@@ -81,12 +79,7 @@ def parse_assignments(access: AccessNode, texts: Sequence[str]) -> dict[str, Val
 
 def value_text(node: Typed, value: Value) -> str:
     """The text form of a value of `node` (D-RCML-14), readable back by `parse_node_value`."""
-    return ",".join(_scalar_text(node.type.base, item) for item in _items(value))
-
-
-def values_text(nodes: Iterable[Typed], values: Mapping[str, Value]) -> list[str]:
-    """`name=value` for each of `nodes` that `values` holds, in canonical order."""
-    return [f"{n.name}={value_text(n, values[n.name])}" for n in nodes if n.name in values]
+    return shown.value_text(node.type, value)
 
 
 def value_json(node: Typed, value: Value) -> object:
@@ -102,12 +95,6 @@ def values_json(nodes: Iterable[Typed], values: Mapping[str, Value]) -> dict[str
 
 def _items(value: Value) -> tuple[Scalar, ...]:
     return value if isinstance(value, tuple) else (value,)
-
-
-def _scalar_text(base: DataType, item: Scalar) -> str:
-    if isinstance(item, str):
-        return item.translate(_CONTROLS)
-    return format_value_text(base, item)
 
 
 def _scalar_json(base: DataType, item: Scalar) -> object:

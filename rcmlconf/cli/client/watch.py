@@ -9,11 +9,12 @@ import click
 
 from rcmlconf.cli.client.live import clock_text, deadline_after, how_long, next_event
 from rcmlconf.cli.client.running import Options, Work
-from rcmlconf.cli.client.values import values_json, values_text
+from rcmlconf.cli.client.values import values_json
 from rcmlconf.cli.interrupts import Interrupts
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, RcmlDocument
 from rcmlconf.reference.client.adapter import Client
 from rcmlconf.reference.client.session import Closed, ServerRequest
+from rcmlconf.values.shown import values_text
 
 
 def plan_watch(

@@ -22,11 +22,12 @@ from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
 from rcmlconf.errors import ValueTextError
-from rcmlconf.rcml.model import AccessNode, AccessType
+from rcmlconf.rcml.model import AccessNode, AccessType, DataNode
 from rcmlconf.rctp.fields import parse_nodes
 from rcmlconf.rctp.messages import PUSH_DELAY, SERVER_METHODS, Message, Request, Response
 from rcmlconf.rctp.targets import parse_target
 from rcmlconf.values import Value
+from rcmlconf.values.shown import values_text
 
 from .rctp_nodes import (
     acquire,
@@ -48,6 +49,11 @@ _SETTLE = PUSH_DELAY
 _GAP = 0.015
 #: Changes made while the watcher does not answer: twice R-RCTP-55's four.
 _FLOOD = 8
+
+
+def _shown(node: DataNode, value: Value | None) -> str:
+    """`name=value` in the value's text form (D-RCML-14), or `name absent`."""
+    return f"{node.name} absent" if value is None else values_text([node], {node.name: value})[0]
 
 
 def _changing(ctx: Context, count: int = 1) -> Named:
@@ -235,9 +241,9 @@ class _Scene:
 
     def expect_value(self, values: dict[str, Value], value: Value) -> None:
         """The values of a pushed WRITE give the node `value`."""
-        node = self.named.node.name
-        pushed = values.get(node)
-        self.ctx.expect(pushed == value, f"{node} = {value!r}", f"{node} = {pushed!r}", "R-RCTP-32")
+        node = self.named.node
+        pushed = values.get(node.name)
+        self.ctx.expect(pushed == value, _shown(node, value), _shown(node, pushed), "R-RCTP-32")
 
     async def end(self) -> None:
         """Close the watchers, then write back the value found."""
@@ -410,7 +416,9 @@ async def at_most_four(ctx: Context) -> None:
     last, newest = pushed[-1], values[-1]
     while last != newest:
         more = len(watcher.seen) - len(unanswered)
-        ctx.expect(more <= _FLOOD, f"{named.node.name} = {newest!r}", f"{last!r}", "R-RCTP-32")
+        ctx.expect(
+            more <= _FLOOD, _shown(named.node, newest), _shown(named.node, last), "R-RCTP-32"
+        )
         last = (await watcher.push()).get(named.node.name)
     await scene.end()
 

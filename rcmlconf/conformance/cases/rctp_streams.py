@@ -30,7 +30,7 @@ from functools import partial
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.picks import RW
-from rcmlconf.conformance.probes.control import ControlProbe
+from rcmlconf.conformance.probes.control import ControlProbe, describe
 from rcmlconf.conformance.probes.datagrams import ANSWER_TRIES
 from rcmlconf.conformance.probes.stream import (
     REPEAT,
@@ -38,6 +38,7 @@ from rcmlconf.conformance.probes.stream import (
     StreamProbe,
     StreamSetUp,
     answers,
+    flow_text,
     open_stream,
 )
 from rcmlconf.conformance.registry import case
@@ -76,6 +77,7 @@ from rcmlconf.rctp.fields import same_token
 from rcmlconf.rctp.messages import Request
 from rcmlconf.rctp.targets import format_target
 from rcmlconf.values import Kind, Scalar, Value
+from rcmlconf.values.shown import values_text
 
 #: Seconds after a PAUSE or STOP is answered in which DATA sent before it may still arrive.
 GRACE = 0.05
@@ -372,7 +374,7 @@ async def _only_heartbeat(
     ctx.expect(got is not None, f"the heartbeat after {what} answered", "no answer")
     await probe.packets(QUIET)
     others = [f for d in probe.history for f in answers(d) if f.request_id != wanted]
-    ctx.expect(not others, f"no answer to {what}", repr(others[:1]))
+    ctx.expect(not others, f"no answer to {what}", flow_text(others[0] if others else None))
 
 
 def _nack(
@@ -382,7 +384,7 @@ def _nack(
     ctx.expect(
         isinstance(answer, Nack) and answer.operation == operation and answer.reason is reason,
         f"NACK {reason.value} ({reason.name.lower().replace('_', ' ')}) of operation {operation}",
-        repr(answer),
+        flow_text(answer),
         requirement,
     )
 
@@ -911,11 +913,11 @@ async def _dropped(
     ctx.expect(
         isinstance(answer, HeartbeatAck),
         f"an ACK of a good heartbeat after {what}",
-        repr(answer),
+        flow_text(answer),
         "R-RCTP-46",
     )
     late = [f for d in probe.history for f in answers(d) if f.request_id == bad]
-    ctx.expect(not late, f"no answer to {what}", repr(late[:1]))
+    ctx.expect(not late, f"no answer to {what}", flow_text(late[0] if late else None))
 
 
 @case(
@@ -956,14 +958,16 @@ async def drop_wrong_source(ctx: Context) -> None:
     bad = probe.next_request_id()
     other.send_packet([FlowPayload(0, _heartbeat(bad))], tag=set_up.tag, to=set_up.server)
     got = await probe.answer(bad, QUIET)
-    ctx.expect(got is None, "no answer to a packet from another port", repr(got))
+    ctx.expect(
+        got is None, "no answer to a packet from another port", flow_text(got[1] if got else None)
+    )
     stray = other.drain()
     ctx.expect(not stray, "nothing sent to the other port", f"{len(stray)} datagrams")
     answer = await probe.ask(_heartbeat)
     ctx.expect(
         isinstance(answer, HeartbeatAck),
         "an ACK of a good heartbeat after the packet from another port",
-        repr(answer),
+        flow_text(answer),
         "R-RCTP-46",
     )
 
@@ -1013,7 +1017,7 @@ async def get_interval(ctx: Context) -> None:
     ctx.expect(
         answer == IntervalGetAck(answer.request_id, Direction.READ, expected),
         f"ACK: direction read, interval {expected} us (D-RCTP-18)",
-        repr(answer),
+        flow_text(answer),
     )
 
 
@@ -1028,11 +1032,11 @@ async def set_interval(ctx: Context) -> None:
     wanted = 3 * shortest
     answer = await probe.ask(lambda i: IntervalSet(i, Direction.READ, wanted), set_up.stream)
     if not isinstance(answer, IntervalSetAck):
-        raise Failed("R-RCTP-46", f"ACK of interval {wanted} us", repr(answer))
+        raise Failed("R-RCTP-46", f"ACK of interval {wanted} us", flow_text(answer))
     ctx.expect(
         answer.direction is Direction.READ and answer.interval >= shortest,
         f"direction read, an interval in force of at least {shortest} us",
-        repr(answer),
+        flow_text(answer),
     )
     interval = answer.interval / 1e6
     window = min(2.0, max(0.5, 8 * interval))
@@ -1066,7 +1070,7 @@ async def interval_too_short(ctx: Context) -> None:
         _nack(ctx, answer, Operation.SET_INTERVAL, NackReason.VALUE_REFUSED, "R-RCTP-47")
     answer = await probe.ask(lambda i: IntervalSet(i, Direction.READ, shortest), set_up.stream)
     ctx.expect(
-        isinstance(answer, IntervalSetAck), f"ACK of {shortest} us (the RCML's)", repr(answer)
+        isinstance(answer, IntervalSetAck), f"ACK of {shortest} us (the RCML's)", flow_text(answer)
     )
 
 
@@ -1087,13 +1091,13 @@ async def repeated_id(ctx: Context) -> None:
             raise Failed("R-RCTP-46", f"an answer to request {request_id}", "none")
         answered.append(got[1])
     first, second = answered
-    ctx.expect(second == first, f"{first!r} again", repr(second))
+    ctx.expect(second == first, f"{flow_text(first)} again", flow_text(second))
     now = await probe.ask(lambda i: IntervalGet(i, Direction.READ), set_up.stream)
     if isinstance(first, IntervalSetAck):
         ctx.expect(
             isinstance(now, IntervalGetAck) and now.interval == first.interval,
             f"the interval still {first.interval} us",
-            repr(now),
+            flow_text(now),
         )
 
 
@@ -1189,7 +1193,7 @@ async def broken_body_ignored(ctx: Context) -> None:
 async def stale_packet_answered(ctx: Context) -> None:
     _, probe, _ = await _reading(ctx)
     answer = await probe.ask(_heartbeat)
-    ctx.expect(isinstance(answer, HeartbeatAck), "ACK of a heartbeat", repr(answer))
+    ctx.expect(isinstance(answer, HeartbeatAck), "ACK of a heartbeat", flow_text(answer))
     newest = probe.last_sequence
     for sequence, what in ((newest, "duplicate"), ((newest - 1) % MODULO, "late")):
         request_id = probe.next_request_id()
@@ -1200,7 +1204,7 @@ async def stale_packet_answered(ctx: Context) -> None:
         ctx.expect(
             got is not None and isinstance(got[1], HeartbeatAck),
             f"ACK of a heartbeat in a {what} packet ({sequence})",
-            repr(got[1]) if got else "no answer",
+            flow_text(got[1]) if got else "no answer",
         )
 
 
@@ -1241,12 +1245,12 @@ async def reordered_duplicated(ctx: Context) -> None:
         ctx.expect(
             all(f == found[0] for f in found),
             f"one answer to request {request_id}, repeated as given",
-            repr(found),
+            "; ".join(flow_text(f) for f in found),
         )
         ctx.expect(
             isinstance(found[0], HeartbeatAck) and found[0].t1 == request.t1,
             f"ACK of request {request_id} echoing T1",
-            repr(found[0]),
+            flow_text(found[0]),
         )
 
 
@@ -1269,7 +1273,7 @@ async def _clock(ctx: Context, probe: StreamProbe) -> tuple[HeartbeatAck, ClockS
     datagram, ack = got
     t4 = ntp_from_unix(unix + datagram.at)
     if not isinstance(ack, HeartbeatAck):
-        raise Failed("R-RCTP-48", "a heartbeat ACK", repr(ack))
+        raise Failed("R-RCTP-48", "a heartbeat ACK", flow_text(ack))
     ctx.expect(ack.t1 == request.t1, f"T1 {request.t1} echoed", f"T1 {ack.t1}", "R-RCTP-48")
     held = ntp_difference(ack.t3, ack.t2)
     ctx.expect(held >= 0, "T2 (arrival) <= T3 (ACK sent)", f"T3 - T2 = {held:.6f} s", "R-RCTP-48")
@@ -1405,7 +1409,8 @@ async def out_of_range_data_ignored(ctx: Context) -> None:
     outside = _outside(node)
     assert outside is not None
     writing.send({**other, node.name: outside})
-    await writing.holds("R-RCTP-58", f"{node.name} = {outside!r} with the others in range")
+    shown = values_text([node], {node.name: outside})[0]
+    await writing.holds("R-RCTP-58", f"{shown} with the others in range")
     await writing.shows(other)
     await writing.finish()
 
@@ -1427,7 +1432,9 @@ async def receive_timeout(ctx: Context) -> None:
         wanted = max(2 * set_up.micros(set_up.write_interval), 300_000)
         answer = await probe.ask(lambda i: TimeoutSet(i, Direction.WRITE, wanted), set_up.stream)
         if not isinstance(answer, TimeoutSetAck) or answer.timeout > 1_500_000:
-            raise Inconclusive(f"writeTimeout {timeout:g} s could not be shortened: {answer!r}")
+            raise Inconclusive(
+                f"writeTimeout {timeout:g} s could not be shortened: {flow_text(answer)}"
+            )
         timeout = answer.timeout / 1e6
     writer = stream_codec(access, Direction.WRITE)
     await _request(ctx, control, "GO", set_up)
@@ -1450,7 +1457,7 @@ async def receive_timeout(ctx: Context) -> None:
         ctx.expect(
             not watch.done(),
             f"the stream kept while DATA comes every {set_up.write_interval:g} s",
-            repr(watch.result()) if watch.done() else "",
+            describe(watch.result()) if watch.done() else "",
         )
         try:
             message = await watch
@@ -1469,7 +1476,7 @@ async def receive_timeout(ctx: Context) -> None:
         and message.target == set_up.target
         and same_token(message.headers.get("Reason"), "timeout"),
         f"STOP {set_up.target} with Reason: timeout",
-        repr(message),
+        describe(message),
     )
     assert isinstance(message, Request)
     await control.answer(message)
@@ -1499,6 +1506,6 @@ async def timeout_too_short(ctx: Context) -> None:
     ctx.expect(
         isinstance(answer, TimeoutSetAck) and answer.timeout >= enough,
         f"ACK of a timeout of {enough} us (twice the interval)",
-        repr(answer),
+        flow_text(answer),
     )
     await _release(control, set_up)

@@ -29,6 +29,7 @@ from rcmlconf.rctp.fields import format_nodes
 from rcmlconf.rctp.targets import format_target
 from rcmlconf.values import Value
 from rcmlconf.values.binary import encode_value
+from rcmlconf.values.shown import values_text
 
 from .rctp_nodes import acquire, other_values, put_back, read, sessions, values_for, write, writer
 from .rctp_streams import Writing
@@ -79,7 +80,10 @@ async def _refused(ctx: Context, probe: ControlProbe, named: Named, bad: Bad) ->
     answer = await probe.request("WRITE", named.target, named.fields(), bad.data)
     ctx.expect_status(answer, 422, "R-RCTP-28", what=what)
     after = await read(ctx, probe, named) if before is not None else None
-    ctx.expect(after == before, f"{node.path} left at {before!r} by {what}", repr(after))
+    kept = " ".join(values_text(named.nodes, before or {}))
+    ctx.expect(
+        after == before, f"{kept} left by {what}", " ".join(values_text(named.nodes, after or {}))
+    )
 
 
 async def _write_flawed(ctx: Context, flaw: Flaw) -> None:

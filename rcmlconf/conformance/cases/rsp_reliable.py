@@ -61,6 +61,7 @@ from rcmlconf.rsp.model import Device, DeviceKind, OnLoss, RobotModel
 from rcmlconf.rsp.security import mac
 from rcmlconf.rsp.session import events
 from rcmlconf.values import Value
+from rcmlconf.values.shown import values_text
 
 #: How long the first memory command of a buffer case keeps the robot busy (ms, D-RSP-19).
 BUSY_MS = 30_000
@@ -623,7 +624,8 @@ async def link_loss_stops(ctx: Context) -> None:
     )
     ctx.expect(
         stopped is not None,
-        f"{monitor.name} at {zero!r} within {lost + 0.5:.2g} s of silence",
+        f"{monitor.name} at {values_text([field], {field.name: zero})[0]} within"
+        f" {lost + 0.5:.2g} s of silence",
         "still " + driven.latest(),
         "R-RSP-36",
     )

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import enum
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -47,7 +48,7 @@ from rcmlconf.rctp.datastream.endpoint import micros
 from rcmlconf.rctp.datastream.packets import MalformedFlowPayload
 from rcmlconf.rctp.fields import Transport, parse_transport
 from rcmlconf.rctp.targets import format_target
-from rcmlconf.values import Value, format_value_text
+from rcmlconf.values.shown import values_text
 
 if TYPE_CHECKING:
     from rcmlconf.conformance.context import Context
@@ -502,9 +503,7 @@ class StreamProbe:
                 decoded = codec.decode(payload.body)
             except ProtocolError as error:
                 return f" (not {direction.name.lower()} values: {error.reason})"
-            return " " + ", ".join(
-                f"{node.name}={_text(node, decoded[node.name])}" for node in codec.nodes
-            )
+            return " " + ", ".join(values_text(codec.nodes, decoded))
 
         return values
 
@@ -546,14 +545,6 @@ async def open_stream(ctx: Context, control: ControlProbe, flow: int = 0) -> Str
     return probe
 
 
-def _text(node: DataNode, value: Value) -> str:
-    """A value in its text form (D-RCML-14), an array's items in brackets."""
-    base = node.type.base
-    if isinstance(value, tuple):
-        return "[" + " ".join(format_value_text(base, item) for item in value) + "]"
-    return format_value_text(base, value)
-
-
 def _summary(
     data: bytes,
     packet: Packet | None,
@@ -572,16 +563,24 @@ def _payload(payload: Payload, values: Callable[[DataPayload], str] | None = Non
         shown = values(payload) if values is not None else ""
         return f"DATA s{payload.stream} {len(payload.body)} B{shown}"
     if isinstance(payload, FlowPayload):
-        flow = payload.flow
-        fields = ", ".join(
-            f"{name}={getattr(flow, name)}"
-            for name in getattr(flow, "__dataclass_fields__", {})
-            if name != "request_id"
-        )
-        kind = type(flow).__name__
-        return f"FLOW s{payload.stream} {kind} id {flow.request_id}" + (
-            f" ({fields})" if fields else ""
-        )
+        return f"FLOW s{payload.stream} {flow_text(payload.flow)}"
     if isinstance(payload, UnknownPayload):
         return f"type {payload.type} s{payload.stream} {len(payload.body)} B"
     return f"FLOW s{payload.stream} malformed ({payload.reason}) {show(payload.body)}"
+
+
+def flow_text(flow: FlowMessage | None) -> str:
+    """A FLOW message as the exchange shows it (`IntervalSetAck id 7 (direction=read,
+    interval=16000)`), or `none`: what a failure reports it got, never a Python repr."""
+    if flow is None:
+        return "none"
+    fields = ", ".join(
+        f"{name}={_field(getattr(flow, name))}"
+        for name in getattr(flow, "__dataclass_fields__", {})
+        if name != "request_id"
+    )
+    return f"{type(flow).__name__} id {flow.request_id}" + (f" ({fields})" if fields else "")
+
+
+def _field(value: object) -> str:
+    return value.name.lower() if isinstance(value, enum.Enum) else str(value)
