@@ -45,18 +45,23 @@ KNOWN_MISSED: dict[str, dict[str, str]] = {
     ),
     "rsp_local": {},
 }
-#: Fault runs at once (the machine has two cores; the correct runs go alone).
-CONCURRENT = 2
+#: Fault runs at once: each mostly waits on its implementation's timers.
+CONCURRENT = 4
 
 
-@pytest.mark.parametrize("name", sorted(IMPLEMENTATIONS))
-def test_the_correct_implementation_gets_no_fail(name: str, tmp_path: Path) -> None:
-    found = IMPLEMENTATIONS[name].run_suite(tmp_path)
-    assert found.results, found.err
-    unwanted = {**found.having("fail"), **found.having("error")}
-    assert not unwanted, unwanted
-    assert found.status == 0, found.err
-    assert found.having("pass")
+def test_each_correct_implementation_gets_no_fail(tmp_path: Path) -> None:
+    """All four at once, each its own run (the suite mostly waits on the implementations' timers,
+    and a timing check of a loaded harness is inconclusive, not a fail)."""
+    with ThreadPoolExecutor(len(IMPLEMENTATIONS)) as pool:
+        runs = dict(
+            pool.map(lambda n: (n, IMPLEMENTATIONS[n].run_suite(tmp_path)), IMPLEMENTATIONS)
+        )
+    for name, found in runs.items():
+        assert found.results, (name, found.err)
+        unwanted = {**found.having("fail"), **found.having("error")}
+        assert not unwanted, (name, unwanted)
+        assert found.status == 0, (name, found.err)
+        assert found.having("pass"), name
 
 
 @pytest.mark.parametrize("name", sorted(IMPLEMENTATIONS))
