@@ -330,6 +330,8 @@ async def _run(
                             (f"  {result.reason}", "dim"),
                         ]
                     )
+                if verbose and result.used:
+                    output.live([(f"{'':>14} used {', '.join(result.used)}", "dim")])
 
             results = await run_cases(cases, target, options, done)
         return target, results

@@ -6,7 +6,7 @@ from __future__ import annotations
 import asyncio
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from rcmlconf.conformance.context import Context
@@ -78,6 +78,14 @@ async def run_case(
     ctx.loop_watch = watch
     ctx.taken = robot
     ctx.session_wait = options.session_wait
+    result = await _judged(case, target, options, run, ctx)
+    return replace(result, used=tuple(ctx.transcript.used))
+
+
+async def _judged(
+    case: Case, target: Target, options: RunOptions, run: int, ctx: Context
+) -> Result:
+    """The case run in `ctx`: its verdict, every exception turned into one."""
     started = time.monotonic()
     try:
         missing = [f for f in case.features if f not in target.features]

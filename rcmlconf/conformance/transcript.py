@@ -20,7 +20,14 @@ class Transcript:
     #: Every TCP payload and UDP datagram sent and received, for --capture.
     packets: list[Payload] = field(default_factory=list)
     wall_start: float = field(default_factory=time.time)
+    #: The nodes and devices the case's requests and packets named, in the order first named:
+    #: which of the robot's a case chose decides what its check can show (`run -v`, --json).
+    used: list[str] = field(default_factory=list)
     _labels: dict[str, int] = field(default_factory=dict)
+
+    def uses(self, *names: str) -> None:
+        """The case named these nodes or devices (each kept once)."""
+        self.used.extend(name for name in names if name not in self.used)
 
     def label(self, prefix: str) -> str:
         """`c1`, `c2`, ...: a name for the next connection (or flow) of `prefix` in this case."""

@@ -80,3 +80,5 @@ class Result:
     run: int = 1
     #: A failure the baseline lists (known): it does not fail the run.
     known: bool = False
+    #: The nodes and devices the case named (`Transcript.used`): what its checks could show.
+    used: tuple[str, ...] = ()

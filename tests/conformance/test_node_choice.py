@@ -74,3 +74,10 @@ def test_writable_picks_a_node_that_can_be_read_back_first() -> None:
         return writable(ctx, lambda node: node.name == "command").path
 
     assert asyncio.run(only()) == "/panel/controls/command"
+
+
+def test_a_result_says_which_nodes_the_case_used() -> None:
+    """`run -v` and --json show them: here the readable, writable node write-short picked."""
+    results = run_on(WRITE_ONLY_FIRST, "rctp/node/write-short", "rctp/node/write-long")
+    for result in results.values():
+        assert result.used == ("/panel/controls/level",), result

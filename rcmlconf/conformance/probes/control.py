@@ -9,9 +9,12 @@ from collections.abc import Sequence
 
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Failed, HarnessError
+from rcmlconf.errors import ValueTextError
 from rcmlconf.rctp.errors import RemoteProtocolError
+from rcmlconf.rctp.fields import parse_nodes
 from rcmlconf.rctp.messages import Message, Request, Response
 from rcmlconf.rctp.reader import MessageReader
+from rcmlconf.rctp.targets import parse_target
 
 #: R-RCTP-1: a reply the core's parser rejects without naming a rule breaks the grammar.
 GRAMMAR = "R-RCTP-1"
@@ -86,6 +89,7 @@ class ControlProbe:
         if cseq is None:
             self.cseq += 1
             cseq = self.cseq
+        self._note_used(method, target, fields)
         lines = [f"{method} {target} RCTP/2.0", f"CSeq: {cseq}"]
         names = {name.lower() for name, _ in fields}
         if self.session is not None and "session" not in names:
@@ -96,6 +100,24 @@ class ControlProbe:
                 lines.append("Content-Type: application/rctp-values")
             lines.append(f"Content-Length: {len(body)}")
         return ("\r\n".join(lines) + "\r\n\r\n").encode() + body
+
+    def _note_used(self, method: str, target: str, fields: Fields) -> None:
+        """The node a request names, and the nodes its `Nodes` lists, for the transcript's
+        `used` (a request broken on purpose names none)."""
+        if method == "CONNECT":
+            return
+        try:
+            path = parse_target(target).path
+        except ValueTextError:
+            return
+        if path in ("/", "*"):
+            return
+        listed = next((value for name, value in fields if name.lower() == "nodes"), None)
+        try:
+            names = parse_nodes(listed) if listed is not None else ()
+        except ValueTextError:
+            names = ()
+        self.transcript.uses(*(f"{path}/{name}" for name in names) if names else (path,))
 
     async def request(
         self, method: str, target: str, fields: Fields = (), body: bytes = b""

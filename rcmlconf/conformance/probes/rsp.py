@@ -361,6 +361,9 @@ class RspProbe(DatagramLog):
                 body = self.codec.pull_body(header, data[HEADER_SIZE:])
         except ProtocolError as error:
             return f"{header.type.name} #{header.sequence} malformed: {error.reason}"
+        if isinstance(body, MapBody):  # the devices the case drives or asks for
+            devices = self.model.devices
+            self.transcript.uses(*(devices[item.device].name for item in body.items))
         return summary(self.model, header, body)
 
     # -- receiving -----------------------------------------------------------------------------

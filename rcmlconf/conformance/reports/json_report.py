@@ -42,4 +42,5 @@ def _result(result: Result, case: Case) -> dict[str, Any]:
         "expected": list(result.expected),
         "actual": result.actual,
         "exchange": list(result.exchange),
+        "used": list(result.used),
     }
