@@ -37,7 +37,7 @@ from rcmlconf.conformance.reports.baseline import load_baseline, mark_known
 from rcmlconf.conformance.reports.json_report import to_json
 from rcmlconf.conformance.reports.junit import to_junit
 from rcmlconf.conformance.reports.summary import counts, explain, new_failures
-from rcmlconf.conformance.runner import RunOptions, run_cases, under_test
+from rcmlconf.conformance.runner import PARTLY, RunOptions, run_cases, under_test
 from rcmlconf.conformance.targets import (
     REFERENCE_RCML,
     Target,
@@ -506,6 +506,13 @@ def _report(
         for name, text in explain(result, registry[result.case], texts):
             output.out.line([(f"  {name:>11}  ", "dim"), (text, "")])
     _table(output, results, registry)
+    partly = sum(1 for r in results if r.verdict is Verdict.PASS and r.reason.startswith(PARTLY))
+    if partly:
+        output.notice(
+            f"{partly} {'pass' if partly == 1 else 'passes'} checked part of the requirement"
+            " only, as the robot has no"
+            " node that could show the rest (run -v or --json says which)"
+        )
     found = counts(results)
     fresh = new_failures(results)
     line = ", ".join(f"{n} {v.value}" for v, n in found.items() if n)

@@ -52,6 +52,8 @@ class Context:
     session_wait: float = SESSION_WAIT
     #: The RSP robot the runner took for the case before it started (`rsp`).
     taken: Address | None = None
+    #: Parts of the case's requirement it could not check on this target (`cannot_check`).
+    unchecked: list[str] = field(default_factory=list)
     #: When the case started, in loop time.
     started: float = field(default_factory=lambda: asyncio.get_running_loop().time())
 
@@ -71,6 +73,12 @@ class Context:
     def left(self) -> float:
         """Seconds left of the case's time: what its waits may still take."""
         return self.started + self.timeout - asyncio.get_running_loop().time()
+
+    def cannot_check(self, part: str) -> None:
+        """Say that this part of what the case checks cannot be checked on this target (the
+        robot has no node that could show it): a pass then says so, never silently."""
+        if part not in self.unchecked:
+            self.unchecked.append(part)
 
     def waited_session(self, announced: int) -> int:
         """`announced`, the session timeout a CONNECT answer gives (D-RCTP-11), if the run waits

@@ -18,6 +18,8 @@ from rcmlconf.conformance.verdicts import CaseStop, Failed, Result, Verdict
 from rcmlconf.impair.spec import Impairment
 from rcmlconf.pcap.writer import write_pcap
 
+#: How a pass that could not check all of its requirement begins its reason.
+PARTLY = "checked in part; not checked: "
 #: Lines of the exchange kept with a result.
 EXCHANGE_LINES = 40
 
@@ -130,7 +132,8 @@ async def _judged(
         ctx.close()
         if options.capture is not None:
             _capture(options.capture, case, run, ctx)
-    return _result(case, ctx, started, run, Verdict.PASS, "")
+    partly = "; ".join(ctx.unchecked)
+    return _result(case, ctx, started, run, Verdict.PASS, partly and f"{PARTLY}{partly}")
 
 
 def capture_path(directory: Path, case: Case, run: int) -> Path:

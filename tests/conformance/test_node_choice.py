@@ -13,12 +13,13 @@ from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.ics import EVERYTHING
 from rcmlconf.conformance.picks import writable
 from rcmlconf.conformance.registry import all_cases
-from rcmlconf.conformance.runner import RunOptions, run_cases
+from rcmlconf.conformance.runner import PARTLY, RunOptions, run_cases
 from rcmlconf.conformance.targets import Target
 from rcmlconf.conformance.verdicts import Result, Verdict
 
 ONE_BYTE = Path(__file__).parent / "robots" / "one-byte.rcml"
 WRITE_ONLY_FIRST = Path(__file__).parent / "robots" / "write-only-first.rcml"
+WRITE_ONLY = Path(__file__).parent / "robots" / "write-only.rcml"
 BOUND = 30.0
 
 
@@ -81,3 +82,13 @@ def test_a_result_says_which_nodes_the_case_used() -> None:
     results = run_on(WRITE_ONLY_FIRST, "rctp/node/write-short", "rctp/node/write-long")
     for result in results.values():
         assert result.used == ("/panel/controls/level",), result
+
+
+def test_a_pass_that_could_check_part_only_says_which_part() -> None:
+    """No node of WRITE_ONLY can be read: a refused WRITE's 'changed nothing' is out of reach, and
+    the pass says so instead of passing silently."""
+    results = run_on(WRITE_ONLY, "rctp/node/write-long", "rctp/node/write-out-of-range")
+    for result in results.values():
+        assert result.verdict is Verdict.PASS, result
+        assert result.reason.startswith(PARTLY), result
+        assert "/panel/controls/command cannot be read" in result.reason

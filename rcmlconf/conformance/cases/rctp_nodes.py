@@ -586,6 +586,8 @@ async def _refused(
     readable node is read before and after, and must not have changed (R-RCTP-28)."""
     probe = await writer(ctx, named)
     readable = Permission.READ in named.node.permission
+    if not readable:
+        ctx.cannot_check(f"that the WRITE changed nothing: {named.node.path} cannot be read")
     before = await read(ctx, probe, named) if readable else None
     answer = await probe.request("WRITE", named.target, [*named.fields(), *fields], body)
     after = await read(ctx, probe, named) if before is not None else None

@@ -72,7 +72,9 @@ async def _refused(ctx: Context, probe: ControlProbe, named: Named, bad: Bad) ->
     listed = f" (Nodes: {node.name})" if named.event else ""
     what = f"WRITE {named.path}{listed} holding {bad.what}"
     before = None
-    if Permission.READ in node.permission:
+    if Permission.READ not in node.permission:
+        ctx.cannot_check(f"that the WRITE changed nothing: {node.path} cannot be read")
+    else:
         start = next((v for v in values_for(node) if v != bad.lenient), None)
         if start is not None:
             await write(probe, named, {node.name: start})  # READ says what holds
