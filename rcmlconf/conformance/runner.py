@@ -20,8 +20,9 @@ from rcmlconf.pcap.writer import write_pcap
 
 #: How a pass that could not check all of its requirement begins its reason.
 PARTLY = "checked in part; not checked: "
-#: Lines of the exchange kept with a result.
-EXCHANGE_LINES = 40
+#: Lines of the exchange kept with a result, at most (--json has them all; a longer exchange
+#: keeps its last lines, after one that says how many were cut).
+EXCHANGE_LINES = 2000
 
 
 @dataclass(frozen=True, slots=True)
@@ -211,7 +212,11 @@ def _result(
 
 
 def _exchange(ctx: Context) -> tuple[str, ...]:
-    return tuple(ctx.transcript.lines[-EXCHANGE_LINES:])
+    lines = ctx.transcript.lines
+    if len(lines) <= EXCHANGE_LINES:
+        return tuple(lines)
+    cut = len(lines) - EXCHANGE_LINES
+    return (f"... {cut} earlier lines of the exchange cut", *lines[-EXCHANGE_LINES:])
 
 
 def _lacks(features: list[str]) -> str:

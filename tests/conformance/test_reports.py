@@ -16,6 +16,7 @@ from rcmlconf.conformance.registry import all_cases
 from rcmlconf.conformance.reports.baseline import BaselineError, load_baseline, mark_known
 from rcmlconf.conformance.reports.json_report import to_json
 from rcmlconf.conformance.reports.junit import to_junit
+from rcmlconf.conformance.reports.summary import explain
 from rcmlconf.conformance.verdicts import Result, Verdict
 from rcmlconf.pcap.writer import MSS, Payload, write_pcap
 
@@ -117,3 +118,13 @@ def test_a_capture_reads_back_as_the_connection_and_datagrams_it_was() -> None:
         del again.chksum
         del again[TCP if TCP in again else UDP].chksum
         assert bytes(again) == raw
+
+
+def test_a_long_exchange_is_whole_in_json_and_its_end_in_the_text_report() -> None:
+    case = next(iter(all_cases().values()))
+    lines = tuple(f"{i:7.3f}  c1 -> line {i}" for i in range(100))
+    failed = Result(case.id, Verdict.FAIL, 1.0, "why", "R-RCTP-1", ("x",), "y", lines)
+    assert to_json([failed], all_cases(), "t", {})["results"][0]["exchange"] == list(lines)
+    shown = [text for name, text in explain(failed, case, {}) if name == "exchange"]
+    assert shown[0] == "... 60 lines before (--json has them)"
+    assert shown[1:] == list(lines[-40:])

@@ -13,6 +13,7 @@ from itertools import groupby
 from lxml import etree
 
 from rcmlconf.conformance.registry import Case
+from rcmlconf.conformance.reports.summary import shown_exchange
 from rcmlconf.conformance.verdicts import Result, Verdict
 
 
@@ -61,7 +62,7 @@ def _case(suite: etree._Element, result: Result, case: Case) -> None:
             details.append(f"actual: {result.actual}")
         if result.known:
             details.append("known failure (baseline)")
-        outcome.text = _clean("\n".join([*details, "", *result.exchange]))
+        outcome.text = _clean("\n".join([*details, "", *shown_exchange(result)]))
 
 
 def _clean(text: str) -> str:

@@ -37,5 +37,18 @@ def explain(
         lines.append(("actual", result.actual))
     if result.reason and result.verdict is not Verdict.FAIL:
         lines.append(("why", result.reason))
-    lines += [("exchange", line) for line in result.exchange]
+    lines += [("exchange", line) for line in shown_exchange(result)]
     return lines
+
+
+#: Lines of a failure's exchange a report shows; --json holds what the result kept.
+SHOWN_EXCHANGE = 40
+
+
+def shown_exchange(result: Result) -> list[str]:
+    """The last SHOWN_EXCHANGE lines of the exchange, after a line saying where the rest is."""
+    lines = list(result.exchange)
+    if len(lines) <= SHOWN_EXCHANGE:
+        return lines
+    earlier = len(lines) - SHOWN_EXCHANGE
+    return [f"... {earlier} lines before (--json has them)", *lines[-SHOWN_EXCHANGE:]]
