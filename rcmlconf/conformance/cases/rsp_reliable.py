@@ -357,6 +357,16 @@ def _newest(probe: RspProbe) -> Datagram:
 FINISH = 0.6
 
 
+def _full(probe: RspProbe) -> str:
+    """What the robot's newest packets said of its free buffers, where they said none: a robot
+    whose buffer is full takes no memory command (D-RSP-19), and the reason must not blame only
+    the impairment."""
+    newest = [d.header.buffer for d in probe.received[-3:]]
+    if newest and not any(newest):
+        return "; or the robot's buffer stayed full (its newest packets say 0 free, D-RSP-19)"
+    return ""
+
+
 async def _acknowledged(ctx: Context, probe: RspProbe, found: Device, ids: list[int]) -> None:
     lossy = found.kind is DeviceKind.MEMORY_COMMAND and not ctx.impairment.is_none
     # Under loss, room for six repeats of a memory command (0.2, 0.4, 0.8, 1.6, 2, 2 s apart,
@@ -382,7 +392,7 @@ async def _acknowledged(ctx: Context, probe: RspProbe, found: Device, ids: list[
                 # the ACK on a clean path.
                 raise Inconclusive(
                     f"no ACK of {found.name} #{ident} within {wait:.2g} s: the impairment"
-                    f" ({ctx.impairment}) may have lost every repeat"
+                    f" ({ctx.impairment}) may have lost every repeat{_full(probe)}"
                 )
             raise Failed(
                 "R-RSP-26",
