@@ -36,7 +36,7 @@ from rcmlconf.conformance.registry import SESSION_WAIT, Case, Role, all_cases
 from rcmlconf.conformance.reports.baseline import load_baseline, mark_known
 from rcmlconf.conformance.reports.json_report import to_json
 from rcmlconf.conformance.reports.junit import to_junit
-from rcmlconf.conformance.reports.summary import counts, explain, new_failures
+from rcmlconf.conformance.reports.summary import counts, explain, new_failures, run_status
 from rcmlconf.conformance.runner import PARTLY, RunOptions, run_cases, under_test
 from rcmlconf.conformance.targets import (
     REFERENCE_RCML,
@@ -299,7 +299,7 @@ def run(
     settings = {"seed": seed, "repeat": repeat, "timeout_scale": timeout_scale, "impair": impair}
     _write_reports(output, results, registry, tested, settings, started, junit, json_file)
     _report(output, results, registry, tested)
-    status, why = _exit_status(results, strict)
+    status, why = run_status(results, strict)
     if why:
         output.problem("run", why)
     sys.exit(status)
@@ -541,25 +541,3 @@ def _roles(
     if listen is not None:
         return {Role.CLIENT if role == "client" else Role.LOCAL}
     return None
-
-
-def _exit_status(results: list[Result], strict: bool) -> tuple[int, str]:
-    """The run's exit status, and why where the table does not say it: 1 for a failure the
-    baseline does not list (or, `strict`, an inconclusive case); 2 for an error, or a run in which
-    no case passed or failed: it tested nothing, and must not pass a CI gate."""
-    fresh = new_failures(results)
-    if any(r.verdict is Verdict.FAIL for r in fresh):
-        return 1, ""
-    if fresh:
-        return 2, ""
-    decided = [r for r in results if r.verdict in (Verdict.PASS, Verdict.FAIL)]
-    if results and not decided:
-        found = Counter(r.verdict.value for r in results)
-        shown = ", ".join(f"{n} {verdict}" for verdict, n in found.most_common())
-        reason = Counter(r.reason for r in results if r.reason).most_common(1)
-        first = f"; most often: {reason[0][0]}" if reason else ""
-        return 2, f"no case passed or failed ({shown}): nothing was tested{first}"
-    unsure = [r for r in results if r.verdict is Verdict.INCONCLUSIVE and not r.known]
-    if strict and unsure:
-        return 1, f"--strict: {plural(len(unsure), 'case')} inconclusive"
-    return 0, ""

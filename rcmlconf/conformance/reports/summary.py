@@ -8,6 +8,7 @@ from collections.abc import Iterable, Mapping
 from rcmlconf.conformance.registry import Case
 from rcmlconf.conformance.verdicts import Result, Verdict
 from rcmlconf.specs import Requirement
+from rcmlconf.wording import plural
 
 
 def counts(results: Iterable[Result]) -> dict[Verdict, int]:
@@ -52,3 +53,25 @@ def shown_exchange(result: Result) -> list[str]:
         return lines
     earlier = len(lines) - SHOWN_EXCHANGE
     return [f"... {earlier} lines before (--json has them)", *lines[-SHOWN_EXCHANGE:]]
+
+
+def run_status(results: list[Result], strict: bool) -> tuple[int, str]:
+    """The run's exit status, and why where the table does not say it: 1 for a failure the
+    baseline does not list (or, `strict`, an inconclusive case); 2 for an error, or a run in which
+    no case passed or failed: it tested nothing, and must not pass a CI gate."""
+    fresh = new_failures(results)
+    if any(r.verdict is Verdict.FAIL for r in fresh):
+        return 1, ""
+    if fresh:
+        return 2, ""
+    decided = [r for r in results if r.verdict in (Verdict.PASS, Verdict.FAIL)]
+    if results and not decided:
+        found = Counter(r.verdict.value for r in results)
+        shown = ", ".join(f"{n} {verdict}" for verdict, n in found.most_common())
+        reason = Counter(r.reason for r in results if r.reason).most_common(1)
+        first = f"; most often: {reason[0][0]}" if reason else ""
+        return 2, f"no case passed or failed ({shown}): nothing was tested{first}"
+    unsure = [r for r in results if r.verdict is Verdict.INCONCLUSIVE and not r.known]
+    if strict and unsure:
+        return 1, f"--strict: {plural(len(unsure), 'case')} inconclusive"
+    return 0, ""
