@@ -6,7 +6,8 @@ every survivor triaged in bench/mutation_survivors.md.
 Mutation testing of the reference's protocol logic, killed by the conformance suite, not by the
 unit tests. Cosmic Ray's operators (comparison, binary and unary operators, and/or, True/False,
 numbers, break/continue, `not`, exceptions, decorators, empty loops: every operator that takes no
-arguments) list every mutant of the modules below; a seeded sample of `--sample` of them is drawn
+arguments) list every mutant of the modules below, less those in annotations (never evaluated
+here: `from __future__ import annotations`); a seeded sample of `--sample` of them is drawn
 across all the modules; each mutant is written into a copy of the package (one copy per worker,
 in a temporary directory: the working tree is never touched) and `python -m rcmlconf run` is run
 from that copy with only the cases of the role the mutated module serves:
@@ -55,6 +56,7 @@ Needs Cosmic Ray: `pip install -e '.[bench]'`.
 from __future__ import annotations
 
 import argparse
+import ast
 import json
 import os
 import random
@@ -118,7 +120,8 @@ class Outcome:
 
 
 def all_mutants() -> list[Mutant]:
-    """Every mutant of every module, in a stable order (so that a seed draws the same sample)."""
+    """Every mutant of every module, in a stable order (so that a seed draws the same sample),
+    less those in annotations."""
     from cosmic_ray.ast import ast_nodes, get_ast_from_path
     from cosmic_ray.plugins import get_operator, operator_names
 
@@ -126,14 +129,47 @@ def all_mutants() -> list[Mutant]:
     found = []
     for module in MODULES:
         tree = get_ast_from_path(ROOT / module)
+        unread = annotations((ROOT / module).read_text(encoding="utf-8"))
         for name, operator_class in operators:
             if operator_class.arguments():
                 continue  # VariableReplacer/Inserter: they need arguments to mean anything
             operator = operator_class()
             positions = (p for node in ast_nodes(tree) for p in operator.mutation_positions(node))
+            # The occurrence counts every position: it is what Cosmic Ray's mutator takes.
             for occurrence, (start, _end) in enumerate(positions):
-                found.append(Mutant(module, name, occurrence, start[0]))
+                if not any(first <= start <= last for first, last in unread):
+                    found.append(Mutant(module, name, occurrence, start[0]))
     return found
+
+
+Span = tuple[tuple[int, int], tuple[int, int]]
+
+
+def annotations(source: str) -> list[Span]:
+    """Where the annotations of a module are, if it never evaluates them (`from __future__ import
+    annotations`, PEP 563): a mutant there (`bytes | None` to `bytes >> None`) is equivalent by
+    construction, and would only pad the sample."""
+    tree = ast.parse(source)
+    lazy = any(
+        isinstance(n, ast.ImportFrom)
+        and n.module == "__future__"
+        and any(a.name == "annotations" for a in n.names)
+        for n in tree.body
+    )
+    if not lazy:
+        return []
+    found: list[ast.expr] = []
+    for node in ast.walk(tree):
+        annotation: ast.expr | None = None
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+            annotation = node.returns
+        elif isinstance(node, ast.arg | ast.AnnAssign):
+            annotation = node.annotation
+        if annotation is not None:
+            found.append(annotation)
+    return [
+        ((a.lineno, a.col_offset), (a.end_lineno or a.lineno, a.end_col_offset or 0)) for a in found
+    ]
 
 
 def mutate(source: str, mutant: Mutant) -> str | None:
