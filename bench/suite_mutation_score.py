@@ -43,9 +43,9 @@ the local system to the robot under test; the cases read its HELLO and keepalive
 mutant there changes both ends of the test, and its kill may be the harness breaking (`error`).
 
 A mutant costs one run of its role's cases: on the development machine, about 1 s (client), 8 s
-(server), 10 s (robot, local, rsp), longer when the mutant slows the run down; 5 mutants on 2
-workers: 13 s a mutant on average, 88 s of wall time with the unmutated runs. At that pace 300
-mutants take about 35 minutes on 2 cores.
+(server), 10 s (robot, local, rsp), longer when the mutant slows the run down, 60 s when it hangs
+it. Two samples of 20 on 2 workers took 125 s and 152 s of wall time (8 s and 10 s a mutant on
+average, about 30 s of it the unmutated runs): 300 mutants take about half an hour on 2 cores.
 
 Needs Cosmic Ray: `pip install -e '.[bench]'`.
 
