@@ -57,6 +57,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import contextlib
 import json
 import os
 import random
@@ -75,6 +76,10 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 TRIAGE = ROOT / "bench" / "mutation_survivors.md"
+
+#: The runs under way: they have sessions of their own (a timeout kills a run's whole group), so
+#: an interrupt does not reach them, and the script ends them itself.
+RUNS: set[subprocess.Popen[bytes]] = set()
 
 #: The cases of each role: (--only globs, --skip globs).
 ROLES: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
@@ -213,14 +218,22 @@ def run_suite(copy: Path, role: str, timeout: float) -> tuple[str, float]:
         stderr=subprocess.DEVNULL,
         start_new_session=True,  # so that a timeout kills the run and whatever it started
     )
+    RUNS.add(process)
     try:
         status = process.wait(timeout)
     except subprocess.TimeoutExpired:
-        os.killpg(process.pid, signal.SIGKILL)
+        end(process)
         process.wait()
         return "timeout", time.perf_counter() - started
+    finally:
+        RUNS.discard(process)
     seconds = time.perf_counter() - started
     return {0: "survived", 1: "failed"}.get(status, "error"), seconds
+
+
+def end(process: subprocess.Popen[bytes]) -> None:
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(process.pid, signal.SIGKILL)
 
 
 def try_mutant(copy: Path, mutant: Mutant, timeout: float) -> Outcome:
@@ -309,8 +322,16 @@ def main() -> None:
             )
             return outcome
 
-        with ThreadPoolExecutor(args.workers) as pool:
+        pool = ThreadPoolExecutor(args.workers)
+        try:
             outcomes = list(pool.map(one, sample))
+        except KeyboardInterrupt:
+            pool.shutdown(wait=False, cancel_futures=True)
+            for process in list(RUNS):
+                end(process)
+            pool.shutdown()
+            sys.exit("interrupted: nothing measured")
+        pool.shutdown()
     report(outcomes, known_equivalents(args.triage), time.perf_counter() - started, args)
 
 
