@@ -8,7 +8,7 @@ from pathlib import Path
 
 from support.processes import run_command, running
 
-from rcmlconf.conformance.targets import REFERENCE_RMODEL
+from rcmlconf.conformance.targets import REFERENCE_RCML, REFERENCE_RMODEL
 
 
 def test_one_external_robot_serves_the_robot_cases_in_turn(tmp_path: Path) -> None:
@@ -31,4 +31,22 @@ def test_one_external_robot_serves_the_robot_cases_in_turn(tmp_path: Path) -> No
     results = json.loads(report.read_text())["results"]
     assert len(results) >= 20  # in turn, they take longer than any one case's 5 s timeout
     assert {r["verdict"] for r in results} == {"pass"}, done.stdout
+    assert done.returncode == 0
+
+
+def test_the_reference_server_as_an_external_target_fails_nothing(tmp_path: Path) -> None:
+    """Every server case, at default settings, against `rcmlconf serve` reached by its address
+    alone (the RCML from its files, D-RCTP-29): no fail, no error; the cases that wait out its
+    60 s session timeout are inconclusive and say how to wait for it."""
+    report = tmp_path / "report.json"
+    with running(tmp_path, "serve", str(REFERENCE_RCML), "--port", "0", "--http-port", "0") as up:
+        port = str(up.ready["rctp"]).rsplit(":", 1)[1].split("/")[0]
+        target = ["--target", f"127.0.0.1:{port}", "--rcml", str(REFERENCE_RCML)]
+        done = run_command("run", *target, "--json", str(report))
+    results = json.loads(report.read_text())["results"]
+    verdicts = {r["verdict"] for r in results}
+    assert len(results) > 150
+    assert verdicts <= {"pass", "inconclusive", "not applicable"}, done.stdout
+    unsure = [r for r in results if r["verdict"] == "inconclusive"]
+    assert all("--session-wait 60" in r["reason"] for r in unsure), unsure
     assert done.returncode == 0
