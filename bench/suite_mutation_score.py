@@ -36,7 +36,8 @@ each role's cases run once on the unmutated copy: they must pass, or nothing is 
 Kill rate = killed / (mutants - equivalent known). An equivalent is a survivor that
 bench/mutation_survivors.md (or --triage) marks `equivalent`, matched by module, operator,
 occurrence and mutated line (an edit of the module unmatches it: it is triaged anew). Survivors
-go to --survivors as JSON: module, line, operator, occurrence, the line before and after.
+go to --survivors as JSON: module, line, operator, occurrence, the line before and after, and
+the triage file's verdict if it has one.
 
 The harness's own RSP probes use rcmlconf/rsp/session/ too (LocalEndpoint and SessionWire play
 the local system to the robot under test; the cases read its HELLO and keepalive constants): a
@@ -255,19 +256,26 @@ def try_mutant(copy: Path, mutant: Mutant, timeout: float) -> Outcome:
     return Outcome(mutant, how, seconds, before, after)
 
 
-def known_equivalents(triage: Path) -> set[tuple[str, str, int, str]]:
-    """(module, operator, occurrence, mutated line) of each row of the triage file marked
-    `equivalent`."""
+Key = tuple[str, str, int, str]
+
+
+def key(outcome: Outcome) -> Key:
+    """What a triage row is matched by: module, operator, occurrence and mutated line."""
+    m = outcome.mutant
+    return m.module, m.operator, m.occurrence, outcome.mutated
+
+
+def verdicts(triage: Path) -> dict[Key, str]:
+    """The verdict of each row of the triage file, by what it is matched by."""
     if not triage.exists():
-        return set()
-    found = set()
+        return {}
+    found = {}
     for row in triage.read_text(encoding="utf-8").splitlines():
         cells = [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", row)[1:-1]]
-        if len(cells) < 6 or not cells[0].startswith("rcmlconf/"):
+        if len(cells) < 6 or not cells[0].startswith("rcmlconf/") or not cells[3].isdigit():
             continue
         module, _line, operator, occurrence, mutated, verdict = cells[:6]
-        if verdict.startswith("equivalent") and occurrence.isdigit():
-            found.add((module, operator, int(occurrence), mutated.strip("`")))
+        found[module, operator, int(occurrence), mutated.strip("`")] = verdict
     return found
 
 
@@ -332,22 +340,18 @@ def main() -> None:
             pool.shutdown()
             sys.exit("interrupted: nothing measured")
         pool.shutdown()
-    report(outcomes, known_equivalents(args.triage), time.perf_counter() - started, args)
+    report(outcomes, verdicts(args.triage), time.perf_counter() - started, args)
 
 
 def report(
     outcomes: list[Outcome],
-    equivalents: set[tuple[str, str, int, str]],
+    triaged: dict[Key, str],
     wall: float,
     args: argparse.Namespace,
 ) -> None:
     tried = [o for o in outcomes if o.how != "no mutation"]
     survivors = [o for o in tried if o.how == "survived"]
-    equivalent = [
-        o
-        for o in survivors
-        if (o.mutant.module, o.mutant.operator, o.mutant.occurrence, o.mutated) in equivalents
-    ]
+    equivalent = [o for o in survivors if triaged.get(key(o), "").startswith("equivalent")]
     print()
     print(
         f"{'module':42} {'role':7} {'mutants':>7} {'killed':>6} {'timeout':>7} "
@@ -367,8 +371,12 @@ def report(
         mean = sum(o.seconds for o in tried) / len(tried)
         print(f"seconds a mutant: mean {mean:.1f}, longest {max(o.seconds for o in tried):.1f}")
     print(f"wall: {wall:.0f} s on {args.workers} workers")
-    unknown = [o for o in survivors if o not in equivalent]
-    print(f"survivors not known equivalent: {len(unknown)} (triage them in {args.triage.name})")
+    needed = [o for o in survivors if key(o) in triaged and o not in equivalent]
+    new = [o for o in survivors if key(o) not in triaged]
+    print(
+        f"survivors: {len(equivalent)} equivalent, {len(needed)} triaged as not equivalent, "
+        f"{len(new)} not triaged yet (in {args.triage.name})"
+    )
     if args.survivors is not None:
         rows = [
             {
@@ -376,7 +384,7 @@ def report(
                 "role": o.mutant.role,
                 "original": o.original,
                 "mutated": o.mutated,
-                "known_equivalent": o in equivalent,
+                "verdict": triaged.get(key(o)),
             }
             for o in survivors
         ]
