@@ -281,7 +281,9 @@ def verdicts(triage: Path) -> dict[Key, str]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(
-        description=__doc__.splitlines()[0], epilog=__doc__, formatter_class=_Raw
+        description=__doc__.split("\n", 1)[0],
+        epilog=__doc__.split("\n", 1)[1],
+        formatter_class=_Raw,
     )
     parser.add_argument("--sample", type=int, default=300, help="mutants drawn (default 300)")
     parser.add_argument("--seed", type=int, default=0, help="seeds the draw (default 0)")
@@ -290,7 +292,12 @@ def main() -> None:
         "--timeout", type=float, default=60.0, help="seconds a mutant's run may take (60)"
     )
     parser.add_argument("--survivors", type=Path, help="write the survivors here (JSON)")
-    parser.add_argument("--triage", type=Path, default=TRIAGE, help="the triage file")
+    parser.add_argument(
+        "--triage",
+        type=Path,
+        default=TRIAGE,
+        help="the triage file (default bench/mutation_survivors.md)",
+    )
     args = parser.parse_args()
     if args.sample < 1 or args.workers < 1 or not 0 < args.timeout <= 86400:
         parser.error("--sample and --workers must be at least 1, --timeout in (0, 86400]")
