@@ -8,6 +8,23 @@ def shorten(text: str, limit: int = 40) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
+def one_line(text: str) -> str:
+    """`text` as one printable line: the bytes of a name that were not UTF-8 as U+FFFD, as click
+    shows them, and any other character that is not printable escaped (a newline as \\n)."""
+    try:
+        text = text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+    except UnicodeEncodeError:
+        text = text.encode("utf-8", "replace").decode("utf-8")
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
+def quoted(text: str, limit: int = 80) -> str:
+    """A value the user gave, quoted in a message: shortened, on one printable line."""
+    return f"'{one_line(shorten(text, limit))}'"
+
+
 def plural(count: int, noun: str) -> str:
     """`1 error`, `2 errors`, `12,345 frames`."""
     return f"{count:,} {noun}{'' if count == 1 else 's'}"

@@ -9,10 +9,9 @@ import click
 
 from rcmlconf.cli.console import Output
 from rcmlconf.conformance.coverage import matrix, unknown_requirements
-from rcmlconf.conformance.files import one_line
 from rcmlconf.conformance.registry import Case, all_cases, select
 from rcmlconf.specs import requirements
-from rcmlconf.wording import plural, shorten
+from rcmlconf.wording import plural, quoted
 
 
 @click.command()
@@ -129,15 +128,13 @@ def chosen_cases(
             problem = glob_problem(glob)
             if problem is not None:
                 raise click.BadParameter(
-                    f"'{one_line(shorten(glob, 80))}' is not a glob: {problem}",
+                    f"{quoted(glob)} is not a glob: {problem}",
                     param_hint=f"'{option}'",
                 )
     chosen = select(found, only, skip)
     if not chosen:
         given = " ".join(
-            f"{o} '{one_line(shorten(g, 80))}'"
-            for o, gs in (("--only", only), ("--skip", skip))
-            for g in gs
+            f"{o} {quoted(g)}" for o, gs in (("--only", only), ("--skip", skip)) for g in gs
         )
         raise click.UsageError(f"no case matches {given} (`rcmlconf cases` lists them)")
     return chosen

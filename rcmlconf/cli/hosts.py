@@ -14,8 +14,7 @@ from typing import NoReturn
 
 import click
 
-from rcmlconf.conformance.files import one_line
-from rcmlconf.wording import shorten
+from rcmlconf.wording import quoted
 
 Address = tuple[str, int]
 
@@ -107,4 +106,4 @@ def _port(text: str, whole: str) -> int:
 
 
 def _fail(text: str, why: str) -> NoReturn:
-    raise click.BadParameter(f"'{one_line(shorten(text, 80))}' {why}")
+    raise click.BadParameter(f"{quoted(text)} {why}")

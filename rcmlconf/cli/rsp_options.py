@@ -7,10 +7,9 @@ from pathlib import Path
 import click
 
 from rcmlconf.cli.hosts import host_problem
-from rcmlconf.conformance.files import one_line
 from rcmlconf.rsp.codec import Encryption
 from rcmlconf.rsp.security import KEY_SIZE, key_from_file
-from rcmlconf.wording import shorten
+from rcmlconf.wording import quoted
 
 #: D-RSP-21's AEADs by the names the options take.
 ENCRYPTIONS = {
@@ -53,7 +52,7 @@ def host_only(ctx: click.Context, param: click.Parameter, value: str) -> str:
     usage error naming it (`a..b` was refused by Python's resolver with UnicodeError)."""
     problem = host_problem(value)
     if problem is not None:
-        raise click.BadParameter(f"'{one_line(shorten(value, 80))}' {problem}")
+        raise click.BadParameter(f"{quoted(value)} {problem}")
     return value
 
 

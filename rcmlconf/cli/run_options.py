@@ -19,13 +19,13 @@ from typing import NoReturn, TypeVar
 import click
 
 from rcmlconf.cli.console import Output
-from rcmlconf.conformance.files import one_line, shown
+from rcmlconf.conformance.files import shown
 from rcmlconf.conformance.registry import Case
 from rcmlconf.conformance.reports.baseline import unknown_ids
 from rcmlconf.diagnostics import Severity
 from rcmlconf.errors import RcmlconfError
 from rcmlconf.validate.validator import InvalidRobot
-from rcmlconf.wording import plural, shorten
+from rcmlconf.wording import one_line, plural, quoted
 
 T = TypeVar("T")
 V = TypeVar("V")
@@ -41,7 +41,7 @@ def site_option(ctx: click.Context, param: click.Parameter, value: str | None) -
     """A click callback: --site as a site path, or a usage error."""
     if value is not None and _SITE.fullmatch(value) is None:
         raise click.BadParameter(
-            f"'{one_line(shorten(value, 80))}' is not a site path: / or /NAME, without spaces,"
+            f"{quoted(value)} is not a site path: / or /NAME, without spaces,"
             " control characters, ? or # (D-RCTP-3)"
         )
     return value

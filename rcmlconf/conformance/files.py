@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from rcmlconf.errors import RcmlconfError
+from rcmlconf.wording import one_line
 
 
 class UnreadableFile(RcmlconfError):
@@ -38,17 +39,5 @@ def read_text(path: Path, limit: int, what: str) -> str:
 
 
 def shown(path: Path | str) -> str:
-    """A file name as one printable line (see `one_line`)."""
+    """A file name as one printable line (`wording.one_line`)."""
     return one_line(str(path))
-
-
-def one_line(text: str) -> str:
-    """`text` as one printable line: the bytes of a name that were not UTF-8 as U+FFFD, as click
-    shows them, and any other character that is not printable escaped (a newline as \\n)."""
-    try:
-        text = text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
-    except UnicodeEncodeError:
-        text = text.encode("utf-8", "replace").decode("utf-8")
-    if text.isprintable():
-        return text
-    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)

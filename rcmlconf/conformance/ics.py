@@ -24,10 +24,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NoReturn
 
-from rcmlconf.conformance.files import UnreadableFile, one_line, read_bytes, read_text, shown
+from rcmlconf.conformance.files import UnreadableFile, read_bytes, read_text, shown
 from rcmlconf.errors import RcmlconfError
 from rcmlconf.rsp.security import KEY_SIZE, key_from_file
-from rcmlconf.wording import shorten
+from rcmlconf.wording import one_line, shorten
 
 #: Every optional feature: what a target declares it has or lacks.
 FEATURES = {

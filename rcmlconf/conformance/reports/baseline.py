@@ -15,11 +15,11 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any, NoReturn
 
-from rcmlconf.conformance.files import UnreadableFile, one_line, read_text, shown
+from rcmlconf.conformance.files import UnreadableFile, read_text, shown
 from rcmlconf.conformance.registry import is_case_id
 from rcmlconf.conformance.verdicts import Result, Verdict
 from rcmlconf.errors import RcmlconfError
-from rcmlconf.wording import shorten
+from rcmlconf.wording import one_line, shorten
 
 _FAILING = (Verdict.FAIL.value, Verdict.ERROR.value)
 _VERDICTS = frozenset(v.value for v in Verdict)
