@@ -12,7 +12,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
-from support.processes import BOUND, COMMAND, run_command, running
+from support.processes import BOUND, COMMAND, free_port, run_command, running
 
 from rcmlconf.cli.cases import cases
 from rcmlconf.cli.run import run
@@ -214,14 +214,6 @@ def test_a_site_path_that_is_not_one_is_refused() -> None:
 
 
 # -- 6. a target that is not there --------------------------------------------------------------
-
-
-def free_port(kind: socket.SocketKind) -> int:
-    """A port of 127.0.0.1 nothing listens on (free once the probe is closed)."""
-    with socket.socket(socket.AF_INET, kind) as probe:
-        probe.bind(("127.0.0.1", 0))
-        port: int = probe.getsockname()[1]
-        return port
 
 
 def test_a_closed_port_is_one_line_naming_the_port_given() -> None:

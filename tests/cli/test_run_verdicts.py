@@ -3,20 +3,12 @@ run that tested nothing is not green, --strict), as a user runs it: real process
 
 from __future__ import annotations
 
-import socket
 from pathlib import Path
 
-from support.processes import run_command, running
+from support.processes import free_port, run_command, running
 
 from rcmlconf.conformance.registry import all_cases
 from rcmlconf.conformance.targets import REFERENCE_RCML, REFERENCE_RMODEL
-
-
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port: int = probe.getsockname()[1]
-        return port
 
 
 def test_a_run_in_which_no_case_passed_or_failed_is_not_green() -> None:
@@ -35,7 +27,7 @@ def test_strict_makes_inconclusive_fail_the_run(tmp_path: Path) -> None:
     """The reference server as a target announces a 60 s session timeout, which the session
     cases do not wait for: inconclusive, which --strict counts as a failure."""
     with running(tmp_path, "serve", str(REFERENCE_RCML), "--port", "0", "--http-port", "0") as up:
-        port = str(up.ready["rctp"]).rsplit(":", 1)[1].split("/")[0]
+        port = up.rctp_port
         target = ["--target", f"127.0.0.1:{port}", "--rcml", str(REFERENCE_RCML)]
         lenient = run_command("run", *target, "--only", "rctp/session/*")
         strict = run_command("run", *target, "--only", "rctp/session/*", "--strict")
@@ -59,7 +51,7 @@ def test_target_without_rcml_takes_the_robots_files(tmp_path: Path) -> None:
 
 def test_target_without_rcml_and_without_files_is_a_usage_error(tmp_path: Path) -> None:
     with running(tmp_path, "serve", str(REFERENCE_RCML), "--port", "0", "--no-http") as up:
-        port = str(up.ready["rctp"]).rsplit(":", 1)[1].split("/")[0]
+        port = up.rctp_port
         done = run_command("run", "--target", f"127.0.0.1:{port}", "--only", "rctp/msg/*")
     assert done.returncode == 2
     (line,) = done.stderr.splitlines()
@@ -96,7 +88,7 @@ def test_session_wait_waits_out_a_longer_session_timeout(tmp_path: Path) -> None
     --session-wait 7 they do, and pass (the default waits 5 s)."""
     serve = ("serve", str(REFERENCE_RCML), "--port", "0", "--http-port", "0")
     with running(tmp_path, *serve, "--session-timeout", "7") as up:
-        port = str(up.ready["rctp"]).rsplit(":", 1)[1].split("/")[0]
+        port = up.rctp_port
         target = ["--target", f"127.0.0.1:{port}", "--rcml", str(REFERENCE_RCML)]
         case = ["--only", "rctp/session/timeout-bye", "--json", str(tmp_path / "r.json")]
         short = run_command("run", *target, *case, "--verbose")

@@ -40,7 +40,7 @@ def test_the_reference_server_as_an_external_target_fails_nothing(tmp_path: Path
     60 s session timeout are inconclusive and say how to wait for it."""
     report = tmp_path / "report.json"
     with running(tmp_path, "serve", str(REFERENCE_RCML), "--port", "0", "--http-port", "0") as up:
-        port = str(up.ready["rctp"]).rsplit(":", 1)[1].split("/")[0]
+        port = up.rctp_port
         target = ["--target", f"127.0.0.1:{port}", "--rcml", str(REFERENCE_RCML)]
         done = run_command("run", *target, "--json", str(report))
     results = json.loads(report.read_text())["results"]

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from support.processes import COMMAND
+from support.processes import COMMAND, free_port
 
 from rcmlconf.conformance.cases.rsp_local import occurrence
 from rcmlconf.conformance.probes.locals import LocalListener
@@ -52,12 +52,6 @@ BOUND = 60.0
 Results = dict[str, dict[str, Any]]
 
 
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
-
-
 def run(tmp_path: Path, *options: str) -> Results:
     """`rcmlconf run OPTIONS --json`: each result by case."""
     report = tmp_path / "run.json"
@@ -75,7 +69,7 @@ def run(tmp_path: Path, *options: str) -> Results:
 
 def run_foreign(tmp_path: Path, cases: list[str], *faults: str) -> Results:
     """The cases against the independent local system making `faults`, run after run."""
-    port = free_udp_port()
+    port = free_port(socket.SOCK_DGRAM)
     wrong = [option for fault in faults for option in ("--fault", fault)]
     robot = ["--robot", f"127.0.0.1:{port}", "--model", str(MODEL)]
     local = subprocess.Popen(

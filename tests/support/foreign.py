@@ -11,7 +11,6 @@ import contextlib
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -19,7 +18,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from support.processes import COMMAND
+from support.processes import COMMAND, free_port
 
 FOREIGN = Path(__file__).resolve().parents[1] / "foreign"
 #: The longest one run of the suite against one implementation may take (seconds).
@@ -84,7 +83,7 @@ class Implementation:
             with self._listening(tmp, fault_args) as address:
                 done = _suite([*self._target(address), *chosen, "--json", str(report)])
         else:
-            port = _free_port()
+            port = free_port()
             local_key, ics = self._keyed(tmp) if self.role == "local" else ([], [])
             fault_args += local_key
             suite = subprocess.Popen(
@@ -185,10 +184,3 @@ def _process(args: list[str]) -> Iterator[subprocess.Popen[str]]:
             except subprocess.TimeoutExpired:
                 process.kill()
                 process.communicate()
-
-
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port: int = probe.getsockname()[1]
-        return port

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -24,6 +25,11 @@ class Running:
     process: subprocess.Popen[str]
     ready: dict[str, object]
     ready_file: Path
+
+    @property
+    def rctp_port(self) -> int:
+        """The RCTP port of a `serve` ready file's `rctp` URL (rctp://host:port/site)."""
+        return int(str(self.ready["rctp"]).rsplit(":", 1)[1].split("/")[0])
 
     def stop(self, sig: signal.Signals = signal.SIGINT) -> tuple[int, str, str]:
         """Send `sig`; the exit status and everything the process printed."""
@@ -75,3 +81,11 @@ def run_without_stdin(*argv: str) -> subprocess.CompletedProcess[str]:
         check=False,
         preexec_fn=lambda: os.close(0),  # descriptor 0 is DEVNULL until then
     )
+
+
+def free_port(kind: socket.SocketKind = socket.SOCK_STREAM) -> int:
+    """A port of 127.0.0.1 nothing listens on (free once the probe is closed)."""
+    with socket.socket(socket.AF_INET, kind) as probe:
+        probe.bind(("127.0.0.1", 0))
+        port: int = probe.getsockname()[1]
+        return port
