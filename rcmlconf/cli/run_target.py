@@ -84,7 +84,7 @@ def fetched_robot(output: Output, address: Address, wait: float) -> RcmlDocument
     a client given only an RCTP URL looks for it; or the run ends now (status 2): without the
     robot's nodes the cases could test little, and CONNECT's site path would be a guess."""
     try:
-        robot = from_index(RctpUrl(*address, "/"), wait, hint="give --rcml ROBOT.rcml")
+        robot = from_index(RctpUrl(*address, "/").files_url, wait, hint="give --rcml ROBOT.rcml")
     except NoModel as problem:
         output.problem("run", f"--target {described(address)} without --rcml: {problem}")
         sys.exit(2)

@@ -85,7 +85,8 @@ ANSWERS_KEPT = 64
 #: answers come back is told so rather than buffered without bound.
 MAX_OUTSTANDING = 64
 #: R-RCTP-49 asks for a heartbeat at least every 10 s while a stream plays; the first comes at
-#: once, so that the clock estimate is there from the start.
+#: once, so that the clock estimate is there from the start. A client may beat faster
+#: (`Endpoint(heartbeat_every=...)`: D-RCTP-31's scenario beats every second).
 HEARTBEAT_EVERY = 5.0
 #: Streams due within this of each other leave in one packet (D-RCTP-20).
 SEND_SLACK = 0.001
@@ -158,9 +159,11 @@ class Endpoint:
         first_sequence: int = 0,
         unix_offset: float = 0.0,
         precision: float = 0.0,
+        heartbeat_every: float = HEARTBEAT_EVERY,
     ) -> None:
         """`first_sequence` should be random (R-RCTP-41); `precision` is the robot's
-        `timePrecision` (D-RCTP-24), for a client's clock estimate."""
+        `timePrecision` (D-RCTP-24), for a client's clock estimate; `heartbeat_every` the seconds
+        between a client's heartbeats while a stream plays."""
         self.role = role
         self.tag = tag
         #: Where packets go and the only source they are taken from (R-RCTP-42, R-RCTP-56).
@@ -180,6 +183,7 @@ class Endpoint:
         self._outstanding: dict[int, _Outstanding] = {}
         self._answers: OrderedDict[int, FlowMessage] = OrderedDict()
         self._next_heartbeat: float | None = None
+        self._heartbeat_every = heartbeat_every
 
     # -- streams -----------------------------------------------------------------------------
 
@@ -564,7 +568,7 @@ class Endpoint:
                 stream.last_data = None  # watched again from the next GO
                 self._events.append(StreamTimedOut(stream.id, self.receives))
         if self._next_heartbeat is not None and now >= self._next_heartbeat:
-            self._next_heartbeat = now + HEARTBEAT_EVERY
+            self._next_heartbeat = now + self._heartbeat_every
             self.heartbeat(now)
 
     def next_event(self) -> StreamEvent | None:

@@ -30,7 +30,7 @@ from rcmlconf.errors import RcmlconfError, ValueTextError
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, RcmlDocument
 from rcmlconf.rctp.bodies import ValuesCodec
 from rcmlconf.rctp.datastream.clock import ClockEstimate
-from rcmlconf.rctp.datastream.endpoint import Address
+from rcmlconf.rctp.datastream.endpoint import HEARTBEAT_EVERY, Address
 from rcmlconf.rctp.fields import Transport, format_nodes, parse_nodes
 from rcmlconf.rctp.messages import Request, Response
 from rcmlconf.rctp.targets import parse_target
@@ -42,6 +42,7 @@ from rcmlconf.reference.client.session import (
     ClockEstimated,
     Closed,
     StreamValues,
+    WriteSource,
 )
 from rcmlconf.reference.timers import LoopTimer
 from rcmlconf.values import Value
@@ -93,9 +94,15 @@ class _Data(asyncio.DatagramProtocol):
 
 class Client:
     def __init__(
-        self, url: RctpUrl, session: ClientSession, loop: asyncio.AbstractEventLoop
+        self,
+        url: RctpUrl,
+        session: ClientSession,
+        loop: asyncio.AbstractEventLoop,
+        timeout: float = 5.0,
     ) -> None:
         self.url = url
+        #: Seconds a request waits for its answer unless told otherwise.
+        self.timeout = timeout
         self.session = session
         self.loop = loop
         self.model = session.model
@@ -112,9 +119,16 @@ class Client:
 
     @classmethod
     async def connect(
-        cls, url: str | RctpUrl, model: RcmlDocument | None = None, *, timeout: float = 5.0
+        cls,
+        url: str | RctpUrl,
+        model: RcmlDocument | None = None,
+        *,
+        timeout: float = 5.0,
+        heartbeat_every: float = HEARTBEAT_EVERY,
     ) -> Self:
-        """Open the control connection and the session (CONNECT)."""
+        """Open the control connection and the session (CONNECT). `timeout` bounds the wait for
+        the connection and for each answer; `heartbeat_every` is the seconds between heartbeats
+        while a stream plays (D-RCTP-24)."""
         parsed = parse_rctp_url(url) if isinstance(url, str) else url
         try:  # the URL's path is percent-encoded; `request` takes it decoded (D-RCTP-3, D-RCTP-7)
             site = parse_target(parsed.path).path
@@ -127,8 +141,9 @@ class Client:
             loop.time(),
             unix_offset=time.time() - loop.time(),
             first_sequence=int.from_bytes(os.urandom(2), "big"),  # R-RCTP-41
+            heartbeat_every=heartbeat_every,
         )
-        client = cls(parsed, session, loop)
+        client = cls(parsed, session, loop, timeout)
         port = parsed.port_or_default
         try:
             transport, _ = await asyncio.wait_for(
@@ -149,11 +164,14 @@ class Client:
         return client
 
     async def close(self, timeout: float = 5.0) -> None:
-        """BYE, then close (R-RCTP-23: the side that sends BYE closes once it is answered)."""
-        if self.closed is None and self.session.conn.session is not None:
-            with contextlib.suppress(RctpError):  # closing anyway
-                await self.request("BYE", "*", timeout=timeout, check=False)
-        self._abort()
+        """BYE, then close (R-RCTP-23: the side that sends BYE closes once it is answered).
+        The connection closes even when the wait for the answer is cancelled."""
+        try:
+            if self.closed is None and self.session.conn.session is not None:
+                with contextlib.suppress(RctpError):  # closing anyway
+                    await self.request("BYE", "*", timeout=timeout, check=False)
+        finally:
+            self._abort()
 
     async def __aenter__(self) -> Self:
         return self
@@ -178,11 +196,13 @@ class Client:
         headers: Iterable[tuple[str, str]] = (),
         body: bytes = b"",
         *,
-        timeout: float = 5.0,
+        timeout: float | None = None,
         check: bool = True,
     ) -> Response:
-        """Send a request and wait for its response; an error status raises unless `check`
-        is False."""
+        """Send a request and wait for its response (`timeout`, else the client's); an error
+        status raises unless `check` is False."""
+        if timeout is None:
+            timeout = self.timeout
         if self.closed is not None:
             raise RctpError(f"{method} {path}: the session is over ({self.closed.reason})")
         request = self.session.send(method, path, headers, body, now=self.loop.time())
@@ -284,8 +304,9 @@ class Client:
     async def stop(self, path: str) -> None:
         await self.request("STOP", path)
 
-    def write_values(self, path: str, values: Mapping[str, Value]) -> None:
-        """The values a stream writes every interval from now on (held, D-RCTP-20)."""
+    def write_values(self, path: str, values: WriteSource) -> None:
+        """The values a stream writes every interval from now on (held, D-RCTP-20), or a
+        function that gives them each interval (`ClientSession.write_values`)."""
         self.session.write_values(path, values)
         self._flush()
 

@@ -4,7 +4,8 @@ From a file or an http(s) URL the user names, or else the way a browser finds it
 a server lists the robot's files on HTTP at the port after RCTP's (D-RCTP-29), so the client
 reads that index and takes its one `.rcml` link. Nothing fetched may exceed a document's limit
 (16 MiB, D-XML-5), and every fetched document is validated like a local one. The reference
-client's command line and the conformance run (`run --target` without `--rcml`) both use it.
+client's command line, its conformance scenario (a case's index, D-RCTP-31) and the conformance
+run (`run --target` without `--rcml`) use it.
 """
 
 from __future__ import annotations
@@ -24,10 +25,15 @@ from rcmlconf.validate.validator import InvalidRobot, Validator, load_robot
 from rcmlconf.wording import plural
 
 _HINT = "pass the robot's RCML with --rcml PATH_OR_URL"
+_ROBOT_FILES = "the robot's files, at the port after RCTP's: D-RCTP-29"
 
 
 class NoModel(RcmlconfError):
     """The RCML could not be had or is not valid; the message says which and why."""
+
+
+class Unfetched(RcmlconfError):
+    """A GET that failed or gave more than its limit; the message names the URL and why."""
 
 
 def is_http_url(text: str) -> bool:
@@ -40,7 +46,12 @@ def load_model(url: RctpUrl, rcml: str | None, timeout: float) -> RcmlDocument:
     """The model `rcml` names (a file or an http(s) URL), or else the one the robot's files
     index links to (D-RCTP-29)."""
     if rcml is None:
-        return from_index(url, timeout)
+        return from_index(url.files_url, timeout)  # D-RCTP-29
+    return load_rcml(rcml, timeout)
+
+
+def load_rcml(rcml: str, timeout: float) -> RcmlDocument:
+    """The model in the file or at the http(s) URL `rcml` names."""
     if is_http_url(rcml):
         return _from_url(rcml, timeout)
     try:
@@ -49,20 +60,22 @@ def load_model(url: RctpUrl, rcml: str | None, timeout: float) -> RcmlDocument:
         raise NoModel(str(exc)) from None
 
 
-def from_index(url: RctpUrl, timeout: float, hint: str = _HINT) -> RcmlDocument:
-    """The model the robot's files index at the port after RCTP's links to (D-RCTP-29)."""
-    index = url.files_url  # D-RCTP-29
+def from_index(
+    index: str, timeout: float, hint: str | None = _HINT, files: str = _ROBOT_FILES
+) -> RcmlDocument:
+    """The model that the files index at the http URL `index` links to: a robot's at the port
+    after RCTP's (`RctpUrl.files_url`, D-RCTP-29), or a conformance case's (D-RCTP-31). An error
+    says what the index is (`files`) and what to do instead (`hint`)."""
+    advice = "" if hint is None else f"; {hint}"
     try:
-        page = _fetch(index, timeout)
-    except NoModel as exc:
-        raise NoModel(
-            f"{exc} (the robot's files, at the port after RCTP's: D-RCTP-29); {hint}"
-        ) from None
+        page = fetch(index, timeout)
+    except Unfetched as exc:
+        raise NoModel(f"{exc} ({files}){advice}") from None
     links = _Links()
     links.feed(page.decode("utf-8", "replace"))
     found = sorted({link for href in links.hrefs if (link := _rcml_link(index, href))})
     if len(found) != 1:
-        raise NoModel(f"{index} links to {plural(len(found), 'RCML file')}, not one; {hint}")
+        raise NoModel(f"{index} links to {plural(len(found), 'RCML file')}, not one{advice}")
     return _from_url(found[0], timeout)
 
 
@@ -76,8 +89,12 @@ def _rcml_link(index: str, href: str) -> str | None:
 
 
 def _from_url(url: str, timeout: float) -> RcmlDocument:
+    try:
+        data = fetch(url, timeout)
+    except Unfetched as exc:
+        raise NoModel(str(exc)) from None
     # No directory: the document's relative links are not followed (D-RXID-3's rule for URLs).
-    report, model = Validator().load_bytes(_fetch(url, timeout), url, suffix=".rcml")
+    report, model = Validator().load_bytes(data, url, suffix=".rcml")
     if isinstance(model, RcmlDocument):
         return model
     if report.kind != "rcml":
@@ -86,19 +103,20 @@ def _from_url(url: str, timeout: float) -> RcmlDocument:
     raise NoModel(f"{url} is not valid RCML ({plural(report.errors, 'error')}): {first}")
 
 
-def _fetch(url: str, timeout: float) -> bytes:
-    """The body of a GET, at most MAX_DOCUMENT_BYTES; `timeout` bounds each wait for the peer."""
+def fetch(url: str, timeout: float, limit: int = MAX_DOCUMENT_BYTES) -> bytes:
+    """The body of a GET, at most `limit` bytes (a document's by default); `timeout` bounds
+    each wait for the peer."""
     try:
         with urllib.request.urlopen(url, timeout=timeout) as response:
-            data: bytes = response.read(MAX_DOCUMENT_BYTES + 1)
+            data: bytes = response.read(limit + 1)
     except urllib.error.HTTPError as exc:
-        raise NoModel(f"cannot fetch {url}: {exc.code} {exc.reason}") from None
+        raise Unfetched(f"cannot fetch {url}: {exc.code} {exc.reason}") from None
     except urllib.error.URLError as exc:
-        raise NoModel(f"cannot fetch {url}: {exc.reason}") from None
+        raise Unfetched(f"cannot fetch {url}: {exc.reason}") from None
     except (OSError, ValueError, http.client.HTTPException) as exc:
-        raise NoModel(f"cannot fetch {url}: {exc or type(exc).__name__}") from None
-    if len(data) > MAX_DOCUMENT_BYTES:
-        raise NoModel(f"{url} is larger than a document may be ({MAX_DOCUMENT_BYTES} bytes)")
+        raise Unfetched(f"cannot fetch {url}: {exc or type(exc).__name__}") from None
+    if len(data) > limit:
+        raise Unfetched(f"{url} is larger than it may be ({limit:,} bytes)")
     return data
 
 

@@ -26,7 +26,7 @@ from rcmlconf.rctp.connection import (
     SessionEnded,
 )
 from rcmlconf.rctp.datastream.clock import ClockEstimate
-from rcmlconf.rctp.datastream.endpoint import Endpoint, Stream
+from rcmlconf.rctp.datastream.endpoint import HEARTBEAT_EVERY, Endpoint, Stream
 from rcmlconf.rctp.datastream.events import ClockUpdated, StreamTimedOut, ValuesReceived
 from rcmlconf.rctp.datastream.flow import Direction
 from rcmlconf.rctp.errors import LocalProtocolError
@@ -93,6 +93,8 @@ class Closed:
 
 
 ClientEvent = Answered | ServerRequest | StreamValues | StreamLost | ClockEstimated | Closed
+#: What a stream writes every interval: values held, or a function asked for them each time.
+WriteSource = Mapping[str, Value] | Callable[[], Mapping[str, Value]]
 
 
 class ClientSession(SessionEnd):
@@ -104,17 +106,22 @@ class ClientSession(SessionEnd):
         *,
         unix_offset: float = 0.0,
         first_sequence: int = 0,
+        heartbeat_every: float = HEARTBEAT_EVERY,
     ) -> None:
-        """`model` is the robot's RCML, without which values stay bytes and nothing streams."""
+        """`model` is the robot's RCML, without which values stay bytes and nothing streams;
+        `heartbeat_every` the seconds between heartbeats while a stream plays (D-RCTP-24)."""
         super().__init__(Role.CLIENT, now)
         self.model = model
         self.server_host = server_host
         self._unix_offset = unix_offset
         self._first_sequence = first_sequence
+        self._heartbeat_every = heartbeat_every
         #: Stream access path -> stream id, for the streams set up.
         self.streams: dict[str, int] = {}
-        #: The values this side writes on each stream, by stream id, held and sent each interval.
-        self._writes: dict[int, bytes] = {}
+        #: The body this side writes on each stream, by stream id, made each interval.
+        self._writes: dict[int, Callable[[], bytes]] = {}
+        #: Stream access path -> the newest values applied from the robot (D-RCTP-20, D-RCTP-21).
+        self.received: dict[str, Mapping[str, Value]] = {}
         self._events: deque[ClientEvent] = deque()
         #: The target of CONNECT (D-RCTP-3), which its refreshes repeat.
         self.site_path = "/"
@@ -142,13 +149,19 @@ class ClientSession(SessionEnd):
             raise LocalProtocolError(f"{path} is not an access node of the robot's RCML")
         return node
 
-    def write_values(self, path: str, values: Mapping[str, Value]) -> None:
-        """The values to send on a stream with a write direction, from now on every interval."""
+    def write_values(self, path: str, values: WriteSource) -> None:
+        """The values to send on a stream with a write direction, from now on every interval:
+        held, or asked of a function each interval (values that follow the robot's `received`),
+        which must give every writable node a value of its type and range."""
         stream = self._stream(path)
         codec = stream.codecs.get(Direction.WRITE)
         if codec is None:
             raise LocalProtocolError(f"{path} is set up with mode {stream.mode}: it writes nothing")
-        self._writes[stream.id] = codec.encode(values)
+        if callable(values):
+            self._writes[stream.id] = lambda: codec.encode(values())
+        else:
+            body = codec.encode(values)  # checked now, not at the first interval
+            self._writes[stream.id] = lambda: body
 
     def _stream(self, path: str) -> Stream:
         stream_id = self.streams.get(path)
@@ -157,8 +170,8 @@ class ClientSession(SessionEnd):
         return self.endpoint.streams[stream_id]
 
     def _bodies(self, due: tuple[int, ...]) -> dict[int, bytes]:
-        """The values held for each due stream (`write_values`); none before the first."""
-        return {s: self._writes[s] for s in due if s in self._writes}
+        """The body of each due stream (`write_values`); none before the first."""
+        return {s: self._writes[s]() for s in due if s in self._writes}
 
     def next_event(self) -> ClientEvent | None:
         return self._events.popleft() if self._events else None
@@ -192,6 +205,7 @@ class ClientSession(SessionEnd):
             if isinstance(stream_event, ValuesReceived):
                 path = self._path_of(stream_event.stream)
                 if path is not None:
+                    self.received[path] = stream_event.values
                     self._events.append(StreamValues(path, stream_event.values, stream_event.sent))
             elif isinstance(stream_event, StreamTimedOut):
                 path = self._path_of(stream_event.stream)
@@ -243,6 +257,7 @@ class ClientSession(SessionEnd):
                 first_sequence=self._first_sequence,
                 unix_offset=self._unix_offset,
                 precision=precision or 0.0,
+                heartbeat_every=self._heartbeat_every,
             )
         elif given.tag != self.endpoint.tag:
             return f"the answer's tag {given.tag:08x} is not the session's (D-RCTP-28)"
@@ -277,6 +292,7 @@ class ClientSession(SessionEnd):
         if stream_id is not None and self.endpoint is not None:
             self.endpoint.remove_stream(stream_id)
             self._writes.pop(stream_id, None)
+            self.received.pop(path, None)
 
     # -- the server's requests ---------------------------------------------------------------
 

@@ -390,6 +390,26 @@ def test_heartbeats_estimate_the_robots_clock() -> None:
     assert client.get_timer() == pytest.approx(HEARTBEAT_EVERY + RETRY_EVERY)
 
 
+def test_a_client_beats_as_often_as_it_is_told() -> None:
+    """D-RCTP-31's scenario beats every second, not every HEARTBEAT_EVERY."""
+    client = Endpoint(Role.CLIENT, TAG, peer=SERVER_ADDR, heartbeat_every=1.0)
+    client.add_stream(1, access(WHEELS), "read")
+    client.play(1, 0.0)
+
+    def heartbeats(now: float) -> set[int]:
+        client.handle_timer(now)
+        payloads = [p for d in client.datagrams_to_send(now) for p in pull_packet(d).payloads]
+        return {
+            p.flow.request_id
+            for p in payloads
+            if isinstance(p, FlowPayload) and isinstance(p.flow, HeartbeatRequest)
+        }
+
+    assert heartbeats(0.0) == {0}
+    assert 1 not in heartbeats(0.99)  # the first one's repeat only
+    assert 1 in heartbeats(1.0)
+
+
 def test_a_server_sends_no_heartbeats() -> None:
     server, _ = ends()
     server.play(1, 0.0)
