@@ -11,7 +11,7 @@ import json
 import signal
 import socket
 import sys
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Container
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,7 +24,7 @@ from rcmlconf.cli.client.values import parse_node_value, value_json, value_text
 from rcmlconf.errors import ValueTextError
 from rcmlconf.rcml.model import DataNode, Permission
 from rcmlconf.rctp.fields import Transport, parse_transport
-from rcmlconf.rctp.messages import Request
+from rcmlconf.rctp.messages import METHODS, Request
 from rcmlconf.rctp.reader import MessageReader
 from rcmlconf.reference.client.adapter import Client, RctpError
 from rcmlconf.reference.client.session import StreamValues
@@ -394,9 +394,12 @@ async def test_stream_mode_write_reads_the_values_it_keeps_first() -> None:
 
 
 @asynccontextmanager
-async def silent_robot(methods: list[str]) -> AsyncIterator[int]:
-    """The port of an RCTP server that answers every request 200 (`methods` lists them) and
-    sends nothing on the data stream: a stream's values never come."""
+async def silent_robot(
+    methods: list[str], answered: Container[str] = METHODS
+) -> AsyncIterator[int]:
+    """The port of an RCTP server that answers every request 200 (`methods` lists them), or
+    those of the `answered` methods only, and sends nothing on the data stream: a stream's values
+    never come."""
     loop = asyncio.get_running_loop()
     udp, _ = await loop.create_datagram_endpoint(
         asyncio.DatagramProtocol, local_addr=("127.0.0.1", 0)
@@ -409,6 +412,8 @@ async def silent_robot(methods: list[str]) -> AsyncIterator[int]:
             messages.feed(data)
             while isinstance(request := messages.next_message(), Request):
                 methods.append(request.method)
+                if request.method not in answered:
+                    continue
                 fields = [f"CSeq: {request.headers.get('CSeq')}", "Session: silent-robot-1"]
                 if request.method == "SETUP":
                     asked = parse_transport(request.headers.get("Transport") or "")
@@ -442,6 +447,22 @@ async def test_values_to_keep_that_never_come_end_the_stream_after_timeout() -> 
         " of focus, tilt, zoom to keep are unknown"
     )
     assert methods == ["CONNECT", "ACQUIRE", "SETUP", "GO", "BYE"]
+
+
+@run
+async def test_timeout_bounds_the_wait_for_each_answer() -> None:
+    methods: list[str] = []
+    async with silent_robot(methods, answered={"CONNECT"}) as port:
+        process = await asyncio.create_subprocess_exec(
+            *COMMAND, "client", "--timeout", "0.5", "--rcml", str(CAMERA),
+            f"rctp://127.0.0.1:{port}/camera", "read", "/status/lens",
+            stderr=asyncio.subprocess.PIPE,
+        )  # fmt: skip
+        _, err = await asyncio.wait_for(process.communicate(), BOUND)
+    assert process.returncode == 2, err
+    # It waited 5 s, whatever --timeout said.
+    assert err.decode() == "rcmlconf client: READ /status/lens: no answer within 0.5 s\n"
+    assert methods == ["CONNECT", "READ", "BYE"]
 
 
 @run
