@@ -13,6 +13,8 @@ TESTBOT = ROOT / "vectors" / "xml" / "valid" / "testbot.rcml"
 ROBOTS = ROOT / "rcmlconf" / "reference" / "robots"
 CAMERA = ROBOTS / "camera" / "camera.rcml"
 ROVER = ROBOTS / "rover" / "rover.rcml"
+#: The robot the conformance harness plays to a client under test (D-RCTP-31).
+HARNESS = ROOT / "rcmlconf" / "conformance" / "robot" / "harness.rcml"
 
 
 @cache
