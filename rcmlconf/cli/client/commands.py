@@ -11,6 +11,7 @@ from rcmlconf.cli.client.inputs import check_path, check_rcml
 from rcmlconf.cli.client.live import plan_acquire
 from rcmlconf.cli.client.requests import plan_read, plan_write
 from rcmlconf.cli.client.running import Options, run, run_without_model
+from rcmlconf.cli.client.scenario import run_cases
 from rcmlconf.cli.client.stream import plan_stream
 from rcmlconf.cli.client.watch import plan_watch
 from rcmlconf.cli.console import Output
@@ -76,13 +77,15 @@ _tree_path = _paths(parse_tree_path)
     type=click.Choice(["text", "json"]),
     default="text",
     show_default=True,
-    help="text: name=value lines; json: one object (read) or one object a line (stream, watch).",
+    help="text: name=value lines; json: one object (read) or one object a line (stream, watch,"
+    " scenario).",
 )
 @click.pass_context
 def client(
     ctx: click.Context, url: str, rcml: str | None, timeout: float, output_format: str
 ) -> None:
-    """Talk RCTP/2.0 to a robot at URL (rctp://host[:port]/site-path) as the reference client.
+    """Talk RCTP/2.0 to a robot at URL (rctp://host[:port]/site-path) as the reference client;
+    or run a conformance harness's client cases (`scenario`, which also takes its case list).
 
     Values are written and shown in their text form (D-RCML-14): decimal integers, floats
     such as 1.5, -2E3, INF or NaN, true/false, bytes in hexadecimal, an array's items
@@ -104,6 +107,7 @@ def client(
       rcmlconf client rctp://127.0.0.1:7330/rover write /drive/settings maxSpeed=0.5 mode=1
       rcmlconf client rctp://127.0.0.1:7330/rover stream /sensors/odometry --duration 2
       rcmlconf client --format json rctp://127.0.0.1:7330/rover watch
+      rcmlconf client http://127.0.0.1:7331/cases scenario
     """
     # URL is read when a subcommand runs, so that `rcmlconf client URL read --help` works.
     ctx.obj = Options(url, rcml, timeout, output_format == "json", Output())
@@ -244,3 +248,48 @@ def watch(options: Options, paths: tuple[str, ...], duration: float | None) -> N
       rcmlconf client rctp://127.0.0.1:7330/rover watch /drive/settings --duration 60
     """
     run(options, lambda model: plan_watch(options, model, paths, duration))
+
+
+@client.command(short_help="Run the conformance scenario of a client (D-RCTP-31).")
+@click.pass_obj
+def scenario(options: Options) -> None:
+    """Run the conformance scenario of a client (specs/rctp-2.0.md D-RCTP-31) on URL: what a
+    conformance harness that plays the server asks of the client it tests, the same every time.
+
+    \b
+    The scenario, each step in the RCML's document order:
+      1. fetch the robot's RCML: the one .rcml link of the index at http://HOST:PORT+1/PATH/
+         (--rcml skips this step);
+      2. CONNECT to PATH;
+      3. READ every readable node of the normal accesses, then every event access;
+      4. ACQUIRE / and WRITE each writable node what its READ gave (its zero value without r);
+      5. each event access: SETUP, GO, the server's WRITEs for 1 s, PAUSE, WRITE, STOP;
+      6. each stream access: SETUP, GO, 2 s, PAUSE, 0.5 s, GO, 1 s, STOP, with a heartbeat
+         every second and DATA that sends the robot's own values back;
+      7. WRITE the clock estimate to `offset` and `uncertainty` of a normal access `clock`;
+      8. RELEASE *, BYE.
+
+    A request the server refuses does not end a run (what needed it is left out); the server's
+    BYE, the connection closing, or no answer within --timeout does. A run takes about 5 s on
+    the harness's robot, and never much more than 30 s.
+
+    URL is one case URL, rctp://HOST:PORT/PATH, or the harness's case list,
+    http://HOST:PORT+1/cases (text/plain, one case URL a line; at most 10,000 URLs and 1 MiB),
+    whose cases run one after the other. Each run prints one line: the case URL and how the run
+    ended (`completed`; `ended by the server (BYE, Reason: timeout)`; `CONNECT refused (404 Not
+    Found)`; ...), or with --format json one object with the requests that were refused too.
+    The group's options come before URL: --rcml, --timeout (each wait for the server, 5 s as
+    D-RCTP-31 says), --format.
+
+    \b
+    Exit status: 0 every run ran, whatever the server answered;
+      1 Ctrl-C stopped the runs (the one under way says BYE first);
+      2 a bad URL, a case list that cannot be fetched or read, or an --rcml that cannot be read.
+
+    \b
+    Examples:
+      rcmlconf run --role client --listen 7330     # the harness, in one shell
+      rcmlconf client http://127.0.0.1:7331/cases scenario   # its client cases, in another
+      rcmlconf client rctp://127.0.0.1:7330/CASE scenario    # one case, by its URL
+    """
+    run_cases(options)

@@ -85,12 +85,22 @@ def check_rcml(text: str) -> str:
         named = repr(text) if len(text) <= 300 else shown(text)
         raise ValueTextError(f"{named} holds a control character")
     if is_http_url(text):
-        try:
-            parts = urlsplit(text)
-            if parts.port == 0 or not parts.hostname:  # reading the port checks it
-                raise ValueError("no host and port to fetch from")
-        except ValueError as exc:
-            raise ValueTextError(f"{shown(text)} is not a URL to fetch: {exc}") from None
+        check_http_url(text)
+    return text
+
+
+def check_http_url(text: str) -> str:
+    """An http(s) URL with a host and, if it has one, a port."""
+    if len(text) > MAX_URL:
+        raise ValueTextError(f"{shown(text)} is {len(text):,} characters long; at most {MAX_URL:,}")
+    if _CONTROLS.search(text):  # urlsplit would drop a newline without a word
+        raise ValueTextError(f"{shown(text)} holds a control character")
+    try:
+        parts = urlsplit(text)
+        if parts.port == 0 or not parts.hostname:  # reading the port checks it
+            raise ValueError("no host and port to fetch from")
+    except ValueError as exc:
+        raise ValueTextError(f"{shown(text)} is not a URL to fetch: {exc}") from None
     return text
 
 
