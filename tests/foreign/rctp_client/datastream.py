@@ -69,8 +69,18 @@ def parse_packet(data: bytes) -> Packet | None:
     return Packet(seq, tag, (secs << 32) | frac, payloads)
 
 
-def build_packet(seq: int, tag: int, ts: int, payloads: list[tuple[int, int, bytes]]) -> bytes:
-    out = bytearray(_HEADER.pack(VERSION, len(payloads), seq, tag, ts >> 32, ts & MAX_U32))
+def build_packet(
+    seq: int,
+    tag: int,
+    ts: int,
+    payloads: list[tuple[int, int, bytes]],
+    version: int = VERSION,
+    tag_le: bool = False,
+) -> bytes:
+    """A packet; `version` and `tag_le` (the tag in little-endian order) are for faults."""
+    if tag_le:
+        tag = int.from_bytes(tag.to_bytes(4, "big"), "little")
+    out = bytearray(_HEADER.pack(version, len(payloads), seq, tag, ts >> 32, ts & MAX_U32))
     for ptype, sid, body in payloads:
         out += _PAYLOAD.pack(ptype, sid, len(body)) + body
     return bytes(out)

@@ -1,6 +1,8 @@
-"""An RCTP/2.0 client (an operator console's protocol side), written from specs/rctp-2.0.md.
+"""An RCTP/2.0 client running the conformance scenario of specs/rctp-2.0.md D-RCTP-31.
 
-python main.py --url rctp://HOST[:PORT]/SITE [--rcml FILE] [--loop] [-v] [--fault NAME]...
+python main.py --url rctp://HOST:PORT/PATH [--rcml FILE] [--fault NAME]... [-v]
+python main.py --cases http://HOST:PORT+1/cases [--fault NAME]... [-v]
+python main.py --list-faults
 """
 
 from __future__ import annotations
@@ -10,7 +12,6 @@ import asyncio
 import http.client
 import signal
 import sys
-import time
 import traceback
 from html.parser import HTMLParser
 from pathlib import Path
@@ -18,9 +19,12 @@ from urllib.parse import urljoin, urlsplit
 
 from faults import FAULTS
 from rcml import MAX_DOCUMENT, Model, RcmlError, parse_rcml
+from scenario import Scenario
 from session import Session, Url
 
-REFETCH_AFTER = 30.0
+HTTP_TIMEOUT = 30.0  # the harness holds a request for a case not yet reached (D-RCTP-31)
+MAX_INDEX = 1 << 20
+MAX_LINKS = 1024
 
 
 class _Links(HTMLParser):
@@ -29,101 +33,149 @@ class _Links(HTMLParser):
         self.hrefs: list[str] = []
 
     def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
-        if tag == "a":
+        if tag == "a" and len(self.hrefs) < MAX_LINKS:
             self.hrefs += [v for k, v in attrs if k == "href" and v]
 
 
-def _get(host: str, port: int, path: str) -> bytes | None:
-    conn = http.client.HTTPConnection(host, port, timeout=2.0)
+def http_get(url: str, limit: int) -> bytes | None:
+    """GET an http URL: its body when the answer is 200 and at most `limit` bytes."""
+    parts = urlsplit(url)
+    if parts.scheme != "http" or not parts.hostname:
+        return None
     try:
-        conn.request("GET", path, headers={"User-Agent": "foreign-rctp-client/1.0"})
+        conn = http.client.HTTPConnection(parts.hostname, parts.port or 80, timeout=HTTP_TIMEOUT)
+    except (ValueError, http.client.HTTPException):
+        return None
+    try:
+        path = (parts.path or "/") + (f"?{parts.query}" if parts.query else "")
+        conn.request("GET", path, headers={"User-Agent": "foreign-rctp-client/2.0"})
         resp = conn.getresponse()
         if resp.status != 200:
             return None
-        data = resp.read(MAX_DOCUMENT + 1)
-        return data if len(data) <= MAX_DOCUMENT else None
-    except (OSError, http.client.HTTPException):
+        data = resp.read(limit + 1)
+        return data if len(data) <= limit else None
+    except (OSError, http.client.HTTPException, ValueError):
         return None
     finally:
         conn.close()
 
 
-def fetch_model(url: Url) -> Model | None:
-    """D-RCTP-29: the robot's files over HTTP on the port after the RCTP port; at `/` a page
-    whose links list them. The RCML whose site path is ours is the robot's."""
-    if url.port >= 65535:
-        return None
-    host, port = url.host, url.port + 1
-    page = _get(host, port, "/")
+def fetch_model(url: Url, faults: set[str], log: bool) -> Model | None:
+    """D-RCTP-31 step 1: the index at http://HOST:PORT+1/PATH/, its one link whose path ends
+    in .rcml, that document read as xml.md says (D-RCTP-29)."""
+    index = url.http(url.path.rstrip("/") + "/")
+    page = http_get(index, MAX_INDEX)
     if page is None:
-        return None
+        return _nothing(f"no index at {index}")
     links = _Links()
-    links.feed(page.decode("utf-8", "replace"))
-    base = f"http://{host}:{port}/"
-    found: list[Model] = []
-    for href in links.hrefs[:64]:
-        target = urlsplit(urljoin(base, href))
-        if not target.path.lower().endswith(".rcml") or target.netloc not in ("", f"{host}:{port}"):
-            continue
-        data = _get(host, port, target.path)
-        if data is None:
-            continue
-        try:
-            found.append(parse_rcml(data))
-        except RcmlError:
-            continue
-        if found[-1].site_path() == url.path:
-            return found[-1]
-    return found[0] if len(found) == 1 else None
+    try:
+        links.feed(page.decode("utf-8", "replace"))
+        links.close()
+    except AssertionError:  # html.parser on some broken markup
+        pass
+    found = sorted({urljoin(index, h.strip()).split("#")[0] for h in links.hrefs})
+    rcmls = [u for u in found if urlsplit(u).path.endswith(".rcml")]
+    if len(rcmls) != 1:
+        return _nothing(f"{index} links {len(rcmls)} .rcml files, not one")
+    data = http_get(rcmls[0], MAX_DOCUMENT)
+    if data is None:
+        return _nothing(f"cannot fetch {rcmls[0]}")
+
+    def load_dtd(system_id: str) -> bytes | None:  # the load-dtd fault only
+        return http_get(urljoin(rcmls[0], system_id), MAX_DOCUMENT)
+
+    try:
+        model = parse_rcml(
+            data,
+            load_dtd if "load-dtd" in faults else None,
+            foreign="read-foreign-namespace" in faults,
+        )
+    except RcmlError as e:
+        return _nothing(f"{rcmls[0]}: {e}")
+    if log:
+        print(f"the robot's RCML: {rcmls[0]} (site {model.site})", file=sys.stderr)
+    return model
 
 
-async def run(args: argparse.Namespace, url: Url, faults: set[str], model: Model | None) -> int:
-    loop = asyncio.get_running_loop()
-    stop = asyncio.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        loop.add_signal_handler(sig, stop.set)
-    fetched_at = -REFETCH_AFTER
-    while True:
-        if model is None and time.monotonic() - fetched_at >= REFETCH_AFTER:
-            fetched_at = time.monotonic()
-            model = await asyncio.to_thread(fetch_model, url)
-            if model is not None and args.verbose:
-                print(f"the robot's RCML fetched: {model.site}", file=sys.stderr)
-        session = Session(url, model, faults, stop, args.verbose)
-        session.play_time = max(0.0, args.play)
-        connected = False
+def _nothing(why: str) -> Model | None:
+    print(f"main.py: {why}", file=sys.stderr)
+    return None
+
+
+class Runner:
+    def __init__(self, args: argparse.Namespace, model: Model | None) -> None:
+        self.args = args
+        self.faults = set(args.fault)
+        self.model = model
+        self.stop = asyncio.Event()
+        self.session: Session | None = None
+
+    def on_signal(self) -> None:
+        self.stop.set()
+        if self.session is not None:
+            self.session.poke()
+
+    async def case(self, text: str) -> int:
+        """One run of the scenario: 0 when it ran as D-RCTP-31 says, 1 when it could not."""
         try:
-            await session.open()
-            connected = True
-            ok = await session.run()
-        except (OSError, TimeoutError) as e:
-            ok = False
-            session.log(f"no connection to {url.host}:{url.port}: {e}", always=not args.loop)
-        except Exception:  # a bug of ours must not end a console that runs unattended
-            ok = False
+            url = Url.parse(text)
+        except ValueError as e:
+            print(f"main.py: {e}", file=sys.stderr)
+            return 1
+        model = self.model
+        if model is None:
+            model = await asyncio.to_thread(fetch_model, url, self.faults, self.args.verbose)
+            if model is None:
+                return 1
+        if self.stop.is_set():
+            return 0
+        session = Session(url, model, self.faults, self.stop, self.args.verbose)
+        self.session = session
+        try:
+            try:
+                await session.open()
+            except (OSError, TimeoutError) as e:
+                print(f"main.py: no connection to {url.host}:{url.port}: {e}", file=sys.stderr)
+                return 1
+            await Scenario(session, model).run()
+            return 0
+        except Exception:  # a bug of ours: report it, end this run cleanly
             traceback.print_exc()
-            session.close("internal error")
-        if not args.loop:
-            return 0 if ok else 1
-        if stop.is_set():
-            return 0
-        try:
-            await asyncio.wait_for(stop.wait(), 0.1 if connected else 0.3)
-            return 0
-        except TimeoutError:
-            pass
+            return 1
+        finally:
+            await session.finish()
+            self.session = None
+
+    async def run(self) -> int:
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.add_signal_handler(sig, self.on_signal)
+        if self.args.url:
+            status = await self.case(self.args.url)
+            return 0 if self.stop.is_set() else status
+        body = await asyncio.to_thread(http_get, self.args.cases, 1 << 20)
+        if body is None:
+            print(f"main.py: cannot fetch the case list {self.args.cases}", file=sys.stderr)
+            return 1
+        cases = [line.strip() for line in body.decode("utf-8", "replace").splitlines()]
+        for text in filter(None, cases):
+            if self.stop.is_set():
+                break
+            status = await self.case(text)
+            print(f"{text}\t{'ran' if status == 0 else 'could not run'}", file=sys.stderr)
+        return 0
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description="An RCTP/2.0 client from specs/rctp-2.0.md.")
-    parser.add_argument("--url", help="rctp://HOST[:PORT]/SITE")
-    parser.add_argument("--rcml", help="the robot's RCML file (else fetched, D-RCTP-29)")
-    parser.add_argument("--loop", action="store_true", help="run sessions until SIGINT/SIGTERM")
+    parser = argparse.ArgumentParser(
+        description="An RCTP/2.0 client running the conformance scenario (D-RCTP-31)."
+    )
+    which = parser.add_mutually_exclusive_group()
+    which.add_argument("--url", help="a case URL, rctp://HOST:PORT/PATH: one run")
+    which.add_argument("--cases", help="http://HOST:PORT+1/cases: one run per URL it lists")
+    parser.add_argument("--rcml", help="the robot's RCML file (skips step 1, the files)")
     parser.add_argument("--fault", action="append", default=[], metavar="NAME")
     parser.add_argument("--list-faults", action="store_true")
-    parser.add_argument(
-        "--play", type=float, default=1.0, metavar="S", help="seconds streams and events play"
-    )
     parser.add_argument("-v", "--verbose", action="store_true")
     args = parser.parse_args(argv)
     if args.list_faults:
@@ -131,21 +183,20 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{name}\t{rid}\t{what}")
         return 0
     unknown = [f for f in args.fault if f not in FAULTS]
-    if unknown or not args.url:
-        parser.error(f"unknown fault {unknown[0]}" if unknown else "--url is required")
-    try:
-        url = Url.parse(args.url)
-    except ValueError as e:
-        parser.error(str(e))
+    if unknown:
+        parser.error(f"unknown fault {unknown[0]} (see --list-faults)")
+    if not args.url and not args.cases:
+        parser.error("--url or --cases is required")
     model = None
     if args.rcml:
         try:
-            model = parse_rcml(Path(args.rcml).read_bytes())
+            foreign = "read-foreign-namespace" in args.fault
+            model = parse_rcml(Path(args.rcml).read_bytes(), foreign=foreign)
         except (OSError, RcmlError) as e:
             print(f"main.py: {args.rcml}: {e}", file=sys.stderr)
-            return 2
+            return 1
     try:
-        return asyncio.run(run(args, url, set(args.fault), model))
+        return asyncio.run(Runner(args, model).run())
     except KeyboardInterrupt:
         return 0
 

@@ -7,6 +7,7 @@ import codecs
 import math
 import re
 import struct
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 from xml.parsers import expat
@@ -39,6 +40,7 @@ NUMERIC = {
 }
 ALIASES = {"int": "int32", "float": "float32", "double": "float64"}
 TYPES = set(NUMERIC) | {"bool", "string", "bytes"}
+TIMING = ("readInterval", "writeInterval", "readTimeout", "writeTimeout")
 
 
 class RcmlError(Exception):
@@ -89,9 +91,10 @@ class Node:
         return sorted(out, key=lambda c: c.name.encode("utf-8"))
 
     def walk(self) -> list[Node]:
+        """This node and all below it, siblings in document order (children keep it)."""
         out: list[Node] = [self]
-        for name in canonical(list(self.children)):
-            out.extend(self.children[name].walk())
+        for child in self.children.values():
+            out.extend(child.walk())
         return out
 
 
@@ -144,76 +147,88 @@ def _in_range(node: Node, v: float | int) -> bool:
     return not (node.hi is not None and v > node.hi)
 
 
-def _decode_one(node: Node, buf: bytes, off: int) -> tuple[Any, int]:
-    t = node.dtype
-    if t == "bool":
-        if off + 1 > len(buf) or buf[off] > 1:
-            raise BadValue(f"{node.path}: bad bool")
-        return buf[off] == 1, off + 1
-    if t in ("string", "bytes"):
-        if off + 2 > len(buf):
+class Codec:
+    """The binary value format; `faults` may make the sender (never the reader, but for
+    bool-nonzero-accepted) get one detail wrong."""
+
+    def __init__(self, faults: set[str] | frozenset[str] = frozenset()) -> None:
+        self.faults = frozenset(faults)
+
+    def _decode_one(self, node: Node, buf: bytes, off: int, ranged: bool) -> tuple[Any, int]:
+        t = node.dtype
+        if t == "bool":
+            if off + 1 > len(buf):
+                raise BadValue(f"{node.path}: cut short")
+            if buf[off] > 1 and "bool-nonzero-accepted" not in self.faults:
+                raise BadValue(f"{node.path}: bad bool")
+            return buf[off] != 0, off + 1
+        if t in ("string", "bytes"):
+            if off + 2 > len(buf):
+                raise BadValue(f"{node.path}: cut short")
+            (n,) = struct.unpack_from(">H", buf, off)
+            if n > node.size or off + 2 + n > len(buf):
+                raise BadValue(f"{node.path}: length {n} too long or cut short")
+            raw = bytes(buf[off + 2 : off + 2 + n])
+            if t == "bytes":
+                return raw, off + 2 + n
+            try:
+                return raw.decode("utf-8"), off + 2 + n
+            except UnicodeDecodeError as e:
+                raise BadValue(f"{node.path}: not UTF-8") from e
+        fmt = ">" + NUMERIC[t]
+        size = struct.calcsize(fmt)
+        if off + size > len(buf):
             raise BadValue(f"{node.path}: cut short")
-        (n,) = struct.unpack_from(">H", buf, off)
-        if n > node.size or off + 2 + n > len(buf):
-            raise BadValue(f"{node.path}: length {n} too long or cut short")
-        raw = bytes(buf[off + 2 : off + 2 + n])
-        if t == "bytes":
-            return raw, off + 2 + n
-        try:
-            return raw.decode("utf-8"), off + 2 + n
-        except UnicodeDecodeError as e:
-            raise BadValue(f"{node.path}: not UTF-8") from e
-    fmt = ">" + NUMERIC[t]
-    size = struct.calcsize(fmt)
-    if off + size > len(buf):
-        raise BadValue(f"{node.path}: cut short")
-    (v,) = struct.unpack_from(fmt, buf, off)
-    if not _in_range(node, v):
-        raise BadValue(f"{node.path}: {v} outside its range")
-    return v, off + size
+        (v,) = struct.unpack_from(fmt, buf, off)
+        if ranged and not _in_range(node, v):
+            raise BadValue(f"{node.path}: {v} outside its range")
+        return v, off + size
 
-
-def decode_values(nodes: list[Node], buf: bytes) -> list[Any]:
-    """The values of `nodes`, one after another, filling `buf` exactly."""
-    off = 0
-    out: list[Any] = []
-    for node in nodes:
-        if node.count == 1:
-            v, off = _decode_one(node, buf, off)
-        else:
+    def decode(self, nodes: list[Node], buf: bytes, ranged: bool = True) -> list[Any]:
+        """The values of `nodes`, one after another, filling `buf` exactly; with `ranged`,
+        a value outside its node's min/max is refused too (D-RCML-12)."""
+        off = 0
+        out: list[Any] = []
+        for node in nodes:
             items = []
             for _ in range(node.count):
-                item, off = _decode_one(node, buf, off)
+                item, off = self._decode_one(node, buf, off, ranged)
                 items.append(item)
-            v = items
-        out.append(v)
-    if off != len(buf):
-        raise BadValue(f"{len(buf) - off} bytes after the values")
-    return out
+            out.append(items[0] if node.count == 1 else items)
+        if off != len(buf):
+            raise BadValue(f"{len(buf) - off} bytes after the values")
+        return out
+
+    def _encode_one(self, node: Node, v: Any) -> bytes:
+        t, faults = node.dtype, self.faults
+        if t == "bool":
+            if "bool-as-text" in faults:
+                return b"1" if v else b"0"
+            return b"\x01" if v else b"\x00"
+        if t in ("string", "bytes"):
+            raw = v.encode("utf-8") if t == "string" else bytes(v)
+            n = len(v) if t == "string" and "string-length-in-characters" in faults else len(raw)
+            return struct.pack(">H", n) + raw
+        order = ">"
+        if t in ("int16", "uint16") and "int16-little-endian" in faults:
+            order = "<"
+        if t == "float64" and "float64-little-endian" in faults:
+            order = "<"
+        return struct.pack(order + NUMERIC[t], v)
+
+    def encode(self, nodes: list[Node], values: list[Any]) -> bytes:
+        out = bytearray()
+        for node, v in zip(nodes, values, strict=True):
+            if node.count > 1 and "array-count-prefix" in self.faults:
+                out += struct.pack(">H", node.count)
+            for item in v if node.count > 1 else [v]:
+                out += self._encode_one(node, item)
+        return bytes(out)
 
 
-def _encode_one(node: Node, v: Any, le16: bool) -> bytes:
-    t = node.dtype
-    if t == "bool":
-        return b"\x01" if v else b"\x00"
-    if t in ("string", "bytes"):
-        raw = v.encode("utf-8") if t == "string" else bytes(v)
-        return struct.pack(">H", len(raw)) + raw
-    order = "<" if le16 and t in ("int16", "uint16") else ">"
-    return struct.pack(order + NUMERIC[t], v)
-
-
-def encode_values(nodes: list[Node], values: list[Any], le16: bool = False) -> bytes:
-    out = bytearray()
-    for node, v in zip(nodes, values, strict=True):
-        items = v if node.count > 1 else [v]
-        for item in items:
-            out += _encode_one(node, item, le16)
-    return bytes(out)
-
-
-def neutral(node: Node) -> Any:
-    """A value a client may always send: zero (or false, empty), brought into range."""
+def zero(node: Node) -> Any:
+    """D-RCTP-31's zero value: 0, the bound of its range nearest 0, false, empty text or
+    bytes; per element of an array."""
     if node.dtype == "bool":
         one: Any = False
     elif node.dtype == "string":
@@ -264,8 +279,28 @@ def _decode_document(data: bytes) -> str:
         raise RcmlError(f"unknown encoding {encoding}") from e
 
 
+ATTRIBUTES = {
+    "rcml": {
+        "version",
+        "site",
+        "timeSource",
+        "timePrecision",
+        "title",
+        "author",
+        "info",
+        "contact",
+    },
+    "group": {"name", "permission"},
+    "access": {"name", "type", "permission"} | set(TIMING),
+    "data": {"name", "type", "permission", "count", "size", "min", "max"},
+    "link": {"kind", "href", "title"},
+    "meta": {"name", "content"},
+}
+REQUIRED = {"link": ("kind", "href"), "meta": ("name", "content")}
+
+
 class _Builder:
-    def __init__(self) -> None:
+    def __init__(self, foreign: bool) -> None:
         self.stack: list[Node | None] = []
         self.depth = 0
         self.skip = 0
@@ -273,15 +308,21 @@ class _Builder:
         self.site = ""
         self.precision = 0.0
         self.count = 0
+        self.foreign = foreign  # the read-foreign-namespace fault: elements by local name
 
     def start(self, name: str, attrs: dict[str, str]) -> None:
         self.depth += 1
         if self.depth > MAX_DEPTH:
             raise RcmlError("nested deeper than 256")
-        if self.skip or " " in name:  # D-XML-6: an extension, skipped with its content
+        if " " in name and self.foreign and not self.skip:
+            name = name.rsplit(" ", 1)[1]
+        if self.skip or " " in name:  # D-XML-6, R-XML-13: an extension, skipped with its content
             self.skip += 1
             return
         attrs = {k: v for k, v in attrs.items() if " " not in k}
+        unknown = sorted(set(attrs) - ATTRIBUTES.get(name, set()))
+        if name in ATTRIBUTES and unknown:
+            raise RcmlError(f"<{name}> has an attribute RCML does not define: {unknown[0]}")
         parent = self.stack[-1] if self.stack else None
         self.count += 1
         if not self.stack:
@@ -292,7 +333,11 @@ class _Builder:
             self.precision = _seconds("/", attrs, "timePrecision") or 0.0
             self.stack.append(self.root)
             return
+        if parent is None:
+            raise RcmlError(f"<{name}> inside an empty element (link or meta)")
         if name in ("link", "meta"):
+            if any(key not in attrs for key in REQUIRED[name]):
+                raise RcmlError(f"<{name}> without {' or '.join(REQUIRED[name])}")
             self.stack.append(None)
             return
         allowed = {"group": ("root", "group"), "access": ("root", "group"), "data": ("access",)}
@@ -312,7 +357,7 @@ class _Builder:
             node.atype = attrs.get("type", "normal")
             if node.atype not in ("normal", "event", "stream"):
                 raise RcmlError(f"{path}: bad type {node.atype!r}")
-            for key in ("readInterval", "writeInterval", "readTimeout", "writeTimeout"):
+            for key in TIMING:
                 value = _seconds(path, attrs, key)
                 if value is not None:
                     node.timing[key] = value
@@ -342,17 +387,21 @@ class _Builder:
         self.stack.pop()
 
 
-def parse_rcml(data: bytes) -> Model:
-    """Read an RCML document; DTDs are never loaded, entities never expanded (D-XML-3, -4)."""
+def parse_rcml(
+    data: bytes, load_dtd: Callable[[str], bytes | None] | None = None, foreign: bool = False
+) -> Model:
+    """Read an RCML document under xml.md: DTDs are never loaded, entities never expanded
+    (D-XML-3, D-XML-4), extensions skipped (D-XML-6). `load_dtd` (the load-dtd fault) makes
+    the parser fetch and apply the external DTD a DOCTYPE names; `foreign` is the
+    read-foreign-namespace fault."""
     if len(data) > MAX_DOCUMENT:
         raise RcmlError("larger than 16 MiB")
     try:
         document = _decode_document(data)
     except UnicodeDecodeError as e:
         raise RcmlError(f"not in its encoding: {e}") from e
-    builder = _Builder()
+    builder = _Builder(foreign)
     parser = expat.ParserCreate("utf-8", " ")
-    parser.SetParamEntityParsing(expat.XML_PARAM_ENTITY_PARSING_NEVER)
 
     def doctype(_name: str, _sys: str | None, _pub: str | None, internal: int) -> None:
         if internal:
@@ -361,8 +410,21 @@ def parse_rcml(data: bytes) -> Model:
     def entity(*_args: object) -> None:
         raise RcmlError("entity declaration or reference")
 
+    if load_dtd is None:
+        parser.SetParamEntityParsing(expat.XML_PARAM_ENTITY_PARSING_NEVER)
+        parser.EntityDeclHandler = entity
+    else:
+
+        def external(context: str | None, _base: str | None, system: str | None, _p: object) -> int:
+            text = load_dtd(system or "")
+            if text is not None:
+                sub = parser.ExternalEntityParserCreate(context)
+                sub.Parse(text, True)
+            return 1
+
+        parser.SetParamEntityParsing(expat.XML_PARAM_ENTITY_PARSING_UNLESS_STANDALONE)
+        parser.ExternalEntityRefHandler = external
     parser.StartDoctypeDeclHandler = doctype
-    parser.EntityDeclHandler = entity
     parser.SkippedEntityHandler = entity
     parser.StartElementHandler = builder.start
     parser.EndElementHandler = builder.end

@@ -1,6 +1,7 @@
 """One RCTP/2.0 client session over asyncio: the control connection with requests in both
-directions (D-RCTP-5, D-RCTP-6), the server's WRITE, STOP and BYE, the data stream
-(D-RCTP-18 to D-RCTP-24) and the scenario an operator console runs."""
+directions (D-RCTP-5, D-RCTP-6), the server's WRITE, STOP and BYE (D-RCTP-12), and the data
+stream with its FLOW answers, heartbeats and clock samples (D-RCTP-18 to D-RCTP-24). What the
+client asks for, and when, is scenario.py's business."""
 
 from __future__ import annotations
 
@@ -18,24 +19,20 @@ from typing import Any
 
 import datastream as ds
 import wire
-from rcml import BadValue, Model, Node, decode_values, encode_values, is_xml_name, neutral, text
+from rcml import BadValue, Codec, Model, Node, is_xml_name, text, zero
 from wire import Message
 
-USER_AGENT = "foreign-rctp-client/1.0"
-REQUEST_TIMEOUT = 10.0  # no answer to one of our requests by then: give up the connection
+USER_AGENT = "foreign-rctp-client/2.0"
+REQUEST_TIMEOUT = 5.0  # D-RCTP-31: no answer within 5 s ends the run
 BYE_WAIT = 5.0  # R-RCTP-23
-HEARTBEAT_EVERY = 2.0  # well inside D-RCTP-24's 10 s
-IDLE_WATCH = 1.0  # with no robot known: how long the session stays quiet before BYE
-STREAM_TIME = 1.0
-_SESSION = re.compile(r"([A-Za-z0-9$\-_.+]{8,64})(?:;[ \t]*timeout=([0-9]{1,5}))?")
+HEARTBEAT_EVERY = 1.0  # D-RCTP-31 step 6
+FLOW_RETRY = 0.25  # D-RCTP-22
+FLOW_SENDS = 5
+_SESSION = re.compile(r"([A-Za-z0-9$\-_.+]{8,64})(?:;[ \t]*(?i:timeout)=([0-9]{1,5}))?")
 
 
 class Closed(Exception):
-    """The control connection is gone (or going)."""
-
-
-class Stopping(Exception):
-    """SIGINT or SIGTERM: end the session."""
+    """The control connection is gone, or a request went unanswered for 5 s."""
 
 
 @dataclass
@@ -53,9 +50,14 @@ class Url:
             raise ValueError(f"not an RCTP URL: {url}")
         port = int(m.group(2) or 7330)
         path = m.group(3) or "/"
-        if not 1 <= port <= 65535 or wire.decode_target(path) is None:
+        if not 1 <= port <= 65534 or wire.decode_target(path) is None:
             raise ValueError(f"bad port or site path in {url}")
         return cls(m.group(1).strip("[]"), port, path)
+
+    def http(self, path: str) -> str:
+        """The robot's files (D-RCTP-29): HTTP on the port after the RCTP port."""
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"http://{host}:{self.port + 1}{path}"
 
 
 @dataclass
@@ -64,6 +66,8 @@ class Access:
 
     node: Node
     state: str = "init"
+    stopped: bool = False  # the server STOPped it during its step
+    usable: bool = True
     stream_id: int = 0
     mode: str = ""
     reads: list[Node] = field(default_factory=list)
@@ -74,9 +78,10 @@ class Access:
     write_timeout: int = 0
     last_data: float = 0.0
     lost: bool = False
-    values: dict[str, Any] = field(default_factory=dict)
+    values: dict[str, Any] = field(default_factory=dict)  # newest DATA applied, by node name
     packets: int = 0
     sender: asyncio.Task[None] | None = None
+    beater: asyncio.Task[None] | None = None
 
     @property
     def stream(self) -> bool:
@@ -88,7 +93,6 @@ class FlowRequest:
     sid: int
     op: int
     body: bytes
-    future: asyncio.Future[tuple[int, bytes] | None]
     sends: int = 1
     due: float = 0.0
 
@@ -106,27 +110,26 @@ class _Datagrams(asyncio.DatagramProtocol):
 
 class Session:
     def __init__(
-        self, url: Url, model: Model | None, faults: set[str], stop: asyncio.Event, verbose: bool
+        self, url: Url, model: Model, faults: set[str], stop: asyncio.Event, verbose: bool
     ) -> None:
         self.url, self.model, self.faults = url, model, faults
         self.stop, self.verbose = stop, verbose
-        self.play_time = STREAM_TIME
+        self.codec = Codec(faults)
         self.reader: asyncio.StreamReader | None = None
         self.writer: asyncio.StreamWriter | None = None
         self.parser = wire.Parser(1 << 26 if "header-line-unbounded" in faults else wire.MAX_LINE)
         self.state = "idle"  # D-RCTP-13
         self.closed = False
         self.ended = asyncio.Event()
+        self.wake = asyncio.Event()  # something the scenario may wait for happened
         self.sid = ""
         self.timeout = 60
         self.cseq = 0 if "cseq-starts-at-zero" in faults else 1
-        self.pending: deque[tuple[int, str, asyncio.Future[Message], Callable[[Message], None]]]
+        self.pending: deque[tuple[int, asyncio.Future[Message], Callable[[Message], None]]]
         self.pending = deque()
         self.last_sent = time.monotonic()
-        self.last_server_request = 0.0
         self.accesses: dict[str, Access] = {}
-        self.held: list[str] = []
-        self.refusals: list[str] = []
+        self.values: dict[str, Any] = {}  # newest value known of normal and event nodes
         self.tasks: list[asyncio.Task[Any]] = []
         # the data stream
         self.udp: asyncio.DatagramTransport | None = None
@@ -135,19 +138,21 @@ class Session:
         self.server_port = 0
         self.tag: int | None = None
         self.seq = 0 if "seq-starts-at-zero" in faults else int.from_bytes(os.urandom(2), "big")
+        self.flow_seq = int.from_bytes(os.urandom(2), "big")  # seq-separate-flow-counter
         self.order = ds.Order(zero_is_newer="apply-duplicate-packets" in faults)
         self.answers = ds.AnswerCache()
         self.flow: dict[int, FlowRequest] = {}
-        self.rid = 1
-        self.last_heartbeat = 0.0
-        self.clock = ds.Clock(model.time_precision if model else 0.0)
-        self.dropped = 0
+        self.rid = int.from_bytes(os.urandom(2), "big")
+        self.clock = ds.Clock(model.time_precision)
 
     # ---- plumbing ---------------------------------------------------------------------------
 
     def log(self, what: str, always: bool = False) -> None:
         if self.verbose or always:
             print(f"{time.strftime('%H:%M:%S')} {what}", file=sys.stderr, flush=True)
+
+    def poke(self) -> None:
+        self.wake.set()
 
     def _spawn(self, coro: Any) -> None:
         self.tasks.append(asyncio.get_running_loop().create_task(coro))
@@ -162,25 +167,30 @@ class Session:
         self.closed = True
         self.state = "closed"
         self.log(f"connection closed: {why}")
-        for _cseq, _method, fut, _on_ok in self.pending:
+        for _cseq, fut, _on_ok in self.pending:
             if not fut.done():
                 fut.set_exception(Closed(why))
         self.pending.clear()
-        for fr in self.flow.values():
-            if not fr.future.done():
-                fr.future.set_result(None)
         self.flow.clear()
         for acc in self.accesses.values():
-            self._stop_sender(acc)
+            _cancel(acc.sender)
+            _cancel(acc.beater)
         if self.writer is not None:
             self.writer.close()
         if self.udp is not None:
             self.udp.close()
         self.ended.set()
+        self.poke()
+
+    async def finish(self) -> None:
+        self.close("done")
+        for task in self.tasks:
+            task.cancel()
+        await asyncio.gather(*self.tasks, return_exceptions=True)
 
     async def open(self) -> None:
         reader, writer = await asyncio.wait_for(
-            asyncio.open_connection(self.url.host, self.url.port), 3.0
+            asyncio.open_connection(self.url.host, self.url.port), REQUEST_TIMEOUT
         )
         self.reader, self.writer = reader, writer
         self.server_ip = writer.get_extra_info("peername")[0]
@@ -230,6 +240,23 @@ class Session:
     def _session_field(self) -> list[tuple[str, str]]:
         return [("Session", self.sid)] if self.sid else []
 
+    async def wait(self, seconds: float, acc: Access | None = None) -> bool:
+        """Sleep, answering the server meanwhile; False as soon as the run must stop (the
+        session is ending, a signal) or the server STOPs `acc`."""
+        loop = asyncio.get_running_loop()
+        end = loop.time() + seconds
+        while not (self.interrupted() or (acc is not None and acc.stopped)):
+            left = end - loop.time()
+            if left <= 0:
+                return True
+            self.wake.clear()
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self.wake.wait(), left)
+        return False
+
+    def interrupted(self) -> bool:
+        return self.closed or self.state != "open" or self.stop.is_set()
+
     # ---- our requests -----------------------------------------------------------------------
 
     async def call(
@@ -239,14 +266,22 @@ class Session:
         fields: list[tuple[str, str]] | None = None,
         body: bytes = b"",
         on_ok: Callable[[Message], None] | None = None,
-        needed: bool = True,
     ) -> Message:
-        if self.closed or (self.state != "open" and method not in ("CONNECT", "BYE")):
+        """Send a request and wait for its answer; Closed when the connection is gone or the
+        answer does not come within 5 s (the connection is then closed)."""
+        after_bye = self.state == "closing" and "request-after-bye" in self.faults
+        if self.closed or not (
+            self.state == "open" or (self.state == "idle" and method == "CONNECT") or after_bye
+        ):
             raise Closed("no session")
         cseq = self.cseq
-        self.cseq += 1
+        if not (method == "WRITE" and "cseq-reused-after-write" in self.faults):
+            self.cseq += 1
         head = [("CSeq", str(cseq))]
-        if self.sid:
+        bare = method in ("GO", "PAUSE", "STOP") and "session-missing-on-stream-methods" in (
+            self.faults
+        )
+        if self.sid and not bare:
             head.append(("Session", self.sid))
         if method == "CONNECT":
             head.append(("User-Agent", USER_AGENT))
@@ -254,8 +289,10 @@ class Session:
         if body:
             head += [("Content-Type", wire.VALUES), ("Content-Length", str(len(body)))]
         fut: asyncio.Future[Message] = asyncio.get_running_loop().create_future()
-        self.pending.append((cseq, method, fut, on_ok or (lambda m: None)))
+        self.pending.append((cseq, fut, on_ok or (lambda m: None)))
         eol = "User-Agent" if "bare-lf-user-agent" in self.faults else ""
+        if method == "BYE":
+            self.state = "closing"  # BYE sent (D-RCTP-13)
         self._send(
             wire.build(f"{method} {wire.encode_path(target)} {wire.VERSION}", head, body, eol)
         )
@@ -264,19 +301,17 @@ class Session:
         try:
             msg = await asyncio.wait_for(asyncio.shield(fut), REQUEST_TIMEOUT)
         except TimeoutError:
-            self.close(f"no answer to {method} in {REQUEST_TIMEOUT} s")
+            fut.cancel()
+            self.close(f"no answer to {method} {target} in {REQUEST_TIMEOUT:g} s")
             raise Closed("no answer") from None
         self.log(f"<- {msg.status} {msg.reason} for {method} {target}")
-        if msg.status != 200 and needed:
-            self.refusals.append(f"{method} {target}: {msg.status} {msg.reason}")
-            self.log(f"{method} {target} refused: {msg.status} {msg.reason}", always=True)
         return msg
 
     def on_response(self, msg: Message) -> None:
         if not self.pending:
             self.close("a response to no request of ours")
             return
-        cseq, _method, fut, on_ok = self.pending[0]
+        cseq, fut, on_ok = self.pending[0]
         if "accept-any-cseq" not in self.faults and (
             msg.cseq() != cseq or msg.version != wire.VERSION
         ):
@@ -291,7 +326,6 @@ class Session:
     # ---- the server's requests --------------------------------------------------------------
 
     def on_request(self, msg: Message) -> None:
-        self.last_server_request = time.monotonic()
         self.log(f"<= {msg.summary()} (CSeq {msg.get('CSeq')})")
         if msg.method == "BYE" and "bye-unanswered" in self.faults:
             self.close("the server said BYE")
@@ -311,6 +345,7 @@ class Session:
             self.state = "closing"
             self.log(f"the server ended the session (Reason: {msg.get('Reason')})", always=True)
             self._spawn(self._close_after(BYE_WAIT, "the server's BYE answered"))
+            self.poke()
 
     def _check(self, msg: Message) -> tuple[int, list[tuple[str, str]]]:
         """The answer's status, the checks in D-RCTP-25's order."""
@@ -342,42 +377,46 @@ class Session:
             if acc is None or acc.state == "init":
                 return 455, []
             self._to_init(acc)
-            reason = msg.get("Reason")
-            self.log(f"the server stopped {path} (Reason: {reason})", always=reason == "timeout")
+            acc.stopped = True
+            self.poke()
+            self.log(f"the server stopped {path} (Reason: {msg.get('Reason')})", always=True)
             return 200, []
         if acc is None or acc.stream or acc.state != "playing":
             return 455, []
         return self._server_write(acc, msg), []
 
     def _server_write(self, acc: Access, msg: Message) -> int:
-        """A data-change event (D-RCTP-27): the values all applied, or 400."""
+        """A data-change event (D-RCTP-27): the values all taken, or an error status."""
         if msg.get("Content-Length") is None:
             return 411
         if (msg.get("Content-Type") or "").lower() != wire.VALUES:
             return 415
-        nodes = self._nodes(acc.node, msg.get("Nodes"))
+        nodes = self.nodes_field(acc.node, msg.get("Nodes"))
         if nodes is None:
             return 400
+        if "refused-push-taken" in self.faults:
+            with contextlib.suppress(BadValue):
+                raw = self.codec.decode(nodes, msg.body, ranged=False)
+                self.values.update((n.path, v) for n, v in zip(nodes, raw, strict=True))
         try:
-            values = decode_values(nodes, msg.body)
+            values = self.codec.decode(nodes, msg.body)
         except BadValue:
             return 400
         for node, value in zip(nodes, values, strict=True):
-            acc.values[node.name] = value
+            self.values[node.path] = value
         self.log(
             "event "
             + ", ".join(f"{n.path} = {text(v)}" for n, v in zip(nodes, values, strict=True))
         )
         return 200
 
-    def _nodes(self, access: Node, field_value: str | None) -> list[Node] | None:
+    def nodes_field(self, access: Node, field_value: str | None) -> list[Node] | None:
         """A Nodes field's data nodes of `access`, each once in canonical order (R-RCTP-30)."""
         if field_value is None:
             return None
         out: list[Node] = []
         for raw in field_value.split(","):
-            name = raw.strip(" \t")
-            segs = wire.decode_target("/" + name)
+            segs = wire.decode_target("/" + raw.strip(" \t"))
             if not segs or len(segs) != 1 or not is_xml_name(segs[0]):
                 return None
             node = access.children.get(segs[0])
@@ -405,97 +444,48 @@ class Session:
             self.sid, self.timeout = m.group(1), int(m.group(2) or 60)
             self.state = "open"
 
-        msg = await self.call("CONNECT", self.url.path, on_ok=opened)
+        target = "/" if "connect-to-root" in self.faults else self.url.path
+        msg = await self.call("CONNECT", target, on_ok=opened)
         if msg.status == 200 and self.state == "open":
             self.log(f"session {self.sid}, timeout {self.timeout} s")
             return True
+        self.log(f"CONNECT {self.url.path}: {msg.status} {msg.reason}", always=True)
         return False
 
     async def bye(self) -> None:
+        """BYE, then close once it is answered (or after 5 s without an answer)."""
         if self.closed or self.state != "open":
             return
-        self.state = "closing"  # BYE sent (D-RCTP-13)
-        with contextlib.suppress(TimeoutError, Closed):
-            await asyncio.wait_for(self.call("BYE", "*", needed=False), BYE_WAIT)
+        with contextlib.suppress(Closed):
+            await self.call("BYE", "*")
+        if "request-after-bye" in self.faults:
+            with contextlib.suppress(Closed):
+                await self.call("RELEASE", "*")
         if "bye-not-closed" in self.faults:
             await self._close_after(30.0, "the server kept the connection open")
         self.close("BYE")
 
     async def _refresh(self) -> None:
         with contextlib.suppress(Closed):
-            await self.call("CONNECT", self.url.path, needed=False)
-
-    def _check_stop(self) -> None:
-        if self.stop.is_set():
-            raise Stopping
-        if self.closed or self.state != "open":
-            raise Closed("the session ended")
-
-    async def watch(self, idle: float, at_most: float = 30.0) -> None:
-        """Answer the server until it has been quiet for `idle` seconds."""
-        start = time.monotonic()
-        while not self.closed and not self.stop.is_set():
-            now = time.monotonic()
-            if now - max(start, self.last_server_request) >= idle or now - start >= at_most:
-                return
-            with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(self.ended.wait(), 0.05)
-
-    # ---- the privilege and the values --------------------------------------------------------
-
-    async def acquire(self, path: str) -> bool:
-        if any(path == h or path.startswith(h.rstrip("/") + "/") for h in self.held):
-            return True
-        msg = await self.call("ACQUIRE", path)
-        if msg.status == 200:
-            self.held.append(path)
-        return msg.status == 200
-
-    async def read(self, node: Node) -> list[tuple[Node, Any]]:
-        msg = await self.call("READ", node.path)
-        if msg.status != 200:
-            return []
-        if node.kind == "data":
-            nodes: list[Node] | None = [node]
-        else:
-            nodes = self._nodes(node, msg.get("Nodes"))
-        try:
-            if nodes is None:
-                raise BadValue("no usable Nodes field")
-            values = decode_values(nodes, msg.body)
-        except BadValue as e:
-            self.refusals.append(f"READ {node.path}: a body that does not decode ({e})")
-            return []
-        for n, v in zip(nodes, values, strict=True):
-            self.log(f"  {n.path} = {text(v)}")
-        return list(zip(nodes, values, strict=True))
-
-    async def write(self, node: Node, known: dict[str, Any]) -> None:
-        if node.kind == "data":
-            nodes, fields = [node], []
-        else:
-            nodes = node.data_nodes("w")
-            if "nodes-document-order" in self.faults:
-                nodes.sort(key=lambda n: n.doc_index)
-            names = ", ".join(wire.encode_segment(n.name) for n in nodes)
-            fields = [("Nodes", names)]
-        values = [known.get(n.path, neutral(n)) for n in nodes]
-        body = encode_values(nodes, values, "int16-little-endian" in self.faults)
-        await self.call("WRITE", node.path, fields, body)
+            await self.call("CONNECT", self.url.path)
 
     # ---- event and stream accesses ----------------------------------------------------------
 
     def _to_init(self, acc: Access) -> None:
         acc.state = "init"
-        self._stop_sender(acc)
-
-    def _stop_sender(self, acc: Access) -> None:
-        if acc.sender is not None:
-            acc.sender.cancel()
+        _cancel(acc.beater)
+        acc.beater = None
+        if "data-after-stop" not in self.faults:
+            _cancel(acc.sender)
             acc.sender = None
+
+    def _start_sender(self, acc: Access) -> None:
+        if acc.stream and acc.writes and acc.sender is None and not self.closed:
+            acc.sender = asyncio.get_running_loop().create_task(self._sender(acc))
 
     async def setup(self, node: Node, mode: str = "") -> Access | None:
         acc = self.accesses.setdefault(node.path, Access(node))
+        acc.stopped, acc.usable = False, True
         fields = []
         if node.atype == "stream":
             if self.udp is None:
@@ -503,24 +493,27 @@ class Session:
             fields = [("Transport", f"udp;client_port={self.udp_port};mode={mode}")]
 
         def ready(msg: Message) -> None:
-            if node.atype == "stream" and not self._transport(acc, mode, msg.get("Transport")):
-                self.log(f"SETUP {node.path}: unusable Transport {msg.get('Transport')!r}", True)
-                acc.state = "ready"
-                acc.mode = ""
-                return
             acc.state = "ready"
+            if node.atype != "stream":
+                return
+            if not self._transport(acc, mode, msg.get("Transport")):
+                self.log(f"SETUP {node.path}: unusable Transport {msg.get('Transport')!r}", True)
+                acc.usable = False
+            elif "data-at-setup" in self.faults:
+                self._start_sender(acc)
 
         msg = await self.call("SETUP", node.path, fields, on_ok=ready)
-        return acc if msg.status == 200 else None
+        return acc if msg.status == 200 and acc.usable else None
 
     def _transport(self, acc: Access, mode: str, value: str | None) -> bool:
-        params: dict[str, str] = {}
+        """The answer's Transport, its tokens in any letter case (D-RCTP-30)."""
         parts = (value or "").split(";")
-        if parts[0].strip() != "udp":
+        if parts[0].strip().lower() != "udp":
             return False
+        params: dict[str, str] = {}
         for part in parts[1:]:
             key, _, val = part.strip().partition("=")
-            params[key] = val
+            params[key.lower()] = val
         try:
             port, sid = int(params["server_port"]), int(params["stream"])
             if not re.fullmatch(r"[0-9A-Fa-f]{8}", params["tag"]) or not 1 <= port <= 65535:
@@ -529,9 +522,12 @@ class Session:
                 return False
         except (KeyError, ValueError):
             return False
+        answered = params.get("mode", mode).lower()
+        if answered not in ("read", "write", "both"):
+            return False
         self.tag, self.server_port = int(params["tag"], 16), port
         first = acc.stream_id == 0
-        acc.stream_id, acc.mode = sid, params.get("mode", mode)
+        acc.stream_id, acc.mode = sid, answered
         node = acc.node
         acc.reads = node.data_nodes("r") if acc.mode in ("read", "both") else []
         acc.writes = node.data_nodes("w") if acc.mode in ("write", "both") else []
@@ -547,17 +543,22 @@ class Session:
             acc.state = "playing"
             acc.last_data = time.monotonic()
             acc.lost = False
-            if acc.stream and acc.writes and acc.sender is None and acc.write_interval > 0:
-                acc.sender = asyncio.get_running_loop().create_task(self._sender(acc))
-            self.last_heartbeat = 0.0
+            if not acc.stream:
+                return
+            self._start_sender(acc)  # DATA at once, then every write interval
+            if acc.beater is None and "no-heartbeats" not in self.faults:
+                acc.beater = asyncio.get_running_loop().create_task(self._beater())
 
         return (await self.call("GO", acc.node.path, on_ok=playing)).status == 200
 
     async def pause(self, acc: Access) -> None:
         def paused(_msg: Message) -> None:
             acc.state = "ready"
+            _cancel(acc.beater)
+            acc.beater = None
             if "data-after-pause" not in self.faults:
-                self._stop_sender(acc)
+                _cancel(acc.sender)
+                acc.sender = None
 
         await self.call("PAUSE", acc.node.path, on_ok=paused)
 
@@ -576,30 +577,58 @@ class Session:
         self.udp = transport
         self.udp_port = transport.get_extra_info("sockname")[1]
 
-    def _send_packet(self, payloads: list[tuple[int, int, bytes]]) -> None:
+    def _send_packet(self, payloads: list[tuple[int, int, bytes]], flow: bool = False) -> None:
         if self.udp is None or self.tag is None or self.closed:
             return
-        ts = ds.ntp_now()
-        self.udp.sendto(
-            ds.build_packet(self.seq, self.tag, ts, payloads), (self.server_ip, self.server_port)
+        if flow and "seq-separate-flow-counter" in self.faults:
+            seq, self.flow_seq = self.flow_seq, (self.flow_seq + 1) % 65536
+        else:
+            seq, self.seq = self.seq, (self.seq + 1) % 65536
+        packet = ds.build_packet(
+            seq,
+            self.tag,
+            ds.ntp_now("packet-timestamp-unix" in self.faults),
+            payloads,
+            version=1 if "packet-version-1" in self.faults else ds.VERSION,
+            tag_le="tag-little-endian" in self.faults,
         )
-        self.seq = (self.seq + 1) % 65536
+        self.udp.sendto(packet, (self.server_ip, self.server_port))
         self.last_sent = time.monotonic()
+
+    def _payload(self, acc: Access) -> bytes:
+        """D-RCTP-31 step 6: each writable node gets the newest value applied of the readable
+        node of the same name, else its zero value (D-RCTP-20: canonical order)."""
+        nodes = list(acc.writes)
+        if "stream-document-order" in self.faults:
+            nodes.sort(key=lambda n: n.doc_index)
+        values = [acc.values.get(n.name, zero(n)) for n in nodes]
+        return self.codec.encode(nodes, values)
 
     async def _sender(self, acc: Access) -> None:
         """DATA of a writing stream once per write interval while it plays (R-RCTP-44)."""
         loop = asyncio.get_running_loop()
         due = loop.time()
-        le16 = "int16-little-endian" in self.faults
         while not self.closed:
-            values = [acc.values.get(n.name, neutral(n)) for n in acc.writes]
-            self._send_packet([(ds.DATA, acc.stream_id, encode_values(acc.writes, values, le16))])
-            interval = max(acc.write_interval, 1000) / 1e6
+            self._send_packet([(ds.DATA, acc.stream_id, self._payload(acc))])
+            every = acc.write_interval
+            if "data-at-read-interval" in self.faults and acc.read_interval:
+                every = acc.read_interval
+            interval = max(every, 1000) / 1e6
             due += interval
             now = loop.time()
             if due < now - interval:
                 due = now
             await asyncio.sleep(max(0.0, due - now))
+
+    async def _beater(self) -> None:
+        """A heartbeat at once, then every second, while the stream plays (D-RCTP-31)."""
+        while not self.closed:
+            rid = self.rid
+            self.rid = (self.rid + 1) % 65536
+            body = ds.flow_body(ds.REQUEST, ds.HEARTBEAT, rid, struct.pack("!Q", ds.ntp_now()))
+            self.flow[rid] = FlowRequest(0, ds.HEARTBEAT, body, due=time.monotonic() + FLOW_RETRY)
+            self._send_packet([(ds.FLOW, 0, body)], flow=True)
+            await asyncio.sleep(HEARTBEAT_EVERY)
 
     def on_datagram(self, data: bytes, addr: Any) -> None:
         t2 = ds.ntp_now("heartbeat-unix-epoch" in self.faults)
@@ -607,23 +636,21 @@ class Session:
             return
         checks = "tag-not-checked" not in self.faults
         if checks and (addr[0] != self.server_ip or addr[1] != self.server_port):
-            self.dropped += 1
             return
         packet = ds.parse_packet(data)
         if packet is None or (checks and packet.tag != self.tag):
-            self.dropped += 1
-            return
+            return  # dropped unread (R-RCTP-42)
         newer = self.order.newer(packet.seq)
         answers = []
         for ptype, sid, body in packet.payloads:
-            if ptype == ds.DATA and newer:
+            if ptype == ds.DATA and (newer or "apply-stale-packets" in self.faults):
                 self._on_data(sid, body)
             elif ptype == ds.FLOW:
                 answer = self._on_flow(sid, body, t2)
                 if answer is not None:
                     answers.append(answer)
         if answers:
-            self._send_packet(answers)
+            self._send_packet(answers, flow=True)
 
     def _by_stream(self, sid: int) -> Access | None:
         for acc in self.accesses.values():
@@ -636,7 +663,8 @@ class Session:
         if acc is None or not acc.reads:
             return
         try:
-            values = decode_values(acc.reads, body)
+            ranged = "data-range-unchecked" not in self.faults
+            values = self.codec.decode(acc.reads, body, ranged)
         except BadValue:
             return  # never apply part of a payload (R-RCTP-58)
         for node, value in zip(acc.reads, values, strict=True):
@@ -664,6 +692,8 @@ class Session:
 
     def _answer_flow(self, sid: int, op: int, rid: int, fields: bytes, t2: int) -> bytes:
         """ACK or NACK of the server's FLOW request (D-RCTP-22, R-RCTP-46, R-RCTP-53)."""
+        if "flow-ack-wrong-id" in self.faults:
+            rid = self.rid
         if op not in (1, 2, 3, 4, 5):
             reason = ds.MALFORMED if "unknown-op-nack-5" in self.faults else ds.UNKNOWN_OP
             return ds.nack(op, rid, reason)
@@ -692,11 +722,14 @@ class Session:
             if op == ds.SET_INTERVAL:
                 if value < ds.micros(acc.node.timing.get("writeInterval", 0.0)):
                     return ds.nack(op, rid, ds.REFUSED)
-                acc.write_interval = value
+                if "write-interval-not-applied" not in self.faults:
+                    acc.write_interval = value
             else:
                 if value < 2 * acc.read_interval:
                     return ds.nack(op, rid, ds.REFUSED)
                 acc.read_timeout = value
+        if "flow-ack-no-direction" in self.faults:
+            return ds.flow_body(ds.ACK, op, rid, struct.pack("!I", value))
         return ds.flow_body(ds.ACK, op, rid, struct.pack("!BI", direction, value))
 
     def _on_flow_answer(self, message: int, op: int, rid: int, fields: bytes) -> None:
@@ -706,6 +739,7 @@ class Session:
         if message == ds.NACK:
             if len(fields) != 1:
                 return
+            self.log(f"FLOW request {rid} (operation {op}) refused: NACK {fields[0]}")
         elif op == ds.HEARTBEAT:
             if len(fields) != 24 or fields[:8] != request.body[4:12]:
                 return
@@ -715,121 +749,32 @@ class Session:
         elif len(fields) != 5:
             return
         del self.flow[rid]
-        if not request.future.done():
-            request.future.set_result((message, fields))
-
-    def flow_request(self, sid: int, op: int, fields: bytes) -> asyncio.Future[Any]:
-        rid = self.rid
-        self.rid = (self.rid + 1) % 65536
-        body = ds.flow_body(ds.REQUEST, op, rid, fields)
-        fut: asyncio.Future[tuple[int, bytes] | None]
-        fut = asyncio.get_running_loop().create_future()
-        self.flow[rid] = FlowRequest(sid, op, body, fut, due=time.monotonic() + 0.25)
-        self._send_packet([(ds.FLOW, sid, body)])
-        return fut
-
-    def _heartbeat(self) -> None:
-        self.last_heartbeat = time.monotonic()
-        self.flow_request(0, ds.HEARTBEAT, struct.pack("!Q", ds.ntp_now()))
 
     async def _housekeeping(self) -> None:
-        """Retransmit FLOW requests, send heartbeats, watch receive timeouts, keep alive."""
+        """Retransmit FLOW requests, watch receive timeouts, keep the session alive."""
         while not self.closed:
             await asyncio.sleep(0.05)
             now = time.monotonic()
             for rid, request in list(self.flow.items()):
                 if now < request.due:
                     continue
-                if request.sends >= 5:  # D-RCTP-22: five sends, then no answer
+                if request.sends >= FLOW_SENDS:  # D-RCTP-22: five sends, then no answer
                     del self.flow[rid]
-                    request.future.set_result(None)
                     continue
                 request.sends += 1
-                request.due = now + 0.25
-                self._send_packet([(ds.FLOW, request.sid, request.body)])
-            playing = [a for a in self.accesses.values() if a.stream and a.state == "playing"]
-            if playing and self.tag is not None and now - self.last_heartbeat >= HEARTBEAT_EVERY:
-                self._heartbeat()
-            for acc in playing:
-                if acc.reads and not acc.lost and now - acc.last_data > acc.read_timeout / 1e6:
+                request.due = now + FLOW_RETRY
+                self._send_packet([(ds.FLOW, request.sid, request.body)], flow=True)
+            for acc in self.accesses.values():
+                if not (acc.stream and acc.state == "playing" and acc.reads and not acc.lost):
+                    continue
+                if now - acc.last_data > acc.read_timeout / 1e6:
                     acc.lost = True  # D-RCTP-23: reported; the server will STOP it
                     self.log(f"stream {acc.node.path}: nothing for its read timeout", always=True)
-            if self.state == "open" and now - self.last_sent >= self.timeout / 3:
+            if self.state == "open" and now - self.last_sent >= self.timeout / 2:
                 self.last_sent = now
                 self._spawn(self._refresh())
 
-    # ---- the scenario -----------------------------------------------------------------------
 
-    async def run(self) -> bool:
-        """Connect, run the scenario, say BYE. True when nothing needed was refused."""
-        completed = False
-        try:
-            if not await self.connect():
-                return False
-            if self.model is None:
-                await self.watch(IDLE_WATCH)
-            else:
-                await self._robot()
-            completed = not self.closed and self.state == "open"
-        except Stopping:
-            completed = True
-        except Closed as e:
-            self.log(f"session ended early: {e}", always=True)
-        finally:
-            await self.bye()
-            self.close("done")
-            for task in self.tasks:
-                task.cancel()
-            await asyncio.gather(*self.tasks, return_exceptions=True)
-        return completed and not self.refusals
-
-    async def _robot(self) -> None:
-        assert self.model is not None
-        nodes = self.model.root.walk()
-        datas = [n for n in nodes if n.kind == "data" and n.parent and n.parent.atype == "normal"]
-        events = [n for n in nodes if n.kind == "access" and n.atype == "event"][:3]
-        streams = [n for n in nodes if n.kind == "access" and n.atype == "stream"][:2]
-        known: dict[str, Any] = {}
-        for node in [d for d in datas if d.readable][:8] + [e for e in events if e.data_nodes("r")]:
-            self._check_stop()
-            known.update((n.path, v) for n, v in await self.read(node))
-        writable = next((d for d in datas if d.writable), None)
-        for node in ([writable] if writable else []) + [e for e in events if e.data_nodes("w")]:
-            self._check_stop()
-            if await self.acquire(node.path):
-                await self.write(node, known)
-        playing: list[Access] = []
-        for node in [e for e in events if e.data_nodes("r")]:
-            self._check_stop()
-            acc = await self.setup(node)
-            if acc is not None and await self.go(acc):
-                playing.append(acc)
-                await self.read(node)  # GO sends nothing by itself (D-RCTP-27)
-        for node in streams:
-            self._check_stop()
-            reads = bool(node.data_nodes("r")) and "readInterval" in node.timing
-            writes = bool(node.data_nodes("w")) and "writeInterval" in node.timing
-            if writes and not await self.acquire(node.path):
-                writes = False
-            mode = "both" if reads and writes else "read" if reads else "write" if writes else ""
-            if not mode:
-                continue
-            acc = await self.setup(node, mode)
-            if acc is not None and acc.mode and await self.go(acc):
-                playing.append(acc)
-                direction = ds.READ_DIR if acc.reads else ds.WRITE_DIR
-                self.flow_request(acc.stream_id, ds.GET_INTERVAL, bytes([direction]))
-        await self.watch(self.play_time, self.play_time)
-        self._check_stop()
-        for acc in playing:
-            if acc.stream and acc.state == "playing":
-                await self.pause(acc)
-                self.log(f"stream {acc.node.path}: {acc.packets} DATA payloads received")
-            if acc.state != "init":
-                await self.stop_access(acc)
-        estimate = self.clock.estimate()
-        if estimate is not None:
-            self.log(f"robot clock offset {estimate[0]:+.6f} s ± {estimate[1]:.6f} s")
-        if self.held:
-            await self.call("RELEASE", "*")
-            self.held.clear()
+def _cancel(task: asyncio.Task[Any] | None) -> None:
+    if task is not None:
+        task.cancel()
