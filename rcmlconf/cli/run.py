@@ -30,7 +30,7 @@ from rcmlconf.cli.run_target import (
 )
 from rcmlconf.conformance.files import shown
 from rcmlconf.conformance.ics import EVERYTHING, Ics, load_ics
-from rcmlconf.conformance.probes.clients import ClientListener
+from rcmlconf.conformance.probes.clients import HARNESS_RCML, ClientListener
 from rcmlconf.conformance.probes.locals import LocalListener
 from rcmlconf.conformance.registry import SESSION_WAIT, Case, Role, all_cases
 from rcmlconf.conformance.reports.baseline import load_baseline, mark_known
@@ -38,12 +38,7 @@ from rcmlconf.conformance.reports.json_report import to_json
 from rcmlconf.conformance.reports.junit import to_junit
 from rcmlconf.conformance.reports.summary import counts, explain, new_failures, run_status
 from rcmlconf.conformance.runner import PARTLY, RunOptions, run_cases, under_test
-from rcmlconf.conformance.targets import (
-    REFERENCE_RCML,
-    Target,
-    embedded_reference,
-    quiet_reference_logs,
-)
+from rcmlconf.conformance.targets import Target, embedded_reference, quiet_reference_logs
 from rcmlconf.conformance.verdicts import Result, Verdict
 from rcmlconf.impair.spec import MOST_BURST, MOST_TIME, parse_impairment
 from rcmlconf.rcml.model import RcmlDocument
@@ -75,7 +70,8 @@ _STYLE = {
 @click.option(
     "--rcml",
     type=click.Path(exists=True, dir_okay=False, path_type=Path),
-    help="The RCML file of --target's robot: the cases pick its nodes from it.",
+    help="The RCML file of --target's robot: the cases pick its nodes from it. With --role"
+    " client: the robot the harness plays (default: its own, D-RCTP-31).",
 )
 @click.option(
     "--site",
@@ -279,8 +275,8 @@ def run(
     elif listen is not None and played is not None and role == "local":
         external = LocalTarget(listen, played, declared)
     elif listen is not None:
-        served = robot if robot is not None else load_robot(REFERENCE_RCML)
-        external = ClientTarget(listen, served, declared.features)
+        served = rcml if robot is not None and rcml is not None else HARNESS_RCML
+        external = ClientTarget(listen, robot or load_robot(served), served, declared.features)
     if external is None:
         quiet_reference_logs()
     started = time.time()
@@ -357,13 +353,11 @@ async def _target(
             await local.close()
         return
     if isinstance(external, ClientTarget):
-        listener = ClientListener()
+        listener = ClientListener(external.robot, external.rcml.read_bytes())
         await listener.start(*external.listen)
         try:
             host, port = listener.address
             yield Target(
-                robot=external.robot,
-                site_path=external.robot.site.path,
                 clients=listener,
                 features=external.features,
                 name=f"the client connecting to {host}:{port}",
@@ -424,6 +418,8 @@ class ClientTarget:
 
     listen: tuple[str, int]
     robot: RcmlDocument
+    #: The file the robot was read from, served to the client as D-RCTP-31's step 1 says.
+    rcml: Path
     features: frozenset[str]
 
 

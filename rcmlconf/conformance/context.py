@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, TypeVar
 
 from rcmlconf.conformance.probes.control import ControlProbe
-from rcmlconf.conformance.registry import SESSION_WAIT, Case
+from rcmlconf.conformance.registry import SESSION_WAIT, Case, Role
 from rcmlconf.conformance.targets import Target
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
@@ -135,7 +135,10 @@ class Context:
 
     @property
     def robot(self) -> RcmlDocument:
-        """The RCTP target's robot; not applicable without one."""
+        """The RCTP target's robot, or for a client case the robot the harness plays to the
+        client (D-RCTP-31); not applicable without one."""
+        if self.case.role is Role.CLIENT and self.target.clients is not None:
+            return self.target.clients.robot
         if self.target.robot is None:
             raise NotApplicable("the target's RCML is not known (give --rcml)")
         return self.target.robot
@@ -188,7 +191,7 @@ class Context:
         listener = self.target.clients
         if listener is None:
             raise NotApplicable("no RCTP client under test (--role client)")
-        probe = await listener.accept(self.transcript, self.wait)
+        probe = await listener.accept(self.case.id, self.transcript, self.wait)
         self._closers.append(probe.close)
         return probe
 

@@ -51,6 +51,15 @@ def under_test(case: Case, target: Target) -> bool:
     return target.server is not None
 
 
+def alone(case: Case, target: Target) -> bool:
+    """Whether the case runs in its role's lane, one after another (`Case.serial`). Client
+    cases run side by side when the harness starts the clients itself: each case has its own
+    URL, so each connection is its case's (D-RCTP-31)."""
+    if case.role is Role.CLIENT and target.clients is not None and target.clients.starts_clients:
+        return False
+    return case.serial
+
+
 def robot_pool(target: Target) -> asyncio.Queue[Address]:
     """The target's RSP robots, free for the taking (`Context.rsp`)."""
     pool: asyncio.Queue[Address] = asyncio.Queue()
@@ -177,6 +186,8 @@ async def run_cases(
         finally:
             if robot is not None:
                 robots.put_nowait(robot)
+            if case.role is Role.CLIENT and target.clients is not None:
+                target.clients.done(case.id)
         results.append(result)
         done(result)
 
@@ -188,14 +199,17 @@ async def run_cases(
     # connection), not with the rest: one lane a role, beside the concurrent cases.
     lanes: dict[Role, list[Case]] = {}
     for case in cases:
-        if case.serial:
+        if alone(case, target):
             lanes.setdefault(case.role, []).append(case)
+    if target.clients is not None:  # D-RCTP-31: the case URLs, in the order they run
+        target.clients.plan([c.id for c in cases if c.role is Role.CLIENT] * options.repeat)
     watch.start()
     try:
         for run in range(1, options.repeat + 1):
             # The longest first: a case that must wait out a protocol timer should not also
             # wait for a free slot (the suite takes as long as its slowest case at best).
-            longest_first = sorted((c for c in cases if not c.serial), key=lambda c: -c.timeout)
+            free = (c for c in cases if not alone(c, target))
+            longest_first = sorted(free, key=lambda c: -c.timeout)
             concurrent = [one(c, run) for c in longest_first]
             await asyncio.gather(*concurrent, *(lane(serial, run) for serial in lanes.values()))
     finally:

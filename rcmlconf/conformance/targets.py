@@ -3,7 +3,6 @@ implementation started when no target is named (the README's main job)."""
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
 import functools
 import logging
@@ -13,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from rcmlconf.conformance.probes.clients import ClientListener
+from rcmlconf.conformance.probes.clients import HARNESS_RCML, ClientListener
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.reference.faults import Fault
 from rcmlconf.rsp.codec import Encryption
@@ -91,7 +90,8 @@ async def embedded_reference(
         for _ in range(REFERENCE_RSP_ROBOTS)
     ]
     started: list[ReferenceRobot] = []
-    clients = ClientListener(summon=functools.partial(reference_client, robot))
+    played = load_robot(HARNESS_RCML)
+    clients = ClientListener(played, HARNESS_RCML.read_bytes(), summon=reference_client)
     local = LocalListener(model, psk, summon=functools.partial(reference_local, model, psk))
     await server.start()
     try:
@@ -128,24 +128,8 @@ def quiet_reference_logs() -> None:
     quiet.propagate = False
 
 
-#: How long a summoned reference client stays connected at most.
-CLIENT_LIFETIME = 30.0
+async def reference_client(url: str) -> None:
+    """One reference client's run of D-RCTP-31's scenario on a case's URL."""
+    from rcmlconf.reference.client.scenario import run_scenario
 
-
-async def reference_client(robot: RcmlDocument, address: Address) -> None:
-    """One reference client's session with the harness: CONNECT, answer what the server sends,
-    until the harness ends it (or CLIENT_LIFETIME)."""
-    from rcmlconf.rctp.url import RctpUrl
-    from rcmlconf.reference.client.adapter import Client, RctpError
-
-    url = RctpUrl(address[0], address[1], robot.site.path)
-    try:
-        client = await Client.connect(url, robot, timeout=CLIENT_LIFETIME)
-    except RctpError:
-        return  # the case answered CONNECT with something a client must refuse
-    try:
-        deadline = asyncio.get_running_loop().time() + CLIENT_LIFETIME
-        while client.closed is None and asyncio.get_running_loop().time() < deadline:
-            await client.next_event(timeout=deadline - asyncio.get_running_loop().time())
-    finally:
-        await client.close(timeout=1.0)
+    await run_scenario(url)

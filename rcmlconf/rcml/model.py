@@ -16,6 +16,7 @@ from typing import NamedTuple
 
 from rcmlconf.rctp.url import RctpUrl
 from rcmlconf.values import Value, ValueType, first_outside
+from rcmlconf.values.declared import zero_value
 
 
 class Permission(enum.Flag):
@@ -75,6 +76,10 @@ class DataNode(NamedTuple):
     maximum: int | float | None = None
     links: tuple[Link, ...] = ()
     meta: tuple[Meta, ...] = ()
+
+    def zero(self) -> Value:
+        """The node's zero value (D-RCTP-31): nearest 0 within its range, false, empty."""
+        return zero_value(self.type, self.minimum, self.maximum)
 
     def out_of_range(self, value: Value) -> str | None:
         """Why a value breaks `min`/`max` (D-RCML-12, every item of an array), or None."""

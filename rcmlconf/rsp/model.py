@@ -8,12 +8,12 @@ encodes them.
 from __future__ import annotations
 
 import enum
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-from rcmlconf.values import Kind, Scalar, Value, ValueType
+from rcmlconf.values import Value, ValueType
+from rcmlconf.values.declared import zero_value
 
 #: D-RSP-6: the paper's transmission period T; D-RSP-13: the range it may take, in seconds.
 DEFAULT_PERIOD = 0.02
@@ -87,19 +87,7 @@ class Field(NamedTuple):
     def zero(self) -> Value:
         """D-RSP-20's safe value: a number nearest 0 within the field's range (for
         `onLoss="zero"`, and before any value arrived), false, or empty text or bytes."""
-        kind = self.type.base.kind
-        item: Scalar
-        if kind is Kind.INTEGER or kind is Kind.FLOAT:
-            low = -math.inf if self.minimum is None else self.minimum
-            high = math.inf if self.maximum is None else self.maximum
-            nearest = min(max(0, low), high)
-            item = float(nearest) if kind is Kind.FLOAT else int(nearest)
-        else:
-            item = _BLANK[kind]
-        return tuple([item] * self.type.count) if self.type.is_array else item
-
-
-_BLANK: dict[Kind, Scalar] = {Kind.BOOL: False, Kind.STRING: "", Kind.BYTES: b""}
+        return zero_value(self.type, self.minimum, self.maximum)
 
 
 class Device(NamedTuple):

@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 from rcmlconf.errors import ValueTextError
 from rcmlconf.values.text import parse_value_text
-from rcmlconf.values.types import ValueType, lookup_type
+from rcmlconf.values.types import Kind, Scalar, Value, ValueType, lookup_type
 
 #: D-RCML-13: the largest encoding of one declared value.
 MAX_VALUE_BYTES = 1024 * 1024
@@ -107,3 +107,21 @@ def declared_bounds(
     if low is not None and high is not None and low > high:
         problems.append(Problem("R-RCML-20", f"min {low} is greater than max {high}", "min"))
     return low, high, tuple(problems)
+
+
+_BLANK: dict[Kind, Scalar] = {Kind.BOOL: False, Kind.STRING: "", Kind.BYTES: b""}
+
+
+def zero_value(vtype: ValueType, minimum: Number | None, maximum: Number | None) -> Value:
+    """A declared value's zero (D-RSP-20, D-RCTP-31): the number nearest 0 within its range,
+    false, or empty text or bytes; in every item of an array."""
+    kind = vtype.base.kind
+    item: Scalar
+    if kind is Kind.INTEGER or kind is Kind.FLOAT:
+        low = -math.inf if minimum is None else minimum
+        high = math.inf if maximum is None else maximum
+        nearest = min(max(0, low), high)
+        item = float(nearest) if kind is Kind.FLOAT else int(nearest)
+    else:
+        item = _BLANK[kind]
+    return tuple([item] * vtype.count) if vtype.is_array else item

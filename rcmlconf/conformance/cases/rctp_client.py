@@ -7,6 +7,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.clients import case_path
 from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.registry import CaseFunction, Role, case
 from rcmlconf.rcml.model import AccessType
@@ -15,10 +16,10 @@ from rcmlconf.rctp.targets import format_target
 
 
 def client_case(
-    id: str, purpose: str, requirements: list[str]
+    id: str, purpose: str, requirements: list[str], timeout: float = 5.0
 ) -> Callable[[CaseFunction], CaseFunction]:
     """A client case: one connection at a time, so never two at once."""
-    return case(id, purpose, requirements, role=Role.CLIENT, serial=True)
+    return case(id, purpose, requirements, role=Role.CLIENT, serial=True, timeout=timeout)
 
 
 async def answer_to(ctx: Context, probe: ControlProbe, data: bytes) -> Response:
@@ -35,12 +36,14 @@ def event_path(ctx: Context) -> str:
 @client_case(
     "rctp/client/connect-first",
     "The client's first request is CONNECT of the site path, RCTP/2.0, CSeq 1",
-    ["R-RCTP-2", "R-RCTP-4"],
+    ["R-RCTP-2", "R-RCTP-4", "R-RCTP-60"],
 )
 async def connect_first(ctx: Context) -> None:
     probe = await ctx.client()
     request = await probe.next_request(requirement="R-RCTP-4")
     ctx.expect(request.method == "CONNECT", "CONNECT", request.method, "R-RCTP-4")
+    site = case_path(ctx.case.id)  # D-RCTP-31: the case's URL is the site
+    ctx.expect(request.target == site, f"CONNECT {site}", f"CONNECT {request.target}", "R-RCTP-60")
     ctx.expect(request.version == "RCTP/2.0", "RCTP/2.0", request.version, "R-RCTP-2")
     cseq = request.headers.get("CSeq")
     ctx.expect(cseq == "1", "CSeq: 1", f"CSeq: {cseq}", "R-RCTP-4")
@@ -125,7 +128,11 @@ async def wrong_version(ctx: Context) -> None:
 async def missing_cseq(ctx: Context) -> None:
     probe, _ = await ctx.client_session()
     request = f"BYE * RCTP/2.0\r\nSession: {probe.session}\r\n\r\n".encode()
-    ctx.expect_status(await answer_to(ctx, probe, request), 400)
+    answer = await answer_to(ctx, probe, request)
+    ctx.expect_status(answer, 400)
+    # D-RCTP-10: there is no CSeq to echo; one would answer another request.
+    cseq = answer.headers.get("CSeq")
+    ctx.expect(cseq is None, "no CSeq: the request had none", f"CSeq: {cseq}", "R-RCTP-3")
 
 
 @client_case(
@@ -176,16 +183,37 @@ async def unknown_field(ctx: Context) -> None:
     ctx.expect_status(answer, 200)
 
 
-@client_case(
-    "rctp/client/unframeable-answer",
-    "The client closes the connection on an answer that cannot be framed",
-    ["R-RCTP-12"],
-)
-async def unframeable_answer(ctx: Context) -> None:
-    probe = await ctx.client()
-    await probe.next_request()
-    await probe.send(b"RCTP/2.0 two hundred OK\r\nCSeq: 1\r\n\r\n")
-    ctx.expect(await probe.closes(), "the connection closed", "it stayed open")
+#: Answers to CONNECT that cannot be framed (D-RCTP-4, D-RCTP-10), by case.
+_UNFRAMEABLE = {
+    "unframeable-answer": ("a status code in words", b"RCTP/2.0 two hundred OK\r\nCSeq: 1\r\n"),
+    "bare-lf-answer": ("lines ending in a bare LF", b"RCTP/2.0 200 OK\nCSeq: 1\nSession: {s}\n"),
+    "rtsp-answer": ("another protocol's status line", b"RTSP/1.0 200 OK\r\nCSeq: 1\r\n"),
+    "bad-length-answer": (
+        "a Content-Length that is not a number",
+        b"RCTP/2.0 200 OK\r\nCSeq: 1\r\nSession: {s}\r\nContent-Length: 1x\r\n",
+    ),
+    "chunked-answer": (
+        "Transfer-Encoding, which RCTP/2.0 does not use",
+        b"RCTP/2.0 200 OK\r\nCSeq: 1\r\nSession: {s}\r\nTransfer-Encoding: chunked\r\n",
+    ),
+}
+
+
+def _unframeable(name: str, what: str, head: bytes) -> None:
+    @client_case(
+        f"rctp/client/{name}",
+        f"The client closes the connection on an answer to CONNECT with {what}",
+        ["R-RCTP-12"],
+    )
+    async def closes(ctx: Context) -> None:
+        probe = await ctx.client()
+        await probe.next_request()
+        await probe.send(head.replace(b"{s}", b"frame0123456789;timeout=60") + b"\r\n")
+        ctx.expect(await probe.closes(), "the connection closed", "it stayed open")
+
+
+for _name, (_what, _head) in _UNFRAMEABLE.items():
+    _unframeable(_name, _what, _head)
 
 
 @client_case(

@@ -1,34 +1,146 @@
 """Where RCTP/2.0 clients under test connect (`--role client --listen PORT`): the harness plays
-the server, as Autobahn's fuzzing server does. Each client case takes the next connection; a
-client under test is expected to connect again after each one ends. The embedded reference has
-a `summon` that starts one reference client whenever a case waits for a connection."""
+the server of its robot, as Autobahn's fuzzing server does, and each client case is one run of
+D-RCTP-31's scenario.
+
+Each case has its own URL, `rctp://HOST:PORT/<case id>`, and its own files at
+`http://HOST:PORT+1/<case id>/` (D-RCTP-29 with the case's path): the robot's RCML, whose `site` is
+the case's URL, and whatever else the case serves. A connection belongs to the case its CONNECT
+names, so a late client never lands in the next case; one whose first request names no case (a
+client that breaks the grammar, or CONNECTs elsewhere) is the running case's, whose checks then
+say so. `/cases` lists the URLs in the order the cases run, for a client that loops over them
+itself. The embedded reference has a `summon` that starts one reference client on the case's URL
+whenever a case waits for a connection.
+"""
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
-from collections.abc import Awaitable, Callable
+import re
+from collections import Counter
+from collections.abc import Awaitable, Callable, Sequence
+from pathlib import Path
+from urllib.parse import quote, unquote
 
 from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Inconclusive
+from rcmlconf.rcml.model import RcmlDocument
+from rcmlconf.rctp.url import http_base
+from rcmlconf.reference.server.files import INDEX_TYPE, XML_TYPE, Document, FileServer, index_page
 
-Summon = Callable[[Address], Awaitable[None]]
+Summon = Callable[[str], Awaitable[None]]
+
+#: The robot the harness plays to clients (D-RCTP-31's last paragraph).
+HARNESS_RCML = Path(__file__).resolve().parent.parent / "robot" / "harness.rcml"
+#: D-RCTP-31: the case URLs, one per line, in the order the cases run.
+CASE_LIST = "/cases"
+#: The name of the robot's RCML among a case's files.
+RCML_NAME = "harness.rcml"
+#: How long a new connection has to send the head of its first request before it is given to
+#: the case running, unread: a client that sends nothing is that case's to judge.
+FIRST_REQUEST_WAIT = 2.0
+#: The head of a first request, at most (D-RCTP-9's header section).
+MAX_HEAD = 16384
+#: Connections (and file requests) waiting for a case not yet reached, at most; more are closed.
+MAX_WAITING = 16
+#: How long a file request for a case not yet reached waits for it.
+FILES_WAIT = 60.0
+_SITE = re.compile(rb"""\bsite\s*=\s*("[^"]*"|'[^']*')""")
+
+_Accepted = tuple[asyncio.StreamReader, asyncio.StreamWriter, bytes]
+
+
+def case_path(case_id: str) -> str:
+    """The path of a case's URL (D-RCTP-31): `/` and the case's ID, percent-encoded."""
+    return "/" + quote(case_id, safe="/")
 
 
 class ClientListener:
-    def __init__(self, summon: Summon | None = None) -> None:
+    def __init__(self, robot: RcmlDocument, rcml: bytes, summon: Summon | None = None) -> None:
+        #: The robot the harness plays, and its RCML as written: each case's copy names the
+        #: case's URL as `site`.
+        self.robot = robot
+        self._rcml = rcml
         self._summon = summon
-        self._accepted: asyncio.Queue[tuple[asyncio.StreamReader, asyncio.StreamWriter]]
-        self._accepted = asyncio.Queue()
         self._server: asyncio.Server | None = None
+        self._files: asyncio.Server | None = None
+        self._planned: Counter[str] = Counter()
+        self._order: list[str] = []
+        self._running: str | None = None
+        self._reached: dict[str, asyncio.Event] = {}
+        self._queues: dict[str, asyncio.Queue[_Accepted]] = {}
+        self._own_files: dict[str, dict[str, bytes]] = {}
+        self._fetched: dict[str, list[str]] = {}
+        self._waiting = 0
         self._tasks: set[asyncio.Task[None]] = set()
 
-    async def start(self, host: str, port: int) -> None:
-        def accepted(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-            self._accepted.put_nowait((reader, writer))
+    @property
+    def starts_clients(self) -> bool:
+        """Whether the harness starts a client for each case (so cases may run at once)."""
+        return self._summon is not None
 
-        self._server = await asyncio.start_server(accepted, host, port)
+    # -- the run's plan ------------------------------------------------------------------------
+
+    def plan(self, case_ids: Sequence[str]) -> None:
+        """The client cases of the run, in the order they run (repeats included)."""
+        self._order = list(dict.fromkeys(case_ids))
+        self._planned = Counter(case_ids)
+        for case_id in self._order:
+            self._reached.setdefault(case_id, asyncio.Event())
+            self._queues.setdefault(case_id, asyncio.Queue())
+
+    def url(self, case_id: str) -> str:
+        host, port = self.address
+        shown = f"[{host}]" if ":" in host else host
+        return f"rctp://{shown}:{port}{case_path(case_id)}"
+
+    def files_url(self, case_id: str) -> str:
+        host, port = self.address
+        return f"{http_base(host, port + 1)}{case_path(case_id)}/"
+
+    def serve(self, case_id: str, name: str, data: bytes) -> None:
+        """A file of the case's own, at `name` among its files (before the case waits for its
+        client); `RCML_NAME` replaces the robot's RCML."""
+        self._own_files.setdefault(case_id, {})[name] = data
+
+    def fetched(self, case_id: str) -> list[str]:
+        """The paths of the case's files the client asked for, in order."""
+        return list(self._fetched.get(case_id, ()))
+
+    def done(self, case_id: str) -> None:
+        """The case has ended: its connections still waiting are closed, and once its last run
+        has ended a CONNECT that names it is answered 404 (D-RCTP-31)."""
+        self._planned[case_id] -= 1
+        if self._running == case_id:
+            self._running = None
+        queue = self._queues.get(case_id)
+        while queue is not None and not queue.empty():
+            _, writer, _ = queue.get_nowait()
+            self._waiting -= 1
+            writer.close()
+        if self._planned[case_id] > 0:
+            self._reached[case_id] = asyncio.Event()
+
+    # -- sockets -------------------------------------------------------------------------------
+
+    async def start(self, host: str, port: int) -> None:
+        """Listen on `port` (RCTP) and the port after it (the files, D-RCTP-29); port 0 picks a
+        free pair."""
+        for _ in range(20 if port == 0 else 1):
+            self._server = await asyncio.start_server(self._accepted, host, port)
+            rctp_port = self._server.sockets[0].getsockname()[1]
+            try:
+                files = _CaseFiles(self)
+                self._files = await asyncio.start_server(files.handle, host, rctp_port + 1)
+                return
+            except OSError:
+                self._server.close()
+                await self._server.wait_closed()
+                self._server = None
+                if port != 0:
+                    raise
+        raise OSError("no free pair of ports for the client role's RCTP and files")
 
     @property
     def address(self) -> Address:
@@ -36,21 +148,95 @@ class ClientListener:
         host, port = self._server.sockets[0].getsockname()[:2]
         return host, port
 
-    async def accept(self, transcript: Transcript, wait: float) -> ControlProbe:
-        """The next client's connection; inconclusive if none comes within `wait`."""
-        if self._summon is not None and self._accepted.empty():
-            task = asyncio.ensure_future(self._summon(self.address))
-            self._tasks.add(task)
-            task.add_done_callback(self._tasks.discard)
+    def _accepted(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        self._spawn(self._route(reader, writer))
+
+    def _spawn(self, work: Awaitable[None]) -> None:
+        task = asyncio.ensure_future(work)
+        self._tasks.add(task)
+        task.add_done_callback(self._tasks.discard)
+
+    async def _route(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        """Give the connection to the case its first request names."""
+        head = await _first_head(reader)
+        named = _connect_target(head)
+        case_id = named if named in self._reached else None
+        if case_id is None:
+            case_id = self._running or next((c for c in self._order if self._planned[c]), None)
+        if case_id is None or self._planned[case_id] <= 0 or self._waiting >= MAX_WAITING:
+            if case_id is not None and self._planned[case_id] <= 0:
+                writer.write(_not_found(head))
+                with contextlib.suppress(OSError):
+                    await writer.drain()
+            writer.close()
+            return
+        self._waiting += 1
+        self._queues[case_id].put_nowait((reader, writer, head))
+
+    async def accept(self, case_id: str, transcript: Transcript, wait: float) -> ControlProbe:
+        """The case's next connection; inconclusive if none comes within `wait`."""
+        self._running = case_id
+        self._reached.setdefault(case_id, asyncio.Event()).set()
+        queue = self._queues.setdefault(case_id, asyncio.Queue())
+        if self._summon is not None and queue.empty():
+            self._spawn(self._summon(self.url(case_id)))
         try:
-            reader, writer = await asyncio.wait_for(self._accepted.get(), wait)
+            reader, writer, head = await asyncio.wait_for(queue.get(), wait)
         except TimeoutError:
-            host, port = self.address
-            raise Inconclusive(f"no client connected to {host}:{port} within {wait:g} s") from None
+            raise Inconclusive(
+                f"no client connected for {self.url(case_id)} within {wait:g} s"
+            ) from None
+        self._waiting -= 1
         probe = ControlProbe(reader, writer, transcript, wait).serving()
         peer = probe.peer
         transcript.note(f"{probe.name} a client connected from {peer[0]}:{peer[1]}")
+        probe.already_read(head)
         return probe
+
+    # -- the files -----------------------------------------------------------------------------
+
+    def case_files(self, case_id: str) -> dict[str, bytes]:
+        """The case's files by name: the robot's RCML naming the case's URL, and its own."""
+        site = f'site="{self.url(case_id)}"'.encode()
+        files = {RCML_NAME: _SITE.sub(lambda _: site, self._rcml, count=1)}
+        files.update(self._own_files.get(case_id, {}))
+        return files
+
+    def case_of(self, path: str) -> str | None:
+        """The case whose files `path` names."""
+        for case_id in self._order:
+            if path.startswith(case_path(case_id) + "/"):
+                return case_id
+        return None
+
+    async def file(self, path: str) -> tuple[int, bytes, str]:
+        """What a GET of `path` on the files port gets."""
+        if path == CASE_LIST:
+            urls = "".join(f"{self.url(c)}\n" for c in self._order)
+            return 200, urls.encode(), "text/plain; charset=utf-8"
+        case_id = self.case_of(path)
+        if case_id is None:
+            return 404, b"no case of this run has files there\n", "text/plain"
+        self._fetched.setdefault(case_id, []).append(path)
+        reached = self._reached[case_id]
+        if not reached.is_set():  # the case's own files are set when it starts: wait for it
+            if self._waiting >= MAX_WAITING:
+                return 503, b"too many requests waiting for their case\n", "text/plain"
+            self._waiting += 1
+            try:
+                await asyncio.wait_for(reached.wait(), FILES_WAIT)
+            except TimeoutError:
+                return 503, b"the case did not start in time\n", "text/plain"
+            finally:
+                self._waiting -= 1
+        files = self.case_files(case_id)
+        name = unquote(path[len(case_path(case_id)) + 1 :])
+        if not name:
+            listed = {quote(n): Document(n, data) for n, data in files.items()}
+            return 200, index_page(case_id, listed), INDEX_TYPE
+        if name in files:
+            return 200, files[name], XML_TYPE
+        return 404, b"not one of this case's files\n", "text/plain"
 
     async def close(self) -> None:
         for task in list(self._tasks):
@@ -58,9 +244,53 @@ class ClientListener:
         for task in list(self._tasks):
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await task
-        while not self._accepted.empty():
-            _, writer = self._accepted.get_nowait()
-            writer.close()
-        if self._server is not None:
-            self._server.close()
-            await self._server.wait_closed()
+        for queue in self._queues.values():
+            while not queue.empty():
+                _, writer, _ = queue.get_nowait()
+                writer.close()
+        for server in (self._server, self._files):
+            if server is not None:
+                server.close()
+                await server.wait_closed()
+
+
+class _CaseFiles(FileServer):
+    """The files port of the client role: each case's files under its path, and `/cases`."""
+
+    def __init__(self, listener: ClientListener) -> None:
+        super().__init__("rcmlconf's client cases", {})
+        self._listener = listener
+
+    async def find(self, path: str) -> tuple[int, bytes, str]:
+        return await self._listener.file(path)
+
+
+async def _first_head(reader: asyncio.StreamReader) -> bytes:
+    """What the connection sends until the end of its first head (bounded in time and size)."""
+    head = b""
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + FIRST_REQUEST_WAIT
+    while b"\r\n\r\n" not in head and len(head) < MAX_HEAD:
+        try:
+            data = await asyncio.wait_for(reader.read(MAX_HEAD), deadline - loop.time())
+        except (TimeoutError, OSError):
+            break
+        if not data:
+            break
+        head += data
+    return head
+
+
+def _connect_target(head: bytes) -> str | None:
+    """The case a first request's CONNECT names (its target, percent-decoded, less the `/`)."""
+    words = head.split(b"\r\n", 1)[0].split(b" ")
+    if len(words) != 3 or words[0] != b"CONNECT" or not words[1].startswith(b"/"):
+        return None
+    return unquote(words[1].decode("ascii", "replace"))[1:]
+
+
+def _not_found(head: bytes) -> bytes:
+    """404 to a CONNECT of a case already run, with its CSeq (D-RCTP-31)."""
+    found = re.search(rb"\r\nCSeq:[ \t]*(\d{1,9})[ \t]*\r\n", head, re.IGNORECASE)
+    cseq = found.group(1).decode() if found else "1"
+    return f"RCTP/2.0 404 Not Found\r\nCSeq: {cseq}\r\n\r\n".encode()

@@ -133,16 +133,32 @@ class ControlProbe:
         await self.send(self.response_bytes(request, status, reason, fields))
 
     def response_bytes(
-        self, request: Request, status: int = 200, reason: str = "OK", fields: Fields = ()
+        self,
+        request: Request,
+        status: int = 200,
+        reason: str = "OK",
+        fields: Fields = (),
+        body: bytes = b"",
     ) -> bytes:
+        """An answer to `request` with its CSeq, the session if open, and `body` (framed by
+        Content-Length; `fields` give its Content-Type)."""
         lines = [f"RCTP/2.0 {status} {reason}", f"CSeq: {request.headers.get('CSeq')}"]
         names = {name.lower() for name, _ in fields}
         if self.session is not None and "session" not in names:
             lines.append(f"Session: {self.session}")
         lines += [f"{name}: {value}" for name, value in fields]
-        return ("\r\n".join(lines) + "\r\n\r\n").encode()
+        if body:
+            lines.append(f"Content-Length: {len(body)}")
+        return ("\r\n".join(lines) + "\r\n\r\n").encode() + body
 
     # -- receiving -----------------------------------------------------------------------------
+
+    def already_read(self, data: bytes) -> None:
+        """Bytes of the peer's read before the probe had the connection (the client role reads
+        a first request's head to know its case): read first, as if they came now."""
+        if data:
+            self.transcript.packet("tcp", self.peer, self.local, data)
+            self._messages.feed(data)
 
     async def message(self, wait: float | None = None) -> Message | None:
         """The next whole message; None if the target closed the connection first. Waiting

@@ -161,6 +161,9 @@ class StreamProbe:
         self.history: list[Datagram] = []
         self.closed = False
         self._codecs: dict[tuple[str, Direction], ValuesCodec[DataNode]] = {}
+        #: The direction of the DATA that comes to this socket: the robot's (READ) for a case
+        #: that plays the client, the client's (WRITE) for one that plays the server.
+        self.inbound = Direction.READ
 
     @classmethod
     async def open(
@@ -275,7 +278,8 @@ class StreamProbe:
         if self.closed:
             raise HarnessError("the stream probe is closed")
         destination = self._destination(to)
-        summary = what or self._describe(data, Direction.WRITE)
+        outbound = Direction.WRITE if self.inbound is Direction.READ else Direction.READ
+        summary = what or self._describe(data, outbound)
         fate = self._out.put(data, destination)
         spoiled = f"  [{fate} by the impairment]" if fate else ""
         self.transcript.note(f"-> udp {destination[0]}:{destination[1]} {summary}{spoiled}")
@@ -340,7 +344,7 @@ class StreamProbe:
             packet, error = pull_packet(data), None
         except ProtocolError as exc:
             packet, error = None, exc
-        summary = _summary(data, packet, error, self._values(Direction.READ))
+        summary = _summary(data, packet, error, self._values(self.inbound))
         self.transcript.note(f"<- udp {source[0]}:{source[1]} {summary}")
         self._inbox.put_nowait(Datagram(data, source, self._loop.time(), packet, error, lost))
 

@@ -25,6 +25,7 @@ from rcmlconf.rcml.model import RcmlDocument
 IDLE_TIMEOUT = 30.0
 #: An RCML or RXID document is XML; the suffix tells which (R-XML-10).
 XML_TYPE = "application/xml"
+INDEX_TYPE = "text/html; charset=utf-8"
 _SERVER = f"rcmlconf/{__version__}"
 _READ_SIZE = 65536
 #: h11 buffers at most this much of a request's head.
@@ -61,7 +62,7 @@ def robot_files(rcml: Path, model: RcmlDocument) -> dict[str, Document]:
     return files
 
 
-def _index(title: str, files: dict[str, Document]) -> bytes:
+def index_page(title: str, files: dict[str, Document]) -> bytes:
     items = "".join(
         f'<li><a href="{html.escape(url)}">{html.escape(doc.name)}</a></li>'
         for url, doc in files.items()
@@ -75,7 +76,7 @@ class FileServer:
 
     def __init__(self, title: str, files: dict[str, Document]) -> None:
         self.files = files
-        self._index = _index(title, files)
+        self._index = index_page(title, files)
         self.served = 0
 
     async def handle(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
@@ -124,14 +125,18 @@ class FileServer:
         path = urlsplit(request.target.decode("ascii", "replace")).path
         if method not in ("GET", "HEAD"):
             status, body, kind = 405, b"GET or HEAD\n", "text/plain"
-        elif path == "/":
-            status, body, kind = 200, self._index, "text/html; charset=utf-8"
-        elif path in self.files:
-            status, body, kind = 200, self.files[path].data, XML_TYPE
-            self.served += 1
         else:
-            status, body, kind = 404, b"not one of this robot's files\n", "text/plain"
+            status, body, kind = await self.find(path)
         await self._send(conn, writer, status, b"" if method == "HEAD" else body, kind, len(body))
+
+    async def find(self, path: str) -> tuple[int, bytes, str]:
+        """The status, body and media type a GET of `path` is answered with."""
+        if path == "/":
+            return 200, self._index, INDEX_TYPE
+        if path in self.files:
+            self.served += 1
+            return 200, self.files[path].data, XML_TYPE
+        return 404, b"not one of this robot's files\n", "text/plain"
 
     async def _send(
         self,

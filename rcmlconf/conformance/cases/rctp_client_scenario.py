@@ -1,0 +1,361 @@
+"""rctp/client, the scenario's requests: what an RCTP/2.0 client under test sends while it runs
+D-RCTP-31's scenario against the server the harness plays (`probes.played`): its numbering, its
+session, its targets, and the values it reads, writes and takes from the server's pushes, of
+every data type of the harness's robot (R-RCTP-3, R-RCTP-4, R-RCTP-19, R-RCTP-30, R-RCTP-60,
+R-RCTP-61, R-RCML-29, R-RCML-30)."""
+
+from __future__ import annotations
+
+import math
+import struct
+from collections.abc import Callable
+
+from rcmlconf.conformance.cases.rctp_client import client_case
+from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.flaws import Flaw, flawed
+from rcmlconf.conformance.probes.clients import case_path
+from rcmlconf.conformance.probes.played import (
+    SCENARIO_TIME,
+    PlayedServer,
+    Seen,
+    path_of,
+    played,
+)
+from rcmlconf.conformance.registry import CaseFunction
+from rcmlconf.conformance.verdicts import Inconclusive
+from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, Permission
+from rcmlconf.rctp.bodies import ValuesCodec
+from rcmlconf.rctp.fields import format_nodes
+from rcmlconf.rctp.messages import Request, Response
+from rcmlconf.values import Kind, Scalar, Value
+from rcmlconf.values.binary import encode_value
+from rcmlconf.values.shown import value_text
+from rcmlconf.wording import plural
+
+#: The fewest requests a run of the scenario makes on the harness's robot, less a margin.
+ENOUGH_REQUESTS = 10
+_FLOAT32_MAX = struct.unpack(">f", b"\x7f\x7f\xff\xff")[0]
+
+
+def scenario_case(
+    id: str, purpose: str, requirements: list[str]
+) -> Callable[[CaseFunction], CaseFunction]:
+    """A case that runs the client's whole scenario: it takes longer than a plain client case."""
+    return client_case(id, purpose, requirements, timeout=SCENARIO_TIME)
+
+
+async def whole_run(ctx: Context) -> PlayedServer:
+    """The client's scenario run to its BYE (or its end) against the played server."""
+    server = await played(ctx)
+    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    return server
+
+
+def normal_nodes(ctx: Context, permission: Permission) -> list[DataNode]:
+    """The data nodes of normal accesses with `permission`, in document order (D-RCTP-31)."""
+    found = []
+    for node in ctx.robot.data_nodes():
+        access = ctx.robot.node(node.path.rsplit("/", 1)[0])
+        normal = isinstance(access, AccessNode) and access.type is AccessType.NORMAL
+        if normal and permission in node.permission:
+            found.append(node)
+    return found
+
+
+def edge(node: DataNode, high: bool) -> Value:
+    """A value of the node at an edge of its type (and range): what a codec gets wrong first."""
+    base = node.type.base
+    item: Scalar
+    if base.kind is Kind.INTEGER:
+        low_end = base.low if node.minimum is None else int(node.minimum)
+        high_end = base.high if node.maximum is None else int(node.maximum)
+        item = high_end if high else low_end
+    elif base.kind is Kind.FLOAT:
+        largest = _FLOAT32_MAX if base.name == "float32" else 1.7976931348623157e308
+        smallest = -math.ulp(0.0) if base.name == "float64" else -1.5
+        bound = node.maximum if high else node.minimum  # D-RCML-12: within the node's range
+        item = float(bound) if bound is not None else largest if high else smallest
+    elif base.kind is Kind.BOOL:
+        item = high
+    elif base.kind is Kind.STRING:
+        size = node.type.size
+        item = "é" * (size // 2) if high else "A\u00a0z"[: max(1, min(size, 3))]
+    else:
+        item = b"\xff" * node.type.size if high else b"\x00"
+    return tuple([item] * node.type.count) if node.type.is_array else item
+
+
+def wrote(server: PlayedServer, node: DataNode) -> list[Seen]:
+    return [s for s in server.requests("WRITE") if s.path == node.path]
+
+
+# -- numbering, session, targets -----------------------------------------------------------------
+
+
+@scenario_case(
+    "rctp/client/cseq-numbering",
+    "Every request of the scenario carries CSeq, numbered 1, 2, 3, ... in the order sent",
+    ["R-RCTP-4", "R-RCTP-3"],
+)
+async def cseq_numbering(ctx: Context) -> None:
+    server = await whole_run(ctx)
+    seen = server.requests()
+    if len(seen) < ENOUGH_REQUESTS:
+        made = plural(len(seen), "request")
+        raise Inconclusive(f"the client made {made}; the scenario makes more")
+    for number, one in enumerate(seen, 1):
+        cseq = one.request.headers.get("CSeq")
+        ctx.expect(
+            cseq is not None, "CSeq in every request", f"none in request {number}", "R-RCTP-3"
+        )
+        ctx.expect(
+            cseq == str(number),
+            f"CSeq: {number} in request {number} ({one.request.method})",
+            f"CSeq: {cseq}",
+            "R-RCTP-4",
+        )
+
+
+@scenario_case(
+    "rctp/client/session-in-every-request",
+    "Every request after CONNECT names the session CONNECT opened",
+    ["R-RCTP-19"],
+)
+async def session_in_every_request(ctx: Context) -> None:
+    server = await whole_run(ctx)
+    later = server.requests()[1:]
+    if len(later) < ENOUGH_REQUESTS - 1:
+        made = plural(len(later) + 1, "request")
+        raise Inconclusive(f"the client made {made}; the scenario makes more")
+    for one in later:
+        found = one.request.headers.get("Session")
+        ctx.expect(
+            found == server.probe.session,
+            f"Session: {server.probe.session} in {one.request.method} {one.request.target}",
+            f"Session: {found}",
+            "R-RCTP-19",
+        )
+
+
+@scenario_case(
+    "rctp/client/targets-and-bye",
+    "CONNECT names the case's site path, BYE names *, and nothing follows the client's BYE",
+    ["R-RCTP-60", "R-RCTP-23"],
+)
+async def targets_and_bye(ctx: Context) -> None:
+    server = await played(ctx)
+    first = await server.serve(until=lambda _: True)
+    if first is None:
+        raise Inconclusive("the client sent no request")
+    site = case_path(ctx.case.id)
+    ctx.expect(
+        first.request.method == "CONNECT" and first.path == site,
+        f"CONNECT {site}",
+        f"{first.request.method} {first.request.target}",
+        "R-RCTP-60",
+    )
+    bye = await server.serve(until=lambda seen: seen.request.method == "BYE")
+    if bye is None:
+        raise Inconclusive("the client sent no BYE (D-RCTP-31 step 8)")
+    ctx.expect(bye.request.target == "*", "BYE *", f"BYE {bye.request.target}", "R-RCTP-60")
+    after = await server.probe.outcome(5.0 * ctx.scale)
+    ctx.expect(
+        after == "closed",
+        "the connection closed after the BYE was answered, nothing sent",
+        after,
+        "R-RCTP-60" if after.startswith("it sent") else "R-RCTP-23",
+    )
+
+
+# -- values of every type ------------------------------------------------------------------------
+
+
+async def _round_trip(ctx: Context, high: bool) -> None:
+    """Step 4: each normal node written with the value its READ gave (R-RCML-30 both ways)."""
+    server = await played(ctx)
+    nodes = normal_nodes(ctx, Permission.READ | Permission.WRITE)
+    if not nodes:
+        raise Inconclusive("the robot has no readable and writable data node of a normal access")
+    for node in nodes:
+        server.values[node.path] = edge(node, high)
+    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    if not server.requests("WRITE"):
+        raise Inconclusive("the client wrote nothing (D-RCTP-31 step 4)")
+    for node in nodes:
+        if node.path not in server.read_paths():
+            continue  # the client did not READ it: nothing to write back
+        bodies = [s.request.body for s in wrote(server, node)]
+        value = edge(node, high)
+        expected = encode_value(node.type, value)
+        ctx.expect(
+            bool(bodies),
+            f"a WRITE of {node.path} with the {node.type} value READ gave,"
+            f" {value_text(node.type, value)}",
+            "none: the client did not take the value it read",
+            "R-RCML-30",
+        )
+        ctx.expect(
+            bodies[0] == expected,
+            f"WRITE {node.path} body {expected.hex(' ')}",
+            f"{bodies[0].hex(' ')}",
+            "R-RCML-30",
+        )
+
+
+@scenario_case(
+    "rctp/client/values-high",
+    "Values of every type at the top of their range, read and written back exactly",
+    ["R-RCML-30"],
+)
+async def values_high(ctx: Context) -> None:
+    await _round_trip(ctx, high=True)
+
+
+@scenario_case(
+    "rctp/client/values-low",
+    "Values of every type at the bottom of their range, read and written back exactly",
+    ["R-RCML-30"],
+)
+async def values_low(ctx: Context) -> None:
+    await _round_trip(ctx, high=False)
+
+
+_FLAWS = (Flaw.BOOL_BYTE, Flaw.OVER_SIZE, Flaw.NOT_UTF8, Flaw.PAST_END, Flaw.ITEM_COUNT)
+
+
+@scenario_case(
+    "rctp/client/malformed-read",
+    "READ answers whose value is malformed (a bool byte of 2, a string over its size or not"
+    " UTF-8, a length past the end, an array short) are not taken: the node is not written",
+    ["R-RCML-30"],
+)
+async def malformed_read(ctx: Context) -> None:
+    server = await played(ctx)
+    bad: dict[str, tuple[bytes, str]] = {}
+    for node in normal_nodes(ctx, Permission.READ | Permission.WRITE):
+        for flaw in _FLAWS:
+            found = flawed(node, flaw)
+            if found and node.path not in bad:
+                bad[node.path] = (found[0].data, found[0].what)
+    if not bad:
+        raise Inconclusive("the robot has no node whose value can be malformed")
+
+    def own(request: Request) -> bytes | None:
+        path = path_of(request)
+        if request.method != "READ" or path not in bad:
+            return None
+        fields = [("Content-Type", "application/rctp-values")]
+        return server.probe.response_bytes(request, 200, "OK", fields, bad[path][0])
+
+    server.own = own
+    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    read = {s.path for s in server.requests("READ")}
+    if not read & bad.keys():
+        raise Inconclusive("the client read none of the nodes answered malformed")
+    for path, (_, what) in bad.items():
+        if path not in read:
+            continue
+        taken = [s for s in server.requests("WRITE") if s.path == path]
+        ctx.expect(
+            not taken,
+            f"no WRITE of {path}: its READ answer held {what}",
+            f"WRITE {path} with {taken[0].request.body.hex(' ') if taken else ''}",
+            "R-RCML-30",
+        )
+
+
+# -- event accesses ------------------------------------------------------------------------------
+
+
+def event_access(ctx: Context) -> AccessNode:
+    return ctx.access(AccessType.EVENT, Permission.READ | Permission.WRITE)
+
+
+@scenario_case(
+    "rctp/client/event-write-nodes",
+    "An event access's WRITE lists its writable nodes in canonical order, the body their values"
+    " in that order",
+    ["R-RCTP-30", "R-RCML-29", "R-RCML-30"],
+)
+async def event_write_nodes(ctx: Context) -> None:
+    access = event_access(ctx)
+    server = await played(ctx)
+    for node in access.data:
+        server.values[node.path] = edge(node, high=True)
+    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    writes = [s for s in server.requests("WRITE") if s.path == access.path]
+    if not writes:
+        raise Inconclusive(f"the client did not WRITE {access.path} (D-RCTP-31 step 4)")
+    codec = ValuesCodec(access.writable(), access.path, "R-RCTP-28")
+    nodes = format_nodes(codec.names)
+    first = writes[0].request
+    listed = first.headers.get("Nodes")
+    ctx.expect(listed == nodes, f"Nodes: {nodes}", f"Nodes: {listed}", "R-RCTP-30")
+    body = codec.encode({n.name: server.values[n.path] for n in codec.nodes})
+    ctx.expect(first.body == body, f"body {body.hex(' ')}", first.body.hex(" "), "R-RCML-30")
+
+
+@scenario_case(
+    "rctp/client/event-push-taken",
+    "A data-change WRITE of the server's is answered 200 and its values are the client's newest"
+    " (the scenario writes them back, step 5)",
+    ["R-RCTP-61", "R-RCTP-24"],
+)
+async def event_push_taken(ctx: Context) -> None:
+    pushed, answer, after, codec = await _push(ctx, cut=0)
+    ctx.expect_status(answer, 200, "R-RCTP-24")
+    body = codec.encode(pushed)
+    ctx.expect(
+        after.request.body == body,
+        f"the pushed values written back: {body.hex(' ')}",
+        after.request.body.hex(" "),
+        "R-RCTP-61",
+    )
+
+
+@scenario_case(
+    "rctp/client/event-push-refused",
+    "A data-change WRITE whose body does not decode is refused (400 or 422) and not taken",
+    ["R-RCTP-61", "R-RCTP-24"],
+)
+async def event_push_refused(ctx: Context) -> None:
+    before, answer, after, codec = await _push(ctx, cut=1)
+    ctx.expect(
+        answer.status in (400, 422),
+        "400 or 422: the body is one byte short",
+        f"{answer.status} {answer.reason}",
+        "R-RCTP-24",
+    )
+    body = codec.encode(before)
+    ctx.expect(
+        after.request.body == body,
+        f"the values it had before, {body.hex(' ')}: the refused push not taken",
+        after.request.body.hex(" "),
+        "R-RCTP-61",
+    )
+
+
+async def _push(
+    ctx: Context, cut: int
+) -> tuple[dict[str, Value], Response, Seen, ValuesCodec[DataNode]]:
+    """Step 5 with a data-change WRITE of the event access once it plays (its body `cut` bytes
+    short): the values the client had (pushed, when whole), its answer, and the WRITE of the
+    access that followed its PAUSE; the scenario is then run to its BYE."""
+    access = event_access(ctx)
+    server = await played(ctx)
+    go = await server.serve(until=lambda seen: _is(seen, "GO", access.path))
+    if go is None:
+        raise Inconclusive(f"the client did not GO {access.path} (D-RCTP-31 step 5)")
+    codec = ValuesCodec(access.writable(), access.path, "R-RCTP-28")
+    before = {n.name: server.values[n.path] for n in codec.nodes}
+    pushed = {n.name: edge(n, high=True) for n in codec.nodes}
+    answer = await server.push(access, codec, pushed, cut=cut)
+    after = await server.serve(until=lambda seen: _is(seen, "WRITE", access.path))
+    if after is None:
+        raise Inconclusive(f"the client did not WRITE {access.path} after its PAUSE (step 5)")
+    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    return (before if cut else pushed), answer, after, codec
+
+
+def _is(seen: Seen, method: str, path: str) -> bool:
+    return seen.request.method == method and seen.path == path

@@ -1,0 +1,380 @@
+"""rctp/client, the scenario's data stream (D-RCTP-31 step 6): the packets an RCTP/2.0 client
+under test sends while its stream plays, what it does with the played robot's DATA (stale,
+out of range, well-formed), its FLOW answers and heartbeats, and the clock estimate it writes in
+step 7 (R-RCTP-39 to R-RCTP-50, R-RCTP-58; specs/rctp-2.0.md §6)."""
+
+from __future__ import annotations
+
+import math
+
+from rcmlconf.conformance.cases.rctp_client_scenario import edge, scenario_case
+from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.played import PlayedServer, Seen, played
+from rcmlconf.conformance.probes.played_stream import STREAM_ID, PlayedStream
+from rcmlconf.conformance.probes.stream import flow_text
+from rcmlconf.conformance.verdicts import Inconclusive
+from rcmlconf.errors import ProtocolError
+from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, Permission
+from rcmlconf.rctp.datastream import (
+    DataPayload,
+    Direction,
+    HeartbeatAck,
+    HeartbeatRequest,
+    IntervalGet,
+    IntervalGetAck,
+    IntervalSet,
+    Nack,
+    NackReason,
+    stream_codec,
+)
+from rcmlconf.rctp.datastream.endpoint import micros
+from rcmlconf.values import Kind, Value
+from rcmlconf.values.shown import values_text
+from rcmlconf.wording import plural
+
+#: Fewest DATA packets a client sends in the scenario's 3 s of play at the harness robot's
+#: 50 ms write interval, less a wide margin.
+ENOUGH_DATA = 20
+#: The played robot's clock, ahead of the harness's (R-RCTP-50).
+SKEW = 37.25
+
+
+def stream_access(ctx: Context) -> AccessNode:
+    return ctx.access(AccessType.STREAM, Permission.READ | Permission.WRITE)
+
+
+def _method(seen: Seen, method: str, path: str) -> bool:
+    return seen.request.method == method and seen.path == path
+
+
+async def until_playing(ctx: Context) -> tuple[PlayedServer, PlayedStream, AccessNode]:
+    """The scenario run up to the GO of its stream (step 6)."""
+    access = stream_access(ctx)
+    server = await played(ctx)
+    go = await server.serve(until=lambda seen: _method(seen, "GO", access.path))
+    if go is None or server.stream is None:
+        raise Inconclusive(f"the client did not SETUP and GO {access.path} (D-RCTP-31 step 6)")
+    return server, server.stream, access
+
+
+def written(stream: PlayedStream, access: AccessNode) -> list[dict[str, Value]]:
+    """The values of every DATA payload of the client's that decodes, in order."""
+    codec = stream_codec(access, Direction.WRITE)
+    found = []
+    for _, payload in stream.data():
+        try:
+            found.append(codec.decode(payload.body))
+        except ProtocolError:
+            continue
+    return found
+
+
+@scenario_case(
+    "rctp/client/stream-packets",
+    "The client's data-stream packets: version 2, the session's tag, payloads that fill the"
+    " datagram, DATA of exactly its writable values, numbered one more each time",
+    ["R-RCTP-39", "R-RCTP-40", "R-RCTP-41"],
+)
+async def stream_packets(ctx: Context) -> None:
+    server, stream, access = await until_playing(ctx)
+    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    if len(stream.data()) < ENOUGH_DATA:
+        raise Inconclusive(f"the client sent {plural(len(stream.data()), 'DATA payload')}")
+    codec = stream_codec(access, Direction.WRITE)
+    previous: int | None = None
+    for one in stream.received:
+        if one.packet is None:
+            error = one.error
+            ctx.expect(False, "packets of D-RCTP-19's layout", f"{error}", "R-RCTP-39")
+            continue
+        packet = one.packet
+        ctx.expect(
+            packet.tag == stream.tag,
+            f"tag {stream.tag:08x}",
+            f"tag {packet.tag:08x}",
+            "R-RCTP-39",
+        )
+        if previous is not None:
+            ctx.expect(
+                packet.sequence == (previous + 1) & 0xFFFF,
+                f"sequence {(previous + 1) & 0xFFFF} after {previous}",
+                f"sequence {packet.sequence}",
+                "R-RCTP-41",
+            )
+        previous = packet.sequence
+        for payload in packet.payloads:
+            if isinstance(payload, DataPayload):
+                ctx.expect(
+                    payload.stream == STREAM_ID,
+                    f"stream {STREAM_ID}",
+                    f"stream {payload.stream}",
+                    "R-RCTP-40",
+                )
+                try:
+                    codec.decode(payload.body)
+                except ProtocolError as error:
+                    ctx.expect(
+                        False,
+                        f"DATA of {', '.join(codec.names)}",
+                        f"{error.reason} at byte {error.offset}",
+                        "R-RCTP-40",
+                    )
+
+
+@scenario_case(
+    "rctp/client/stream-pace",
+    "DATA once a write interval while the stream plays, none before GO is answered, none while"
+    " paused, none after STOP",
+    ["R-RCTP-44"],
+)
+async def stream_pace(ctx: Context) -> None:
+    server, stream, access = await until_playing(ctx)
+    interval = access.write_interval or 0.05
+    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    go_at = [s.at for s in server.seen if _method(s, "GO", access.path)]
+    stops = [
+        s.at for s in server.seen if s.request.method in ("PAUSE", "STOP") and s.path == access.path
+    ]
+    times = [one.at for one, _ in stream.data()]
+    if len(times) < ENOUGH_DATA or not stops:
+        raise Inconclusive(f"the client sent {plural(len(times), 'DATA payload')} and no PAUSE")
+    first_go = go_at[0]
+    early = [t for t in times if t < first_go - 0.01]
+    ctx.expect(not early, "no DATA before GO was answered", f"{len(early)} before it", "R-RCTP-44")
+    # Play spans: from each GO answered to the PAUSE or STOP after it.
+    spans = []
+    for start in go_at:
+        end = min((t for t in stops if t > start), default=math.inf)
+        spans.append((start, end))
+    slack = interval + 0.1 * ctx.scale  # one in flight when the PAUSE left, and the loop's lag
+    stray = [t for t in times if not any(s - 0.01 <= t <= e + slack for s, e in spans)]
+    ctx.expect(
+        not stray,
+        "no DATA while paused or stopped",
+        f"{len(stray)} DATA payloads outside the play",
+        "R-RCTP-44",
+        timing=True,
+    )
+    for start, end in spans:
+        inside = [t for t in times if start <= t <= end]
+        if end is math.inf or end - start < 10 * interval:
+            continue
+        expected = (end - start) / interval
+        ctx.expect(
+            0.5 * expected <= len(inside) <= 1.5 * expected + 2,
+            f"about {expected:.0f} DATA payloads in {end - start:.2f} s at {interval * 1000:g} ms",
+            f"{len(inside)}",
+            "R-RCTP-44",
+            timing=True,
+        )
+
+
+@scenario_case(
+    "rctp/client/stream-echo",
+    "The played robot's DATA is taken: the client's DATA carries the values it got",
+    ["R-RCTP-58"],
+)
+async def stream_echo(ctx: Context) -> None:
+    server, stream, access = await until_playing(ctx)
+    shared = _shared(access)
+    for node in shared:
+        server.values[node.path] = _visible(node)
+    await server.serve(until=lambda seen: seen.request.method == "PAUSE")
+    echoed = written(stream, access)
+    wanted = {n.name: server.values[n.path] for n in shared}
+    ctx.expect(
+        any(all(v.get(k) == x for k, x in wanted.items()) for v in echoed),
+        f"DATA with {shown(shared, wanted)} (the played robot's, D-RCTP-31 step 6)",
+        shown(shared, echoed[-1]) if echoed else "no DATA",
+        "R-RCTP-58",
+    )
+    await server.serve(until=lambda seen: seen.request.method == "BYE")
+
+
+@scenario_case(
+    "rctp/client/stream-stale-not-taken",
+    "DATA in a packet older than one already taken is not taken (an older value never replaces"
+    " a newer one)",
+    ["R-RCTP-43"],
+)
+async def stream_stale_not_taken(ctx: Context) -> None:
+    server, stream, access = await until_playing(ctx)
+    stream.sending = False
+    shared = _shared(access)
+    codec = stream_codec(access, Direction.READ)
+    newer = {n.name: _visible(n) for n in codec.nodes}
+    older = {n.name: n.zero() if n in shared else _visible(n) for n in codec.nodes}
+    stale = {n.name: older[n.name] for n in shared}
+    sequence = stream.probe.next_sequence()
+    stream.probe.send_packet([DataPayload(STREAM_ID, codec.encode(newer))], sequence=sequence)
+    stream.probe.send_packet(
+        [DataPayload(STREAM_ID, codec.encode(older))], sequence=(sequence - 1) & 0xFFFF
+    )
+    await server.serve(until=lambda seen: seen.request.method == "PAUSE")
+    echoed = written(stream, access)
+    took = [v for v in echoed if all(v.get(k) == x for k, x in stale.items())]
+    fresh = [v for v in echoed if all(v.get(n.name) == newer[n.name] for n in shared)]
+    if not fresh:
+        raise Inconclusive("the client never wrote back the newer values (step 6's echo)")
+    after = echoed.index(fresh[0])
+    ctx.expect(
+        not [v for v in echoed[after:] if v in took],
+        f"never {shown(shared, stale)} after {shown(shared, fresh[0])}: those values came in"
+        " an older packet",
+        f"DATA with {shown(shared, stale)}",
+        "R-RCTP-43",
+    )
+    await server.serve(until=lambda seen: seen.request.method == "BYE")
+
+
+@scenario_case(
+    "rctp/client/stream-out-of-range-not-taken",
+    "DATA holding a value outside its node's range is not taken",
+    ["R-RCTP-58"],
+)
+async def stream_out_of_range(ctx: Context) -> None:
+    server, stream, access = await until_playing(ctx)
+    ranged = [n for n in _shared(access) if n.maximum is not None]
+    if not ranged:
+        raise Inconclusive(f"{access.path} has no node with a max that it reads and writes")
+    stream.sending = False
+    codec = stream_codec(access, Direction.READ)
+    node = ranged[0]
+    assert node.maximum is not None
+    beyond = {n.name: _visible(n) for n in codec.nodes}
+    over = node.maximum * 2 + 1
+    beyond[node.name] = over
+    for _ in range(3):
+        stream.probe.send_packet([DataPayload(STREAM_ID, codec.encode(beyond))])
+    await server.serve(until=lambda seen: seen.request.method == "PAUSE")
+    echoed = written(stream, access)
+    took = [v for v in echoed if v.get(node.name) == over]
+    ctx.expect(
+        not took,
+        f"{node.name} never {over:g}: outside its range {node.minimum} to {node.maximum}",
+        f"DATA with {node.name}={over:g}",
+        "R-RCTP-58",
+    )
+    await server.serve(until=lambda seen: seen.request.method == "BYE")
+
+
+@scenario_case(
+    "rctp/client/flow-answers",
+    "The client answers FLOW requests: get interval with its write interval, a repeated id with"
+    " the same answer, a set below the RCML's interval with NACK 3",
+    ["R-RCTP-46", "R-RCTP-47"],
+)
+async def flow_answers(ctx: Context) -> None:
+    server, stream, access = await until_playing(ctx)
+    probe = stream.probe
+    interval = micros(access.write_interval or 0.0)
+    ask = IntervalGet(probe.next_request_id(), Direction.WRITE)
+    first = await stream.ask(ask, STREAM_ID)
+    ctx.expect(
+        isinstance(first, IntervalGetAck) and first.interval == interval,
+        f"IntervalGetAck (direction=write, interval={interval})",
+        flow_text(first),
+        "R-RCTP-46",
+    )
+    again = await stream.ask(ask, STREAM_ID)
+    ctx.expect(
+        again == first, f"the same answer, {flow_text(first)}", flow_text(again), "R-RCTP-46"
+    )
+    too_short = IntervalSet(probe.next_request_id(), Direction.WRITE, interval // 2)
+    short = await stream.ask(too_short, STREAM_ID)
+    ctx.expect(
+        isinstance(short, Nack) and short.reason is NackReason.VALUE_REFUSED,
+        "NACK 3 (value refused): below the RCML's write interval",
+        flow_text(short),
+        "R-RCTP-47",
+    )
+    await server.serve(until=lambda seen: seen.request.method == "BYE")
+
+
+@scenario_case(
+    "rctp/client/heartbeat-ack",
+    "The client answers a heartbeat of the server's with its T1 echoed and its T2 and T3",
+    ["R-RCTP-48", "R-RCTP-46"],
+)
+async def heartbeat_ack(ctx: Context) -> None:
+    server, stream, _ = await until_playing(ctx)
+    t1 = stream.robot_time()
+    answer = await stream.ask(HeartbeatRequest(stream.probe.next_request_id(), t1))
+    ctx.expect(isinstance(answer, HeartbeatAck), "HeartbeatAck", flow_text(answer), "R-RCTP-48")
+    assert isinstance(answer, HeartbeatAck)
+    ctx.expect(answer.t1 == t1, f"T1 {t1} echoed", f"T1 {answer.t1}", "R-RCTP-48")
+    ctx.expect(answer.t3 >= answer.t2, "T3 not before T2", flow_text(answer), "R-RCTP-48")
+    await server.serve(until=lambda seen: seen.request.method == "BYE")
+
+
+@scenario_case(
+    "rctp/client/heartbeats",
+    "While its stream plays the client sends heartbeats (D-RCTP-31: at GO, then every second)",
+    ["R-RCTP-49"],
+)
+async def heartbeats(ctx: Context) -> None:
+    server, stream, _ = await until_playing(ctx)
+    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    beats = [f for _, f in stream.flow_requests if isinstance(f, HeartbeatRequest)]
+    ctx.expect(
+        len(beats) >= 2,
+        "a heartbeat at GO and more while the stream plays (about 4 in the scenario)",
+        plural(len(beats), "heartbeat"),
+        "R-RCTP-49",
+    )
+
+
+@scenario_case(
+    "rctp/client/clock-estimate",
+    "The clock offset the client estimates from heartbeats (written in step 7) is the played"
+    " robot's, within its stated uncertainty, which is no better than timePrecision",
+    ["R-RCTP-50"],
+)
+async def clock_estimate(ctx: Context) -> None:
+    server = await played(ctx)
+    clock = ctx.robot.node("/clock")
+    if not isinstance(clock, AccessNode):
+        raise Inconclusive("the robot has no clock access (D-RCTP-31 step 7)")
+    access = stream_access(ctx)
+    setup = await server.serve(until=lambda seen: _method(seen, "SETUP", access.path))
+    if setup is None or server.stream is None:
+        raise Inconclusive("the client set up no stream (D-RCTP-31 step 6)")
+    server.stream.skew = SKEW
+    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    writes = {w.path: w.values for w in server.writes}
+    offset = writes.get("/clock/offset", {}).get("offset")
+    uncertainty = writes.get("/clock/uncertainty", {}).get("uncertainty")
+    if not isinstance(offset, float) or not isinstance(uncertainty, float):
+        raise Inconclusive("the client wrote no clock estimate (D-RCTP-31 step 7)")
+    precision = ctx.robot.time_precision or 0.0
+    ctx.expect(
+        uncertainty >= precision,
+        f"an uncertainty of at least timePrecision, {precision:g} s",
+        f"{uncertainty:g} s",
+        "R-RCTP-50",
+    )
+    ctx.expect(
+        abs(offset - SKEW) <= uncertainty + 0.05 * ctx.scale,
+        f"an offset of {SKEW:g} s (the played robot's clock is that far ahead), within"
+        f" {uncertainty:g} s",
+        f"{offset:g} s",
+        "R-RCTP-50",
+    )
+
+
+def shown(nodes: list[DataNode], values: dict[str, Value]) -> str:
+    return ", ".join(values_text(nodes, values))
+
+
+def _shared(access: AccessNode) -> list[DataNode]:
+    """The access's nodes that are read and written: DATA's echo shows what was taken."""
+    return [n for n in access.data if Permission.READ | Permission.WRITE in n.permission]
+
+
+def _visible(node: DataNode) -> Value:
+    """A value of the node unlike its zero, within its range (a number; else its edge)."""
+    if node.type.base.kind is Kind.FLOAT:
+        return (node.maximum if node.maximum is not None else 1000) / 2
+    if node.type.base.kind is Kind.INTEGER:
+        return max(1, int(node.maximum if node.maximum is not None else 1000) // 2)
+    return edge(node, high=True)
