@@ -35,6 +35,7 @@ UNTIL_INTERRUPTED = {"watch": 1.5}
 NOT_RUN = {
     "rcmlconf run --target 127.0.0.1:7330 --rcml robot.rcml": "a template: the user's robot",
     "rcmlconf sniff": "needs root or CAP_NET_RAW, and traffic on lo",
+    "rcmlconf run --role client --listen 7330": "a template: the user's client is tested",
 }
 
 

@@ -2,15 +2,12 @@
 
 from __future__ import annotations
 
-import contextlib
 import json
-import socket
 import subprocess
-import time
 from pathlib import Path
 
 from lxml import etree
-from support.processes import COMMAND, run_command
+from support.processes import COMMAND, free_pair, run_command, wait_listening
 
 SCHEMA = etree.XMLSchema(etree.parse(str(Path(__file__).parents[1] / "support" / "junit.xsd")))
 
@@ -98,24 +95,3 @@ def test_role_client_tests_a_client_that_loops_over_the_case_list(tmp_path: Path
     assert process.returncode == 0, out + err
     verdicts = {r["case"]: r["verdict"] for r in json.loads(report.read_text())["results"]}
     assert verdicts == dict.fromkeys(chosen, "pass")
-
-
-def free_pair() -> int:
-    """A port whose next port is free too (the harness's files, D-RCTP-29)."""
-    for _ in range(50):
-        with socket.socket() as first, socket.socket() as second:
-            first.bind(("127.0.0.1", 0))
-            port = first.getsockname()[1]
-            with contextlib.suppress(OSError):
-                second.bind(("127.0.0.1", port + 1))
-                return int(port)
-    raise AssertionError("no free pair of ports")
-
-
-def wait_listening(port: int, seconds: float = 30.0) -> None:
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        with contextlib.suppress(OSError), socket.create_connection(("127.0.0.1", port), 0.5):
-            return
-        time.sleep(0.05)
-    raise AssertionError(f"nothing listened on {port} within {seconds:g} s")
