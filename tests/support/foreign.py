@@ -18,7 +18,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from support.processes import COMMAND, free_port
+from support.processes import COMMAND, free_pair, free_port, wait_listening
 
 FOREIGN = Path(__file__).resolve().parents[1] / "foreign"
 #: The longest one run of the suite against one implementation may take (seconds).
@@ -83,7 +83,7 @@ class Implementation:
             with self._listening(tmp, fault_args) as address:
                 done = _suite([*self._target(address), *chosen, "--json", str(report)])
         else:
-            port = free_port()
+            port = free_pair() if self.role == "client" else free_port()
             local_key, ics = self._keyed(tmp) if self.role == "local" else ([], [])
             fault_args += local_key
             suite = subprocess.Popen(
@@ -146,7 +146,9 @@ class Implementation:
     @contextlib.contextmanager
     def _connecting(self, port: int, fault_args: list[str]) -> Iterator[None]:
         if self.role == "client":
-            args = ["--url", f"rctp://127.0.0.1:{port}/", "--loop"]
+            # D-RCTP-31: the client loops over the harness's case list, once it is served.
+            wait_listening(port + 1)
+            args = ["--cases", f"http://127.0.0.1:{port + 1}/cases"]
         else:
             args = ["--robot", f"127.0.0.1:{port}", "--model", str(self.file("robot.rmodel"))]
             args.append("--loop")
