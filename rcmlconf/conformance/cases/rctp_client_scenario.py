@@ -47,7 +47,7 @@ def scenario_case(
 async def whole_run(ctx: Context) -> PlayedServer:
     """The client's scenario run to its BYE (or its end) against the played server."""
     server = await played(ctx)
-    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    await server.reach("BYE")
     return server
 
 
@@ -154,7 +154,7 @@ async def targets_and_bye(ctx: Context) -> None:
         f"{first.request.method} {first.request.target}",
         "R-RCTP-60",
     )
-    bye = await server.serve(until=lambda seen: seen.request.method == "BYE")
+    bye = await server.reach("BYE")
     if bye is None:
         raise Inconclusive("the client sent no BYE (D-RCTP-31 step 8)")
     ctx.expect(bye.request.target == "*", "BYE *", f"BYE {bye.request.target}", "R-RCTP-60")
@@ -178,7 +178,7 @@ async def _round_trip(ctx: Context, high: bool) -> None:
         raise Inconclusive("the robot has no readable and writable data node of a normal access")
     for node in nodes:
         server.values[node.path] = edge(node, high)
-    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    await server.reach("BYE")
     if not server.requests("WRITE"):
         raise Inconclusive("the client wrote nothing (D-RCTP-31 step 4)")
     for node in nodes:
@@ -248,7 +248,7 @@ async def malformed_read(ctx: Context) -> None:
         return server.probe.response_bytes(request, 200, "OK", fields, bad[path][0])
 
     server.own = own
-    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    await server.reach("BYE")
     read = {s.path for s in server.requests("READ")}
     if not read & bad.keys():
         raise Inconclusive("the client read none of the nodes answered malformed")
@@ -282,7 +282,7 @@ async def event_write_nodes(ctx: Context) -> None:
     server = await played(ctx)
     for node in access.data:
         server.values[node.path] = edge(node, high=True)
-    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    await server.reach("BYE")
     writes = [s for s in server.requests("WRITE") if s.path == access.path]
     if not writes:
         raise Inconclusive(f"the client did not WRITE {access.path} (D-RCTP-31 step 4)")
@@ -343,19 +343,15 @@ async def _push(
     access that followed its PAUSE; the scenario is then run to its BYE."""
     access = event_access(ctx)
     server = await played(ctx)
-    go = await server.serve(until=lambda seen: _is(seen, "GO", access.path))
+    go = await server.reach("GO", access.path)
     if go is None:
         raise Inconclusive(f"the client did not GO {access.path} (D-RCTP-31 step 5)")
     codec = ValuesCodec(access.writable(), access.path, "R-RCTP-28")
     before = {n.name: server.values[n.path] for n in codec.nodes}
     pushed = {n.name: edge(n, high=True) for n in codec.nodes}
     answer = await server.push(access, codec, pushed, cut=cut)
-    after = await server.serve(until=lambda seen: _is(seen, "WRITE", access.path))
+    after = await server.reach("WRITE", access.path)
     if after is None:
         raise Inconclusive(f"the client did not WRITE {access.path} after its PAUSE (step 5)")
-    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    await server.reach("BYE")
     return (before if cut else pushed), answer, after, codec
-
-
-def _is(seen: Seen, method: str, path: str) -> bool:
-    return seen.request.method == method and seen.path == path

@@ -9,7 +9,7 @@ import math
 
 from rcmlconf.conformance.cases.rctp_client_scenario import edge, scenario_case
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.played import PlayedServer, Seen, played
+from rcmlconf.conformance.probes.played import PlayedServer, played
 from rcmlconf.conformance.probes.played_stream import STREAM_ID, PlayedStream
 from rcmlconf.conformance.probes.stream import flow_text
 from rcmlconf.conformance.verdicts import Inconclusive
@@ -43,15 +43,11 @@ def stream_access(ctx: Context) -> AccessNode:
     return ctx.access(AccessType.STREAM, Permission.READ | Permission.WRITE)
 
 
-def _method(seen: Seen, method: str, path: str) -> bool:
-    return seen.request.method == method and seen.path == path
-
-
 async def until_playing(ctx: Context) -> tuple[PlayedServer, PlayedStream, AccessNode]:
     """The scenario run up to the GO of its stream (step 6)."""
     access = stream_access(ctx)
     server = await played(ctx)
-    go = await server.serve(until=lambda seen: _method(seen, "GO", access.path))
+    go = await server.reach("GO", access.path)
     if go is None or server.stream is None:
         raise Inconclusive(f"the client did not SETUP and GO {access.path} (D-RCTP-31 step 6)")
     return server, server.stream, access
@@ -77,7 +73,7 @@ def written(stream: PlayedStream, access: AccessNode) -> list[dict[str, Value]]:
 )
 async def stream_packets(ctx: Context) -> None:
     server, stream, access = await until_playing(ctx)
-    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    await server.reach("BYE")
     # A datagram that is no packet fails first: its DATA would not count below.
     for one in stream.received:
         if one.packet is None:
@@ -131,8 +127,8 @@ async def stream_packets(ctx: Context) -> None:
 async def stream_pace(ctx: Context) -> None:
     server, stream, access = await until_playing(ctx)
     interval = access.write_interval or 0.05
-    await server.serve(until=lambda seen: seen.request.method == "BYE")
-    go_at = [s.at for s in server.seen if _method(s, "GO", access.path)]
+    await server.reach("BYE")
+    go_at = [s.at for s in server.seen if s.names("GO", access.path)]
     stops = [
         s.at for s in server.seen if s.request.method in ("PAUSE", "STOP") and s.path == access.path
     ]
@@ -180,7 +176,7 @@ async def stream_echo(ctx: Context) -> None:
     shared = _shared(access)
     for node in shared:
         server.values[node.path] = _visible(node)
-    await server.serve(until=lambda seen: seen.request.method == "PAUSE")
+    await server.reach("PAUSE")
     echoed = written(stream, access)
     wanted = {n.name: server.values[n.path] for n in shared}
     ctx.expect(
@@ -189,7 +185,7 @@ async def stream_echo(ctx: Context) -> None:
         shown(shared, echoed[-1]) if echoed else "no DATA",
         "R-RCTP-58",
     )
-    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    await server.reach("BYE")
 
 
 @scenario_case(
@@ -211,7 +207,7 @@ async def stream_stale_not_taken(ctx: Context) -> None:
     stream.probe.send_packet(
         [DataPayload(STREAM_ID, codec.encode(older))], sequence=(sequence - 1) & 0xFFFF
     )
-    await server.serve(until=lambda seen: seen.request.method == "PAUSE")
+    await server.reach("PAUSE")
     echoed = written(stream, access)
     took = [v for v in echoed if all(v.get(k) == x for k, x in stale.items())]
     fresh = [v for v in echoed if all(v.get(n.name) == newer[n.name] for n in shared)]
@@ -225,7 +221,7 @@ async def stream_stale_not_taken(ctx: Context) -> None:
         f"DATA with {shown(shared, stale)}",
         "R-RCTP-43",
     )
-    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    await server.reach("BYE")
 
 
 @scenario_case(
@@ -247,7 +243,7 @@ async def stream_out_of_range(ctx: Context) -> None:
     beyond[node.name] = over
     for _ in range(3):
         stream.probe.send_packet([DataPayload(STREAM_ID, codec.encode(beyond))])
-    await server.serve(until=lambda seen: seen.request.method == "PAUSE")
+    await server.reach("PAUSE")
     echoed = written(stream, access)
     took = [v for v in echoed if v.get(node.name) == over]
     ctx.expect(
@@ -256,7 +252,7 @@ async def stream_out_of_range(ctx: Context) -> None:
         f"DATA with {node.name}={over:g}",
         "R-RCTP-58",
     )
-    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    await server.reach("BYE")
 
 
 @scenario_case(
@@ -289,7 +285,7 @@ async def flow_answers(ctx: Context) -> None:
         flow_text(short),
         "R-RCTP-47",
     )
-    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    await server.reach("BYE")
 
 
 @scenario_case(
@@ -305,7 +301,7 @@ async def heartbeat_ack(ctx: Context) -> None:
     assert isinstance(answer, HeartbeatAck)
     ctx.expect(answer.t1 == t1, f"T1 {t1} echoed", f"T1 {answer.t1}", "R-RCTP-48")
     ctx.expect(answer.t3 >= answer.t2, "T3 not before T2", flow_text(answer), "R-RCTP-48")
-    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    await server.reach("BYE")
 
 
 @scenario_case(
@@ -315,7 +311,7 @@ async def heartbeat_ack(ctx: Context) -> None:
 )
 async def heartbeats(ctx: Context) -> None:
     server, stream, _ = await until_playing(ctx)
-    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    await server.reach("BYE")
     beats = [f for _, f in stream.flow_requests if isinstance(f, HeartbeatRequest)]
     ctx.expect(
         len(beats) >= 2,
@@ -337,11 +333,11 @@ async def clock_estimate(ctx: Context) -> None:
     if not isinstance(clock, AccessNode):
         raise Inconclusive("the robot has no clock access (D-RCTP-31 step 7)")
     access = stream_access(ctx)
-    setup = await server.serve(until=lambda seen: _method(seen, "SETUP", access.path))
+    setup = await server.reach("SETUP", access.path)
     if setup is None or server.stream is None:
         raise Inconclusive("the client set up no stream (D-RCTP-31 step 6)")
     server.stream.skew = SKEW
-    await server.serve(until=lambda seen: seen.request.method == "BYE")
+    await server.reach("BYE")
     writes = {w.path: w.values for w in server.writes}
     offset = writes.get("/clock/offset", {}).get("offset")
     uncertainty = writes.get("/clock/uncertainty", {}).get("uncertainty")

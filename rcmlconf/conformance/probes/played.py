@@ -54,6 +54,10 @@ class Seen:
     def path(self) -> str | None:
         return path_of(self.request)
 
+    def names(self, method: str, path: str | None = None) -> bool:
+        """Whether it is a `method` request (of `path`, when given)."""
+        return self.request.method == method and (path is None or self.path == path)
+
 
 def path_of(request: Request) -> str | None:
     """A request's target's node path, percent-decoded; None when it is no target."""
@@ -92,7 +96,6 @@ class PlayedServer:
         self.own: Own | None = None
         #: The data stream, once a stream access was set up.
         self.stream: PlayedStream | None = None
-        self.ended = False
         self._playing: set[str] = set()
         self._set_up: set[str] = set()
         self.loop = asyncio.get_running_loop()
@@ -116,22 +119,27 @@ class PlayedServer:
                 return seen
         return None
 
+    async def reach(self, method: str, path: str | None = None) -> Seen | None:
+        """Serve until the client's `method` request (of `path`), answered: `serve`'s `until`
+        for the scenario's steps."""
+        return await self.serve(until=lambda seen: seen.names(method, path))
+
     async def _next(self, wait: float) -> Request | None:
-        try:
-            found = await self.probe.message(wait)
-        except Failed as failed:
-            if failed.requirement == "R-RCTP-5":
-                return None  # nothing came in time: the case judges what is missing
-            raise
-        if found is None:
-            self.ended = True
-            return None
-        if not isinstance(found, Request):
-            # A response to nothing the played server asked: the case that sent a request of
-            # its own reads it; here it is only noted.
+        """The client's next request within `wait`; None when it closes or none comes."""
+        deadline = self.loop.time() + wait
+        while (left := deadline - self.loop.time()) > 0:
+            try:
+                found = await self.probe.message(left)
+            except Failed as failed:
+                if failed.requirement == "R-RCTP-5":
+                    return None  # nothing came in time: the case judges what is missing
+                raise
+            if found is None or isinstance(found, Request):
+                return found
+            # A response to nothing the played server asked (a case that sent a request of its
+            # own reads its answer itself): only noted.
             self.probe.transcript.note(f"{self.probe.name} (an answer to no request: ignored)")
-            return await self._next(wait)
-        return found
+        return None
 
     async def _take(self, request: Request) -> Seen:
         own = self.own(request) if self.own is not None else None
