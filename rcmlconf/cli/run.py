@@ -28,6 +28,7 @@ from rcmlconf.cli.run_target import (
     robot_problem,
     server_problem,
 )
+from rcmlconf.conformance.command import Command, CommandError
 from rcmlconf.conformance.files import shown
 from rcmlconf.conformance.ics import EVERYTHING, Ics, load_ics
 from rcmlconf.conformance.probes.clients import HARNESS_RCML, ClientListener
@@ -37,12 +38,19 @@ from rcmlconf.conformance.reports.baseline import load_baseline, mark_known
 from rcmlconf.conformance.reports.json_report import to_json
 from rcmlconf.conformance.reports.junit import to_junit
 from rcmlconf.conformance.reports.summary import counts, explain, new_failures, run_status
-from rcmlconf.conformance.runner import PARTLY, RunOptions, run_cases, under_test
+from rcmlconf.conformance.runner import (
+    CONNECT_TIMEOUT,
+    PARTLY,
+    RunOptions,
+    run_cases,
+    under_test,
+)
 from rcmlconf.conformance.targets import Target, embedded_reference, quiet_reference_logs
 from rcmlconf.conformance.verdicts import Result, Verdict
 from rcmlconf.impair.spec import MOST_BURST, MOST_TIME, parse_impairment
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rctp.url import DEFAULT_PORT as RCTP_PORT
+from rcmlconf.rctp.url import http_base
 from rcmlconf.reference.faults import Fault, describe, faults_named
 from rcmlconf.rsp.model import RobotModel
 from rcmlconf.validate.validator import load_robot, load_robot_model
@@ -112,6 +120,25 @@ _STYLE = {
     callback=listen_option("127.0.0.1"),
     help="With --role client or local: where the implementation under test connects or sends"
     " (127.0.0.1 by default).",
+)
+@click.option(
+    "--client-command",
+    metavar="'CMD {url}'",
+    help="With --role client or local: start the implementation under test for each case, {url}"
+    " replaced by the case's URL (client: rctp://HOST:PORT/<case id>, D-RCTP-31) or the address"
+    " to send to (local: HOST:PORT). No shell reads it. It is stopped (its process group) when"
+    " the case ends; its exit status and last lines of output are in the case's report. Without"
+    " it, start your implementation yourself: a line says where each case waits.",
+)
+@click.option(
+    "--connect-timeout",
+    type=Bounded(0.1, 3600),
+    default=CONNECT_TIMEOUT,
+    show_default=True,
+    metavar="SECONDS",
+    help="With --role client: how long each case waits for its client to connect, before the"
+    " case's own clock starts. Once a case got no client while none had ever connected, the"
+    " rest give up at once (exit 2).",
 )
 @click.option("--list", "list_only", is_flag=True, help="List the cases that would run; run none.")
 @click.option(
@@ -192,6 +219,8 @@ def run(
     ics: Path | None,
     role: str,
     listen: Address | None,
+    client_command: str | None,
+    connect_timeout: float,
     list_only: bool,
     strict: bool,
     only: tuple[str, ...],
@@ -231,6 +260,7 @@ def run(
       rcmlconf run --rsp-target 10.0.0.7 --model cubo.rmodel --only 'rsp/*'
       rcmlconf run --only 'rsp/*' --repeat 20 --impair loss=5%,reorder=2%
       rcmlconf run --role client --listen 7330   # then start your client
+      rcmlconf run --role client --listen 7330 --client-command 'my-client {url}'
       rcmlconf run --role local --listen 7340 --model cubo.rmodel
       rcmlconf run --fault acquire-not-exclusive # the suite catches a bug
       rcmlconf run --list
@@ -240,6 +270,7 @@ def run(
     known = loaded("--baseline", load_baseline, baseline) if baseline is not None else frozenset()
     impairment = loaded("--impair", parse_impairment, impair) if impair is not None else None
     _check_roles(role, target, rcml, site, rsp_target, model, listen, faults)
+    command = _command(client_command, listen)
     robot = robot_file("--rcml", load_robot, rcml) if rcml is not None else None
     played = robot_file("--model", load_robot_model, model) if model is not None else None
     if not list_only:
@@ -253,7 +284,7 @@ def run(
     if baseline is not None:
         warn_unknown(output, baseline, known, registry)
     options = RunOptions(
-        timeout_scale, seed, concurrency, repeat, impairment, capture, session_wait
+        timeout_scale, seed, concurrency, repeat, impairment, capture, session_wait, connect_timeout
     )
     if capture is not None:
         try:
@@ -273,10 +304,11 @@ def run(
             reach(output, "--rsp-target", rsp_target, "RSP over UDP", robot_problem(rsp_target))
         external = _external(output, target, robot, site, rsp_target, played, declared)
     elif listen is not None and played is not None and role == "local":
-        external = LocalTarget(listen, played, declared)
+        external = LocalTarget(listen, played, declared, command)
     elif listen is not None:
         served = rcml if robot is not None and rcml is not None else HARNESS_RCML
-        external = ClientTarget(listen, robot or load_robot(served), served, declared.features)
+        robot = robot or load_robot(served)
+        external = ClientTarget(listen, robot, served, declared.features, command)
     if external is None:
         quiet_reference_logs()
     started = time.time()
@@ -310,7 +342,7 @@ async def _run(
     output: Output,
     verbose: bool,
 ) -> tuple[Target, list[Result]]:
-    async with _target(external, declared, faults) as target:
+    async with _target(external, declared, faults, output) as target:
         cases = [c for c in chosen if under_test(c, target)]
         if len(cases) < len(chosen):
             output.notice(_left_out([c for c in chosen if c not in cases], target.name))
@@ -335,13 +367,23 @@ async def _run(
 
 @contextlib.asynccontextmanager
 async def _target(
-    external: Target | ClientTarget | LocalTarget | None, declared: Ics, faults: frozenset[Fault]
+    external: Target | ClientTarget | LocalTarget | None,
+    declared: Ics,
+    faults: frozenset[Fault],
+    output: Output,
 ) -> AsyncIterator[Target]:
     if isinstance(external, LocalTarget):
-        local = LocalListener(external.model, external.ics.psk)
+        command = external.command
+        local = LocalListener(
+            external.model,
+            external.ics.psk,
+            summon=None if command is None else command.at,
+            stop=None if command is None else command.stop,
+        )
         await local.start(*external.listen)
         try:
             host, port = local.address
+            output.notice(_local_banner(host, port, command))
             yield Target(
                 rsp_model=external.model,
                 rsp_psk=external.ics.psk,
@@ -351,12 +393,31 @@ async def _target(
             )
         finally:
             await local.close()
+            if command is not None:
+                await command.close()
         return
     if isinstance(external, ClientTarget):
-        listener = ClientListener(external.robot, external.rcml.read_bytes())
+        command = external.command
+        waited: list[str] = []
+
+        def waiting(case_id: str) -> None:
+            waited.append(case_id)
+            output.notice(
+                f"case {len(waited)} of {listener.runs}: waiting for a client at"
+                f" {listener.url(case_id)}"
+            )
+
+        listener = ClientListener(
+            external.robot,
+            external.rcml.read_bytes(),
+            summon=command,
+            stop=None if command is None else command.stop,
+            on_wait=waiting,
+        )
         await listener.start(*external.listen)
         try:
             host, port = listener.address
+            output.notice(_client_banner(listener, command))
             yield Target(
                 clients=listener,
                 features=external.features,
@@ -364,6 +425,8 @@ async def _target(
             )
         finally:
             await listener.close()
+            if command is not None:
+                await command.close()
         return
     if external is not None:
         yield external
@@ -421,6 +484,8 @@ class ClientTarget:
     #: The file the robot was read from, served to the client as D-RCTP-31's step 1 says.
     rcml: Path
     features: frozenset[str]
+    #: --client-command, started for each case.
+    command: Command | None = None
 
 
 @dataclass(frozen=True)
@@ -430,6 +495,40 @@ class LocalTarget:
     listen: tuple[str, int]
     model: RobotModel
     ics: Ics
+    command: Command | None = None
+
+
+def _command(template: str | None, listen: Address | None) -> Command | None:
+    if template is None:
+        return None
+    if listen is None:
+        raise click.UsageError("--client-command is for --role client and --role local")
+    try:
+        return Command(template)
+    except CommandError as error:
+        raise click.BadParameter(str(error), param_hint="'--client-command'") from None
+
+
+def _client_banner(listener: ClientListener, command: Command | None) -> str:
+    host, port = listener.address
+    files = http_base(host, port + 1)
+    how = (
+        f"each started as {command.template!r}"
+        if command is not None
+        else "start yours: it may loop over the list, or be started once per case URL"
+    )
+    return (
+        f"RCTP clients under test: one run of D-RCTP-31's scenario a case, at"
+        f" rctp://{host}:{port}/<case id>; the case URLs in order at {files}/cases; {how}"
+    )
+
+
+def _local_banner(host: str, port: int, command: Command | None) -> str:
+    how = f"started as {command.template!r}" if command is not None else "start it once a case"
+    return (
+        f"RSP local system under test: one run of D-RSP-24's scenario a case, sending to"
+        f" {host}:{port}; {how}"
+    )
 
 
 def _check_roles(

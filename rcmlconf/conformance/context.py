@@ -44,6 +44,8 @@ class Context:
     impair: Impairment | None = None
     transcript: Transcript = field(default_factory=Transcript)
     _closers: list[Callable[[], None]] = field(default_factory=list)
+    #: Whether the client started for the case is stopped when it closes (`client`).
+    _finishing: bool = False
     #: The impairment channels of the case's probes (`watch`), for `excuse`.
     _channels: list[ImpairedChannel] = field(default_factory=list)
     #: How late the harness's loop ran (the run's), for `expect(..., timing=True)`.
@@ -193,6 +195,9 @@ class Context:
             raise NotApplicable("no RCTP client under test (--role client)")
         probe = await listener.accept(self.case.id, self.transcript, self.wait)
         self._closers.append(probe.close)
+        if not self._finishing:  # the client started for the case: stopped, and how it ran
+            self._finishing = True
+            self._closers.insert(0, lambda: self.transcript.notes(listener.finish(self.case.id)))
         return probe
 
     async def client_session(self, timeout: int = 60) -> tuple[ControlProbe, Request]:
@@ -223,6 +228,9 @@ class Context:
         self.watch(probe.channel)
         probe.quiet *= self.scale
         self._closers.append(probe.close)
+        if not self._finishing:  # the local system started for the case: stopped, and how
+            self._finishing = True
+            self._closers.insert(0, lambda: self.transcript.notes(listener.finish()))
         return probe
 
     async def rsp(self) -> Address:

@@ -23,6 +23,8 @@ PARTLY = "checked in part; not checked: "
 #: Lines of the exchange kept with a result, at most (--json has them all; a longer exchange
 #: keeps its last lines, after one that says how many were cut).
 EXCHANGE_LINES = 2000
+#: --connect-timeout's default: a client started per case has this long to connect.
+CONNECT_TIMEOUT = 10.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -38,6 +40,9 @@ class RunOptions:
     capture: Path | None = None
     #: --session-wait: the longest session timeout (D-RCTP-11) the cases wait out.
     session_wait: float = SESSION_WAIT
+    #: --connect-timeout: how long a client case waits for its client to connect, before its
+    #: own clock starts.
+    connect_timeout: float = CONNECT_TIMEOUT
 
 
 def under_test(case: Case, target: Target) -> bool:
@@ -103,7 +108,10 @@ async def _judged(
         missing = [f for f in case.features if f not in target.features]
         if missing:
             return _result(case, ctx, started, run, Verdict.NOT_APPLICABLE, _lacks(missing))
-        await asyncio.wait_for(case.run(ctx), ctx.timeout)
+        try:
+            await asyncio.wait_for(case.run(ctx), ctx.timeout)
+        finally:
+            ctx.close()  # first: what closing notes (a client command's end) is in the exchange
     except Failed as failed:
         excuse = ctx.excuse()
         return Result(
@@ -139,11 +147,27 @@ async def _judged(
         reason = f"harness fault: {type(error).__name__}: {error}"
         return _result(case, ctx, started, run, Verdict.ERROR, reason)
     finally:
-        ctx.close()
+        ctx.close()  # again, for a case that never ran: closing twice does nothing
         if options.capture is not None:
             _capture(options.capture, case, run, ctx)
     partly = "; ".join(ctx.unchecked)
     return _result(case, ctx, started, run, Verdict.PASS, partly and f"{PARTLY}{partly}")
+
+
+async def _absent(case: Case, target: Target, options: RunOptions, run: int) -> Result | None:
+    """A client case's wait for its client to connect, before its clock starts (a client that
+    takes its time to start is not slow to answer): the case's inconclusive if none came within
+    --connect-timeout, with how the client started for it ran."""
+    if case.role is not Role.CLIENT or target.clients is None:
+        return None
+    started = time.monotonic()
+    absent = await target.clients.arrival(case.id, options.connect_timeout)
+    if absent is None:
+        return None
+    exchange = tuple(target.clients.finish(case.id))
+    took = time.monotonic() - started
+    why = f"{absent} ({exchange[0]})" if exchange else absent
+    return Result(case.id, Verdict.INCONCLUSIVE, took, why, exchange=exchange, run=run)
 
 
 def capture_path(directory: Path, case: Case, run: int) -> Path:
@@ -181,8 +205,10 @@ async def run_cases(
             # session of the case before (D-RSP-24: one at a time): not the case's time either.
             await target.locals.settled()
         try:
-            async with gate:
-                result = await run_case(case, target, options, run, robots, watch, robot)
+            async with gate:  # a client waiting in line would wait on its own timers
+                result = await _absent(case, target, options, run)
+                if result is None:
+                    result = await run_case(case, target, options, run, robots, watch, robot)
         finally:
             if robot is not None:
                 robots.put_nowait(robot)

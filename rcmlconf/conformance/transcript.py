@@ -37,6 +37,10 @@ class Transcript:
     def note(self, text: str) -> None:
         self.lines.append(f"{time.monotonic() - self.start:7.3f}  {text}")
 
+    def notes(self, texts: list[str]) -> None:
+        for text in texts:
+            self.note(text)
+
     def sent(self, what: str, data: bytes) -> None:
         self.note(f"{_arrow(what, '->')} {show(data)}")
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import struct
 from collections.abc import Callable
+from dataclasses import dataclass
 
 from rcmlconf.conformance.cases.rctp_client import client_case
 from rcmlconf.conformance.context import Context
@@ -170,15 +171,22 @@ async def targets_and_bye(ctx: Context) -> None:
 # -- values of every type ------------------------------------------------------------------------
 
 
-async def _round_trip(ctx: Context, high: bool) -> None:
-    """Step 4: each normal node written with the value its READ gave (R-RCML-30 both ways)."""
+async def _round_trip(
+    ctx: Context, high: bool, requirement: str = "R-RCML-30", shouting: bool = False
+) -> PlayedServer:
+    """Step 4: each normal node written with the value its READ gave (R-RCML-30 both ways; with
+    `shouting`, the answers' tokens in capitals, R-RCTP-59)."""
     server = await played(ctx)
+    server.shouting = shouting
     nodes = normal_nodes(ctx, Permission.READ | Permission.WRITE)
     if not nodes:
         raise Inconclusive("the robot has no readable and writable data node of a normal access")
     for node in nodes:
         server.values[node.path] = edge(node, high)
     await server.reach("BYE")
+    if shouting:
+        after = [s.request.method for s in server.requests()[1:]]
+        ctx.expect(bool(after), "requests after CONNECT", "none", requirement)
     if not server.requests("WRITE"):
         raise Inconclusive("the client wrote nothing (D-RCTP-31 step 4)")
     for node in nodes:
@@ -192,14 +200,15 @@ async def _round_trip(ctx: Context, high: bool) -> None:
             f"a WRITE of {node.path} with the {node.type} value READ gave,"
             f" {value_text(node.type, value)}",
             "none: the client did not take the value it read",
-            "R-RCML-30",
+            requirement,
         )
         ctx.expect(
             bodies[0] == expected,
             f"WRITE {node.path} body {expected.hex(' ')}",
             f"{bodies[0].hex(' ')}",
-            "R-RCML-30",
+            requirement,
         )
+    return server
 
 
 @scenario_case(
@@ -218,6 +227,61 @@ async def values_high(ctx: Context) -> None:
 )
 async def values_low(ctx: Context) -> None:
     await _round_trip(ctx, high=False)
+
+
+@scenario_case(
+    "rctp/client/tokens-any-case",
+    "Answers that spell the media type, Session's timeout, and Transport's udp, parameter names"
+    " and mode in capitals are taken as in lower case: values read are written back, the"
+    " stream plays",
+    ["R-RCTP-59"],
+)
+async def tokens_any_case(ctx: Context) -> None:
+    server = await _round_trip(ctx, high=True, requirement="R-RCTP-59", shouting=True)
+    setups = [s for s in server.requests("SETUP") if s.status == 200]
+    if not setups or server.stream is None:
+        raise Inconclusive("the client set up no stream (D-RCTP-31 step 6)")
+    ctx.expect(
+        bool(server.stream.data()),
+        "DATA of the stream its SETUP answer set up (Transport: UDP;CLIENT_PORT=...;MODE=BOTH)",
+        "none",
+        "R-RCTP-59",
+    )
+
+
+@scenario_case(
+    "rctp/client/body-fields",
+    "Every request of the client's with a body carries Content-Length and the Content-Type"
+    " application/rctp-values, and none Transfer-Encoding",
+    ["R-RCTP-6", "R-RCTP-7"],
+)
+async def body_fields(ctx: Context) -> None:
+    server = await whole_run(ctx)
+    with_body = [s.request for s in server.requests() if s.request.body]
+    if not with_body:
+        raise Inconclusive("the client sent no request with a body (D-RCTP-31 step 4)")
+    for request in with_body:
+        what = f"{request.method} {request.target}"
+        headers = request.headers
+        ctx.expect(
+            headers.get("Content-Length") is not None,
+            f"Content-Length in {what}",
+            "none",
+            "R-RCTP-6",
+        )
+        media = (headers.get("Content-Type") or "").split(";")[0].strip().lower()
+        ctx.expect(
+            media == "application/rctp-values",
+            f"Content-Type: application/rctp-values in {what}",
+            f"Content-Type: {headers.get('Content-Type')}",
+            "R-RCTP-6",
+        )
+        ctx.expect(
+            headers.get("Transfer-Encoding") is None,
+            f"no Transfer-Encoding in {what}",
+            f"Transfer-Encoding: {headers.get('Transfer-Encoding')}",
+            "R-RCTP-7",
+        )
 
 
 _FLAWS = (Flaw.BOOL_BYTE, Flaw.OVER_SIZE, Flaw.NOT_UTF8, Flaw.PAST_END, Flaw.ITEM_COUNT)
@@ -299,48 +363,85 @@ async def event_write_nodes(ctx: Context) -> None:
     "rctp/client/event-push-taken",
     "A data-change WRITE of the server's is answered 200 and its values are the client's newest"
     " (the scenario writes them back, step 5)",
-    ["R-RCTP-61", "R-RCTP-24"],
+    ["R-RCTP-61", "R-RCTP-24", "R-RCTP-3"],
 )
 async def event_push_taken(ctx: Context) -> None:
-    pushed, answer, after, codec = await _push(ctx, cut=0)
-    ctx.expect_status(answer, 200, "R-RCTP-24")
-    body = codec.encode(pushed)
-    ctx.expect(
-        after.request.body == body,
-        f"the pushed values written back: {body.hex(' ')}",
-        after.request.body.hex(" "),
-        "R-RCTP-61",
-    )
+    push = await _push(ctx, lambda pushed, codec: codec.encode(pushed))
+    ctx.expect_status(push.answer, 200, "R-RCTP-24")
+    push.written_back(ctx, push.pushed, "the pushed values written back")
 
 
 @scenario_case(
     "rctp/client/event-push-refused",
     "A data-change WRITE whose body does not decode is refused (400 or 422) and not taken",
-    ["R-RCTP-61", "R-RCTP-24"],
+    ["R-RCTP-61", "R-RCTP-24", "R-RCTP-3"],
 )
 async def event_push_refused(ctx: Context) -> None:
-    before, answer, after, codec = await _push(ctx, cut=1)
+    push = await _push(ctx, lambda pushed, codec: codec.encode(pushed)[:-1])
+    answer = push.answer
     ctx.expect(
         answer.status in (400, 422),
         "400 or 422: the body is one byte short",
         f"{answer.status} {answer.reason}",
         "R-RCTP-24",
     )
-    body = codec.encode(before)
-    ctx.expect(
-        after.request.body == body,
-        f"the values it had before, {body.hex(' ')}: the refused push not taken",
-        after.request.body.hex(" "),
-        "R-RCTP-61",
-    )
+    push.written_back(ctx, push.before, "the values it had before: the refused push not taken")
+
+
+@scenario_case(
+    "rctp/client/event-push-out-of-range",
+    "A data-change WRITE holding a value outside its node's range is not taken if refused (422),"
+    " and taken if answered 200",
+    ["R-RCTP-61", "R-RCTP-3"],
+)
+async def event_push_out_of_range(ctx: Context) -> None:
+    ranged = [n for n in event_access(ctx).writable() if n.maximum is not None]
+    if not ranged:
+        raise Inconclusive(f"{event_access(ctx).path} has no writable node with a max")
+    node = ranged[0]
+    assert node.maximum is not None
+    over = node.maximum * 2 + 1
+
+    def beyond(pushed: dict[str, Value], codec: ValuesCodec[DataNode]) -> bytes:
+        pushed[node.name] = over
+        return codec.encode(pushed)
+
+    push = await _push(ctx, beyond)
+    # 422 is the status for a value outside a node's range (D-RCTP-8's table); R-RCTP-61 binds
+    # the client to what it answered either way.
+    if push.answer.status == 200:
+        push.written_back(ctx, push.pushed, f"{node.name}={over:g} taken, as answered 200")
+    else:
+        push.written_back(
+            ctx,
+            push.before,
+            f"the values it had before: {node.name}={over:g}"
+            f" refused ({push.answer.status}), not taken",
+        )
+
+
+@dataclass
+class _Push:
+    """What step 5 gave with a data-change WRITE: the values the client had before it and those
+    pushed, its answer, and the WRITE of the access that followed the client's PAUSE."""
+
+    before: dict[str, Value]
+    pushed: dict[str, Value]
+    answer: Response
+    after: Seen
+    codec: ValuesCodec[DataNode]
+
+    def written_back(self, ctx: Context, values: dict[str, Value], meaning: str) -> None:
+        body = self.codec.encode(values)
+        found = self.after.request.body
+        ctx.expect(found == body, f"{meaning}: {body.hex(' ')}", found.hex(" "), "R-RCTP-61")
 
 
 async def _push(
-    ctx: Context, cut: int
-) -> tuple[dict[str, Value], Response, Seen, ValuesCodec[DataNode]]:
-    """Step 5 with a data-change WRITE of the event access once it plays (its body `cut` bytes
-    short): the values the client had (pushed, when whole), its answer, and the WRITE of the
-    access that followed its PAUSE; the scenario is then run to its BYE."""
+    ctx: Context, body: Callable[[dict[str, Value], ValuesCodec[DataNode]], bytes]
+) -> _Push:
+    """Step 5 with a data-change WRITE of the event access once it plays, its body made by
+    `body` from values at the high edge of each node; the scenario is then run to its BYE."""
     access = event_access(ctx)
     server = await played(ctx)
     go = await server.reach("GO", access.path)
@@ -349,9 +450,13 @@ async def _push(
     codec = ValuesCodec(access.writable(), access.path, "R-RCTP-28")
     before = {n.name: server.values[n.path] for n in codec.nodes}
     pushed = {n.name: edge(n, high=True) for n in codec.nodes}
-    answer = await server.push(access, codec, pushed, cut=cut)
+    answer = await server.push(access, codec, body(pushed, codec))
+    # Mid-scenario the client's own CSeq is well past the server's: an answer numbered by the
+    # client's counter shows here (R-RCTP-3).
+    cseq, sent = answer.headers.get("CSeq"), str(server.probe.cseq)
+    ctx.expect(cseq == sent, f"CSeq: {sent}, the WRITE's", f"CSeq: {cseq}", "R-RCTP-3")
     after = await server.reach("WRITE", access.path)
     if after is None:
         raise Inconclusive(f"the client did not WRITE {access.path} after its PAUSE (step 5)")
     await server.reach("BYE")
-    return (before if cut else pushed), answer, after, codec
+    return _Push(before, pushed, answer, after, codec)

@@ -20,6 +20,7 @@ import re
 from collections import Counter
 from collections.abc import Awaitable, Callable, Sequence
 from pathlib import Path
+from typing import cast
 from urllib.parse import quote, unquote
 
 from rcmlconf.conformance.probes.control import ControlProbe
@@ -46,6 +47,7 @@ MAX_HEAD = 16384
 MAX_WAITING = 16
 #: How long a file request for a case not yet reached waits for it.
 FILES_WAIT = 60.0
+_HEAD_END = re.compile(rb"\n\r?\n")
 _SITE = re.compile(rb"""\bsite\s*=\s*("[^"]*"|'[^']*')""")
 
 _Accepted = tuple[asyncio.StreamReader, asyncio.StreamWriter, bytes]
@@ -57,21 +59,42 @@ def case_path(case_id: str) -> str:
 
 
 class ClientListener:
-    def __init__(self, robot: RcmlDocument, rcml: bytes, summon: Summon | None = None) -> None:
+    def __init__(
+        self,
+        robot: RcmlDocument,
+        rcml: bytes,
+        summon: Summon | None = None,
+        stop: Callable[[str], list[str]] | None = None,
+        on_wait: Callable[[str], None] | None = None,
+    ) -> None:
         #: The robot the harness plays, and its RCML as written: each case's copy names the
         #: case's URL as `site`.
         self.robot = robot
         self._rcml = rcml
+        #: Starts a client on a case's URL (the embedded reference, --client-command); `stop`
+        #: stops the one of a URL when its case ends, and says how it ran, for the report.
         self._summon = summon
+        self._stop = stop
+        #: Told of each case that waits for a client it does not start itself (the CLI's line).
+        self._on_wait = on_wait
+        self._arrived: dict[str, asyncio.Event] = {}
+        self._summoned: dict[str, asyncio.Future[None]] = {}
+        self._ever_connected = False
+        self._given_up = False
         self._server: asyncio.Server | None = None
         self._files: asyncio.Server | None = None
         self._planned: Counter[str] = Counter()
+        #: The runs of client cases planned (`plan`).
+        self.runs = 0
         self._order: list[str] = []
         self._running: str | None = None
         self._reached: dict[str, asyncio.Event] = {}
         self._queues: dict[str, asyncio.Queue[_Accepted]] = {}
         self._own_files: dict[str, dict[str, bytes]] = {}
         self._fetched: dict[str, list[str]] = {}
+        #: The first sequence number of each stream of the client's the played server saw, case
+        #: after case: R-RCTP-41's random start shows only over several runs.
+        self.stream_starts: list[int] = []
         self._waiting = 0
         self._tasks: set[asyncio.Task[None]] = set()
 
@@ -86,6 +109,7 @@ class ClientListener:
         """The client cases of the run, in the order they run (repeats included)."""
         self._order = list(dict.fromkeys(case_ids))
         self._planned = Counter(case_ids)
+        self.runs = len(case_ids)
         for case_id in self._order:
             self._reached.setdefault(case_id, asyncio.Event())
             self._queues.setdefault(case_id, asyncio.Queue())
@@ -119,6 +143,8 @@ class ClientListener:
             _, writer, _ = queue.get_nowait()
             self._waiting -= 1
             writer.close()
+        self._arrived.pop(case_id, None)
+        self._summoned.pop(case_id, None)
         if self._planned[case_id] > 0:
             self._reached[case_id] = asyncio.Event()
 
@@ -151,10 +177,11 @@ class ClientListener:
     def _accepted(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         self._spawn(self._route(reader, writer))
 
-    def _spawn(self, work: Awaitable[None]) -> None:
+    def _spawn(self, work: Awaitable[None]) -> asyncio.Future[None]:
         task = asyncio.ensure_future(work)
         self._tasks.add(task)
         task.add_done_callback(self._tasks.discard)
+        return task
 
     async def _route(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         """Give the connection to the case its first request names."""
@@ -171,15 +198,58 @@ class ClientListener:
             writer.close()
             return
         self._waiting += 1
+        self._ever_connected = True
         self._queues[case_id].put_nowait((reader, writer, head))
+        self._arrived.setdefault(case_id, asyncio.Event()).set()
 
-    async def accept(self, case_id: str, transcript: Transcript, wait: float) -> ControlProbe:
-        """The case's next connection; inconclusive if none comes within `wait`."""
+    async def arrival(self, case_id: str, wait: float) -> str | None:
+        """Before the case's clock starts: its first connection, from a client summoned if the
+        harness starts them, waited for up to `wait` (--connect-timeout). None once it came;
+        else why not. After a case in which no client of the run had ever connected, the rest
+        give up at once: a run with no client is an error, not a long wait."""
+        queue = self._begin(case_id)
+        if not queue.empty():
+            return None
+        if self._given_up:
+            return f"no client has connected to the harness (the first case waited {wait:g} s)"
+        if self._on_wait is not None and self._summon is None:
+            self._on_wait(case_id)
+        arrived: asyncio.Future[object] = asyncio.ensure_future(
+            self._arrived.setdefault(case_id, asyncio.Event()).wait()
+        )
+        summoned = self._summoned.get(case_id)
+        either: list[asyncio.Future[object]] = [arrived]
+        if summoned is not None:  # a client started for the case that ends unconnected: no wait
+            either.append(cast("asyncio.Future[object]", summoned))
+        try:
+            await asyncio.wait(either, timeout=wait, return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            arrived.cancel()
+        if not queue.empty():
+            return None
+        self._given_up = not self._ever_connected
+        if summoned is not None and summoned.done():
+            return f"the client started for {self.url(case_id)} ended before it connected"
+        return f"no client connected for {self.url(case_id)} within {wait:g} s"
+
+    def finish(self, case_id: str) -> list[str]:
+        """The client started for the case is stopped if it still runs: how it ran, for the
+        case's report."""
+        return self._stop(self.url(case_id)) if self._stop is not None else []
+
+    def _begin(self, case_id: str) -> asyncio.Queue[_Accepted]:
+        """The case runs: its connections are its own, and a client is started for it if the
+        harness starts them and none is waiting."""
         self._running = case_id
         self._reached.setdefault(case_id, asyncio.Event()).set()
         queue = self._queues.setdefault(case_id, asyncio.Queue())
         if self._summon is not None and queue.empty():
-            self._spawn(self._summon(self.url(case_id)))
+            self._summoned[case_id] = self._spawn(self._summon(self.url(case_id)))
+        return queue
+
+    async def accept(self, case_id: str, transcript: Transcript, wait: float) -> ControlProbe:
+        """The case's next connection; inconclusive if none comes within `wait`."""
+        queue = self._begin(case_id)
         try:
             reader, writer, head = await asyncio.wait_for(queue.get(), wait)
         except TimeoutError:
@@ -187,6 +257,8 @@ class ClientListener:
                 f"no client connected for {self.url(case_id)} within {wait:g} s"
             ) from None
         self._waiting -= 1
+        if queue.empty():
+            self._arrived.setdefault(case_id, asyncio.Event()).clear()
         probe = ControlProbe(reader, writer, transcript, wait).serving()
         peer = probe.peer
         transcript.note(f"{probe.name} a client connected from {peer[0]}:{peer[1]}")
@@ -195,12 +267,14 @@ class ClientListener:
 
     # -- the files -----------------------------------------------------------------------------
 
-    def case_files(self, case_id: str) -> dict[str, bytes]:
-        """The case's files by name: the robot's RCML naming the case's URL, and its own."""
+    def rcml(self, case_id: str) -> bytes:
+        """The robot's RCML, naming the case's URL as its site."""
         site = f'site="{self.url(case_id)}"'.encode()
-        files = {RCML_NAME: _SITE.sub(lambda _: site, self._rcml, count=1)}
-        files.update(self._own_files.get(case_id, {}))
-        return files
+        return _SITE.sub(lambda _: site, self._rcml, count=1)
+
+    def case_files(self, case_id: str) -> dict[str, bytes]:
+        """The case's files by name: the robot's RCML, and its own."""
+        return {RCML_NAME: self.rcml(case_id), **self._own_files.get(case_id, {})}
 
     def case_of(self, path: str) -> str | None:
         """The case whose files `path` names."""
@@ -270,7 +344,8 @@ async def _first_head(reader: asyncio.StreamReader) -> bytes:
     head = b""
     loop = asyncio.get_running_loop()
     deadline = loop.time() + FIRST_REQUEST_WAIT
-    while b"\r\n\r\n" not in head and len(head) < MAX_HEAD:
+    # Any blank line ends it: a head with bare LFs is the case's to judge (R-RCTP-1).
+    while not _HEAD_END.search(head) and len(head) < MAX_HEAD:
         try:
             data = await asyncio.wait_for(reader.read(MAX_HEAD), deadline - loop.time())
         except (TimeoutError, OSError):

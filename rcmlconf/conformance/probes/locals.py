@@ -168,13 +168,20 @@ class LocalListener:
     """The harness's robot socket: one local-system session a case (`accept`)."""
 
     def __init__(
-        self, model: RobotModel, psk: bytes | None = None, summon: Summon | None = None
+        self,
+        model: RobotModel,
+        psk: bytes | None = None,
+        summon: Summon | None = None,
+        stop: Callable[[str], list[str]] | None = None,
     ) -> None:
         self.model = model
         self.codec = RspCodec(model)
         #: The robot's pre-shared key (D-RSP-21): without it encrypted sessions are refused.
         self.psk = psk
+        #: Starts a local system sending to the harness (the embedded reference, --client-command);
+        #: `stop` stops it, by the address it was given, when its case ends.
         self._summon = summon
+        self._stop = stop
         self._loop = asyncio.get_running_loop()
         self._transport: asyncio.DatagramTransport | None = None
         self._started = 0.0
@@ -244,6 +251,12 @@ class LocalListener:
                 continue
             return entry
         return None
+
+    def finish(self) -> list[str]:
+        """The local system started for the case ending is stopped if it still runs: how it
+        ran, for the case's report."""
+        host, port = self.address
+        return self._stop(f"{host}:{port}") if self._stop is not None else []
 
     async def settled(self) -> None:
         """Until the local system under test is done with the sessions the cases before ended:

@@ -72,6 +72,23 @@ async def played(ctx: Context) -> PlayedServer:
     return PlayedServer(ctx, await ctx.client())
 
 
+def shout(name: str, value: str) -> str:
+    """A field's value with the tokens R-RCTP-59 compares without regard to case in another
+    case: `Application/RCTP-Values`, `;TIMEOUT=60`, `UDP;CLIENT_PORT=...;MODE=BOTH`."""
+    lower = name.lower()
+    if lower == "content-type":
+        return "Application/RCTP-Values" if value == "application/rctp-values" else value
+    if lower == "session":
+        return value.replace(";timeout=", ";TIMEOUT=")
+    if lower != "transport":
+        return value
+    words = []
+    for word in value.split(";"):
+        key, equals, given = word.partition("=")
+        words.append(key.upper() + equals + (given.upper() if key == "mode" else given))
+    return ";".join(words)
+
+
 @dataclass
 class Write:
     """A WRITE of the client's the played server took: its target and the values it set."""
@@ -96,6 +113,11 @@ class PlayedServer:
         self.own: Own | None = None
         #: The data stream, once a stream access was set up.
         self.stream: PlayedStream | None = None
+        #: Whether the answers spell the tokens R-RCTP-59 makes case-insensitive otherwise.
+        self.shouting = False
+        #: Seconds the answer to a request of a method waits: a slow server, within the 5 s a
+        #: client waits (D-RCTP-31), opens a window in which to see what the client does early.
+        self.holds: dict[str, float] = {}
         self._playing: set[str] = set()
         self._set_up: set[str] = set()
         self.loop = asyncio.get_running_loop()
@@ -147,7 +169,12 @@ class PlayedServer:
             await self.probe.send(own)
             seen = Seen(request, self.loop.time(), 0)
         else:
+            if hold := self.holds.get(request.method):
+                self.probe.transcript.note(f"(the answer to {request.method} waits {hold:g} s)")
+                await asyncio.sleep(hold)
             status, reason, fields, body = await self._answer(request)
+            if self.shouting:
+                fields = [(name, shout(name, value)) for name, value in fields]
             await self.probe.send(self.probe.response_bytes(request, status, reason, fields, body))
             seen = Seen(request, self.loop.time(), status)
         self.seen.append(seen)
@@ -283,17 +310,9 @@ class PlayedServer:
 
     # -- the server's own requests ------------------------------------------------------------
 
-    async def push(
-        self,
-        access: AccessNode,
-        codec: ValuesCodec[DataNode],
-        values: dict[str, Value],
-        cut: int = 0,
-    ) -> Response:
-        """A data-change WRITE of `access` (D-RCTP-27) with `values` (its body `cut` bytes
-        short), and the client's answer; its own requests meanwhile are served."""
-        body = codec.encode(values)
-        body = body[: len(body) - cut]
+    async def push(self, access: AccessNode, codec: ValuesCodec[DataNode], body: bytes) -> Response:
+        """A data-change WRITE of `access` (D-RCTP-27) listing `codec`'s nodes, with `body`, and
+        the client's answer; its own requests meanwhile are served."""
         fields = [("Nodes", format_nodes(codec.names))]
         await self.probe.send(
             self.probe.request_bytes("WRITE", format_target(access.path), fields, body)

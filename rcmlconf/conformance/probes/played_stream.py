@@ -36,6 +36,7 @@ from rcmlconf.rctp.datastream import (
     stream_codec,
 )
 from rcmlconf.rctp.datastream.endpoint import micros
+from rcmlconf.rctp.datastream.packets import MalformedFlowPayload
 from rcmlconf.rctp.fields import Transport
 from rcmlconf.values import Value
 
@@ -65,6 +66,8 @@ class PlayedStream:
         self.received: list[Datagram] = []
         #: The FLOW requests of the client's, with the datagram each came in.
         self.flow_requests: list[tuple[Datagram, FlowMessage]] = []
+        #: The client's FLOW bodies that break D-RCTP-22's layout (R-RCTP-52).
+        self.malformed: list[MalformedFlowPayload] = []
         self._tasks: list[asyncio.Task[None]] = []
         self._asked: dict[int, asyncio.Future[FlowMessage]] = {}
 
@@ -80,6 +83,8 @@ class PlayedStream:
             asyncio.ensure_future(stream._send()),
         ]
         ctx.on_close(stream.close)
+        if (listener := ctx.target.clients) is not None:
+            ctx.on_close(lambda: listener.stream_starts.extend(stream.first_sequence()))
         return stream
 
     def set_up(self, access: AccessNode, asked: Transport) -> None:
@@ -108,6 +113,10 @@ class PlayedStream:
         return ntp_from_unix(time.time() + self.skew)
 
     # -- what the client sent ----------------------------------------------------------------
+
+    def first_sequence(self) -> list[int]:
+        """The sequence number of the client's first packet, if one came."""
+        return [one.packet.sequence for one in self.received[:1] if one.packet is not None]
 
     def data(self) -> list[tuple[Datagram, DataPayload]]:
         """Every DATA payload of the client's, with its datagram."""
@@ -146,6 +155,8 @@ class PlayedStream:
             if one.packet is None:
                 continue
             for payload in one.packet.payloads:
+                if isinstance(payload, MalformedFlowPayload):
+                    self.malformed.append(payload)
                 if not isinstance(payload, FlowPayload):
                     continue
                 flow = payload.flow
@@ -165,6 +176,13 @@ class PlayedStream:
         try:
             return await asyncio.wait_for(waiter, self.probe.wait)
         except TimeoutError:
+            if self.malformed:  # the answer may be there, in a body no reader can take
+                broken = self.malformed[-1]
+                raise Failed(
+                    "R-RCTP-52",
+                    f"an ACK or NACK of request {request.request_id} in D-RCTP-22's layout",
+                    f"a FLOW body that breaks it: {broken.reason} ({broken.body.hex(' ')})",
+                ) from None
             raise Failed(
                 "R-RCTP-46",
                 f"an ACK or NACK of request {request.request_id}",

@@ -1,0 +1,264 @@
+"""rctp/client, what the client under test does with the played robot's DATA (D-RCTP-31 step 6):
+it takes well-formed DATA and echoes it, and never takes DATA that is stale, out of range or in a
+packet that is not the session's (R-RCTP-40, R-RCTP-42, R-RCTP-43, R-RCTP-58; specs/rctp-2.0.md
+D-RCTP-20, D-RCTP-21)."""
+
+from __future__ import annotations
+
+import asyncio
+
+from rcmlconf.conformance.cases.rctp_client_scenario import scenario_case
+from rcmlconf.conformance.cases.rctp_client_streams import (
+    shared_nodes,
+    shown,
+    until_playing,
+    visible,
+    written,
+)
+from rcmlconf.conformance.cases.rctp_streams import UNKNOWN_TYPE
+from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.played import PlayedServer
+from rcmlconf.conformance.probes.played_stream import STREAM_ID, PlayedStream
+from rcmlconf.conformance.probes.stream import StreamProbe
+from rcmlconf.conformance.verdicts import Inconclusive
+from rcmlconf.rcml.model import AccessNode, DataNode
+from rcmlconf.rctp.bodies import ValuesCodec
+from rcmlconf.rctp.datastream import (
+    DataPayload,
+    Direction,
+    FlowPayload,
+    HeartbeatRequest,
+    Message,
+    Payload,
+    UnknownPayload,
+    stream_codec,
+)
+from rcmlconf.values import Kind, Value
+from rcmlconf.wording import plural
+
+#: How long the client's DATA is watched after it answered a server BYE: ten write intervals of
+#: the harness's robot.
+WATCH = 0.5
+
+
+@scenario_case(
+    "rctp/client/stream-echo",
+    "The played robot's DATA is taken: the client's DATA carries the values it got, in canonical"
+    " order (the harness's robot declares them in another)",
+    ["R-RCTP-58", "R-RCTP-40"],
+)
+async def stream_echo(ctx: Context) -> None:
+    server, stream, access = await until_playing(ctx)
+    shared = shared_nodes(access)
+    for node in access.readable():
+        server.values[node.path] = visible(node)
+    await server.reach("PAUSE")
+    echoed = written(stream, access)
+    wanted = {n.name: server.values[n.path] for n in shared}
+    ctx.expect(
+        any(all(v.get(k) == x for k, x in wanted.items()) for v in echoed),
+        f"DATA with {shown(shared, wanted)} (the played robot's, D-RCTP-31 step 6), both ways"
+        " in canonical order",
+        shown(shared, echoed[-1]) if echoed else "no DATA",
+        "R-RCTP-58",
+    )
+    await server.reach("BYE")
+
+
+@scenario_case(
+    "rctp/client/stream-stale-not-taken",
+    "DATA in a packet that is not newer than one already taken (older, or the same number again)"
+    " is not taken: an older value never replaces a newer one",
+    ["R-RCTP-43"],
+)
+async def stream_stale_not_taken(ctx: Context) -> None:
+    server, stream, access, codec, newer = await _hushed(ctx)
+    marks = _marks(ctx, access, 2)
+    sequence = stream.probe.next_sequence()
+    sent = [
+        (sequence, newer, "the newer packet"),
+        (sequence, {**newer, **marks[0]}, "the packet with its number again"),
+        ((sequence - 1) & 0xFFFF, {**newer, **marks[1]}, "the older packet"),
+    ]
+    for number, values, _ in sent:
+        stream.probe.send_packet([DataPayload(STREAM_ID, codec.encode(values))], sequence=number)
+    await _judge_echo(ctx, server, stream, access, newer, [(v, what) for _, v, what in sent[1:]])
+
+
+@scenario_case(
+    "rctp/client/stream-out-of-range-not-taken",
+    "DATA holding a value outside its node's range is not taken",
+    ["R-RCTP-58"],
+)
+async def stream_out_of_range(ctx: Context) -> None:
+    server, stream, access, codec, newer = await _hushed(ctx)
+    ranged = [n for n in shared_nodes(access) if n.maximum is not None]
+    if not ranged:
+        raise Inconclusive(f"{access.path} has no node with a max that it reads and writes")
+    node = ranged[0]
+    assert node.maximum is not None
+    over = node.maximum * 2 + 1
+    stream.probe.send_packet([DataPayload(STREAM_ID, codec.encode(newer))])
+    beyond = {**newer, node.name: over}
+    for _ in range(3):
+        stream.probe.send_packet([DataPayload(STREAM_ID, codec.encode(beyond))])
+    outside = f"those with {node.name}={over:g}, outside {node.minimum} to {node.maximum}"
+    await _judge_echo(ctx, server, stream, access, newer, [(beyond, outside)])
+
+
+@scenario_case(
+    "rctp/client/stream-foreign-packets-dropped",
+    "Packets of another version, with another tag or from another port are dropped unanswered:"
+    " their DATA is never taken, their heartbeats never answered",
+    ["R-RCTP-42"],
+)
+async def stream_foreign_packets_dropped(ctx: Context) -> None:
+    server, stream, access, codec, newer = await _hushed(ctx)
+    probe = stream.probe
+    set_up = probe.set_up
+    assert set_up is not None
+    marks = _marks(ctx, access, 3)
+    probe.send_packet([DataPayload(STREAM_ID, codec.encode(newer))])
+    other = await StreamProbe.open(probe.local[0], ctx.transcript, probe.wait)
+    ctx.on_close(other.close)
+    kinds = ["version 3", "another tag", "another port"]
+    sent, asked = [], []
+    for kind, mark in zip(kinds, marks, strict=True):
+        values = {**newer, **mark}
+        beat = HeartbeatRequest(probe.next_request_id(), stream.robot_time())
+        payloads: list[Payload] = [
+            DataPayload(STREAM_ID, codec.encode(values)),
+            FlowPayload(0, beat),
+        ]
+        if kind == "version 3":
+            data = bytearray(probe.packet_bytes(payloads))
+            data[0] = 3
+            probe.send(bytes(data))
+        elif kind == "another tag":
+            probe.send_packet(payloads, tag=set_up.tag ^ 0x5A5A5A5A)
+        else:
+            other.send_packet(payloads, tag=set_up.tag, to=set_up.server)
+        sent.append((values, f"the packet of {kind}"))
+        asked.append((beat.request_id, kind))
+    await _judge_echo(ctx, server, stream, access, newer, sent)
+    answered = {
+        p.flow.request_id
+        for one in stream.received + other.drain()
+        if one.packet is not None
+        for p in one.packet.payloads
+        if isinstance(p, FlowPayload) and p.flow.message is not Message.REQUEST
+    }
+    wrongly = [kind for request_id, kind in asked if request_id in answered]
+    ctx.expect(
+        not wrongly,
+        "no answer to the heartbeats of those packets",
+        f"an answer to the heartbeat of {', '.join(wrongly)}",
+        "R-RCTP-42",
+    )
+
+
+@scenario_case(
+    "rctp/client/stream-unknown-payload-skipped",
+    "A payload of an unknown type is skipped by its length: the DATA after it in the packet is"
+    " taken",
+    ["R-RCTP-51"],
+)
+async def stream_unknown_payload_skipped(ctx: Context) -> None:
+    server, stream, access, codec, newer = await _hushed(ctx)
+    # Its body looks like a DATA body of other values: read as one, it was not skipped.
+    decoy = codec.encode({**newer, **_marks(ctx, access, 1)[0]})
+    unknown = UnknownPayload(UNKNOWN_TYPE, STREAM_ID, decoy)
+    stream.probe.send_packet([unknown, DataPayload(STREAM_ID, codec.encode(newer))])
+    await _judge_echo(ctx, server, stream, access, newer, [])
+
+
+@scenario_case(
+    "rctp/client/bye-while-streaming",
+    "A server BYE while the stream plays is answered 200, and no DATA follows its answer",
+    ["R-RCTP-23", "R-RCTP-44"],
+)
+async def bye_while_streaming(ctx: Context) -> None:
+    server, stream, access = await until_playing(ctx)
+    probe = server.probe
+    await probe.send(probe.request_bytes("BYE", "*", [("Reason", "shutdown")]))
+    answer = await server.answer()
+    answered = asyncio.get_running_loop().time()
+    ctx.expect_status(answer, 200, "R-RCTP-23")
+    await asyncio.sleep(WATCH * ctx.scale)
+    # One DATA may have been on its way when the answer left, and the loop lags a little.
+    slack = (access.write_interval or 0.05) + 0.1 * ctx.scale
+    late = [one.at for one, _ in stream.data() if one.at > answered + slack]
+    ctx.expect(
+        not late,
+        "no DATA after the BYE was answered: the session is over",
+        f"{plural(len(late), 'DATA payload')} up to {late[-1] - answered:.2f} s after"
+        if late
+        else "",
+        "R-RCTP-44",
+        timing=True,
+    )
+
+
+async def _hushed(
+    ctx: Context,
+) -> tuple[PlayedServer, PlayedStream, AccessNode, ValuesCodec[DataNode], dict[str, Value]]:
+    """The scenario up to its stream's GO, the played robot's own DATA stopped (the case's
+    packets are the only ones): the server, the stream, its access, the codec of the robot's
+    DATA, and values for a good packet."""
+    server, stream, access = await until_playing(ctx)
+    stream.sending = False
+    codec = stream_codec(access, Direction.READ)
+    return server, stream, access, codec, {n.name: visible(n) for n in codec.nodes}
+
+
+async def _judge_echo(
+    ctx: Context,
+    server: PlayedServer,
+    stream: PlayedStream,
+    access: AccessNode,
+    newer: dict[str, Value],
+    others: list[tuple[dict[str, Value], str]],
+) -> None:
+    """After `newer` went in a good packet and `others` in packets the client must not take,
+    every DATA of the client's from two write intervals on holds `newer`'s shared values (the
+    echo of step 6) until its PAUSE; the scenario is then run to its BYE."""
+    shared = shared_nodes(access)
+    # DATA the client sent before the packets reached it still carries what it had.
+    settled = asyncio.get_running_loop().time() + 2 * (access.write_interval or 0.05)
+    settled += 0.1 * ctx.scale
+    await server.reach("PAUSE")
+    echoed = written(stream, access, since=settled)
+    if not echoed:
+        raise Inconclusive("the client sent no DATA after the packets (step 6's echo)")
+
+    def same(echo: dict[str, Value], values: dict[str, Value]) -> bool:
+        return all(echo.get(n.name) == values[n.name] for n in shared)
+
+    wrong = next((v for v in echoed if not same(v, newer)), None)
+    source = next((what for values, what in others if wrong and same(wrong, values)), "")
+    ctx.expect(
+        wrong is None,
+        f"{shown(shared, newer)} in every DATA after the packets: no other packet's values",
+        f"DATA with {shown(shared, wrong)}" + (f", the values of {source}" if source else "")
+        if wrong
+        else "",
+        ctx.case.requirements[0],
+    )
+    await server.reach("BYE")
+
+
+def _marks(ctx: Context, access: AccessNode, count: int) -> list[dict[str, Value]]:
+    """`count` values of one read-and-written number node of the access, each unlike the others,
+    its zero and `visible`'s: what the client echoes names the packet it took."""
+    for node in shared_nodes(access):
+        kind = node.type.base.kind
+        if node.type.is_array or kind not in (Kind.INTEGER, Kind.FLOAT):
+            continue
+        high = node.maximum if node.maximum is not None else min(1000, node.type.base.high)
+        if kind is Kind.FLOAT:
+            values: list[Value] = [high * (k + 1) / 8 for k in range(count)]
+        else:
+            values = [int(high) * (k + 1) // 8 for k in range(count)]
+        if len({*values, node.zero(), visible(node)}) == count + 2:
+            return [{node.name: v} for v in values]
+    raise Inconclusive(f"{access.path} has no number node read and written with room for marks")
