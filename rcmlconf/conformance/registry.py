@@ -34,6 +34,8 @@ class Role(enum.Enum):
 
 
 CaseFunction = Callable[["Context"], Awaitable[None]]
+#: A client case's RCML from its robot's RCML and the case's files URL (`Case.served`).
+Served = Callable[[bytes, str], bytes]
 #: The longest session timeout (D-RCTP-11) the cases that wait one out wait for, by default
 #: (`run --session-wait`): a server that announces longer makes them inconclusive.
 SESSION_WAIT = 5.0
@@ -60,6 +62,10 @@ class Case:
     #: Waits out the server's session timeout: its time grows by what --session-wait adds to
     #: SESSION_WAIT.
     waits_session: bool = False
+    #: A client case's own RCML, made from its robot's and the case's files URL (D-RCTP-31: a
+    #: case may serve another RCML to test step 1); served from the start of the run, since a
+    #: client may fetch it before the case's clock starts.
+    served: Served | None = None
 
     @property
     def area(self) -> str:
@@ -81,6 +87,7 @@ def case(
     features: Iterable[str] = (),
     serial: bool = False,
     waits_session: bool = False,
+    served: Served | None = None,
 ) -> Callable[[CaseFunction], CaseFunction]:
     """Register the decorated coroutine function as a case."""
 
@@ -103,6 +110,7 @@ def case(
             serial,
             run,
             waits_session,
+            served,
         )
         return run
 

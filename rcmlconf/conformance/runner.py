@@ -228,7 +228,9 @@ async def run_cases(
         if alone(case, target):
             lanes.setdefault(case.role, []).append(case)
     if target.clients is not None:  # D-RCTP-31: the case URLs, in the order they run
-        target.clients.plan([c.id for c in cases if c.role is Role.CLIENT] * options.repeat)
+        clients = [c for c in cases if c.role is Role.CLIENT]
+        served = {c.id: c.served for c in clients if c.served is not None}
+        target.clients.plan([c.id for c in clients] * options.repeat, served)
     watch.start()
     try:
         for run in range(1, options.repeat + 1):

@@ -9,7 +9,7 @@ from collections.abc import Callable
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.clients import case_path
 from rcmlconf.conformance.probes.control import ControlProbe
-from rcmlconf.conformance.registry import CaseFunction, Role, case
+from rcmlconf.conformance.registry import CaseFunction, Role, Served, case
 from rcmlconf.rcml.model import AccessType
 from rcmlconf.rctp.messages import Response
 from rcmlconf.rctp.reader import LIMITS
@@ -17,10 +17,16 @@ from rcmlconf.rctp.targets import format_target
 
 
 def client_case(
-    id: str, purpose: str, requirements: list[str], timeout: float = 5.0
+    id: str,
+    purpose: str,
+    requirements: list[str],
+    timeout: float = 5.0,
+    served: Served | None = None,
 ) -> Callable[[CaseFunction], CaseFunction]:
     """A client case: one connection at a time, so never two at once."""
-    return case(id, purpose, requirements, role=Role.CLIENT, serial=True, timeout=timeout)
+    return case(
+        id, purpose, requirements, role=Role.CLIENT, serial=True, timeout=timeout, served=served
+    )
 
 
 async def answer_to(ctx: Context, probe: ControlProbe, data: bytes) -> Response:

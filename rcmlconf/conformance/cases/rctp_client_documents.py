@@ -9,7 +9,7 @@ import re
 
 from rcmlconf.conformance.cases.rctp_client_scenario import scenario_case, whole_run
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.clients import RCML_NAME, ClientListener
+from rcmlconf.conformance.probes.clients import ClientListener
 from rcmlconf.conformance.verdicts import Inconclusive
 
 #: The DTD the DOCTYPE names: the bundled one's name (R-XML-4), at a URL of the case's files.
@@ -28,8 +28,18 @@ def _listener(ctx: Context) -> ClientListener:
     return listener
 
 
-def _rcml(ctx: Context) -> bytes:
-    return _listener(ctx).rcml(ctx.case.id)
+def _with_doctype(rcml: bytes, files_url: str) -> bytes:
+    """The RCML with a DOCTYPE after its XML declaration, naming a DTD among the case's files."""
+    declared = rcml.index(b"?>") + 2
+    doctype = f'\n<!DOCTYPE rcml SYSTEM "{files_url}{DTD_NAME}">'.encode()
+    return rcml[:declared] + doctype + rcml[declared:]
+
+
+def _with_foreign(rcml: bytes, files_url: str) -> bytes:
+    """The RCML with an access in another namespace as the root's first child."""
+    root = re.search(rb"<rcml\b[^>]*>", rcml)
+    assert root is not None
+    return rcml[: root.end()] + b"\n  " + FOREIGN + rcml[root.end() :]
 
 
 @scenario_case(
@@ -37,14 +47,11 @@ def _rcml(ctx: Context) -> bytes:
     "The client reads an RCML whose DOCTYPE names a DTD on the harness's files port without"
     " asking for the DTD",
     ["R-XML-12"],
+    served=_with_doctype,
 )
 async def dtd_not_loaded(ctx: Context) -> None:
     listener = _listener(ctx)
     dtd = listener.files_url(ctx.case.id) + DTD_NAME
-    rcml = _rcml(ctx)
-    declared = rcml.index(b"?>") + 2  # after the XML declaration
-    doctype = f'\n<!DOCTYPE rcml SYSTEM "{dtd}">'.encode()
-    listener.serve(ctx.case.id, RCML_NAME, rcml[:declared] + doctype + rcml[declared:])
     server = await whole_run(ctx)
     asked = [p for p in listener.fetched(ctx.case.id) if p.endswith("/" + DTD_NAME)]
     ctx.expect(not asked, f"no GET of {dtd} (D-XML-3)", f"GET {', '.join(asked)}", "R-XML-12")
@@ -56,14 +63,9 @@ async def dtd_not_loaded(ctx: Context) -> None:
     "rctp/client/foreign-namespace-ignored",
     "The client ignores an access of the RCML in another namespace: it never reads or writes it",
     ["R-XML-13"],
+    served=_with_foreign,
 )
 async def foreign_namespace_ignored(ctx: Context) -> None:
-    rcml = _rcml(ctx)
-    root = re.search(rb"<rcml\b[^>]*>", rcml)
-    assert root is not None
-    _listener(ctx).serve(
-        ctx.case.id, RCML_NAME, rcml[: root.end()] + b"\n  " + FOREIGN + rcml[root.end() :]
-    )
     server = await whole_run(ctx)
     if not server.read_paths():
         raise Inconclusive("the client read nothing (D-RCTP-31 step 3)")

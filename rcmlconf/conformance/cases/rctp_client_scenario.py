@@ -22,7 +22,7 @@ from rcmlconf.conformance.probes.played import (
     path_of,
     played,
 )
-from rcmlconf.conformance.registry import CaseFunction
+from rcmlconf.conformance.registry import CaseFunction, Served
 from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, Permission
 from rcmlconf.rctp.bodies import ValuesCodec
@@ -39,10 +39,10 @@ _FLOAT32_MAX = struct.unpack(">f", b"\x7f\x7f\xff\xff")[0]
 
 
 def scenario_case(
-    id: str, purpose: str, requirements: list[str]
+    id: str, purpose: str, requirements: list[str], served: Served | None = None
 ) -> Callable[[CaseFunction], CaseFunction]:
     """A case that runs the client's whole scenario: it takes longer than a plain client case."""
-    return client_case(id, purpose, requirements, timeout=SCENARIO_TIME)
+    return client_case(id, purpose, requirements, timeout=SCENARIO_TIME, served=served)
 
 
 async def whole_run(ctx: Context) -> PlayedServer:

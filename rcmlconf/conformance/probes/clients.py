@@ -18,9 +18,9 @@ import asyncio
 import contextlib
 import re
 from collections import Counter
-from collections.abc import Awaitable, Callable, Sequence
+from collections.abc import Awaitable, Callable, Mapping, Sequence
 from pathlib import Path
-from typing import cast
+from typing import TYPE_CHECKING, cast
 from urllib.parse import quote, unquote
 
 from rcmlconf.conformance.probes.control import ControlProbe
@@ -29,6 +29,9 @@ from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rctp.url import http_base
 from rcmlconf.reference.server.files import INDEX_TYPE, XML_TYPE, Document, FileServer, index_page
+
+if TYPE_CHECKING:
+    from rcmlconf.conformance.registry import Served
 
 Summon = Callable[[str], Awaitable[None]]
 
@@ -90,7 +93,7 @@ class ClientListener:
         self._running: str | None = None
         self._reached: dict[str, asyncio.Event] = {}
         self._queues: dict[str, asyncio.Queue[_Accepted]] = {}
-        self._own_files: dict[str, dict[str, bytes]] = {}
+        self._served: dict[str, Served] = {}
         self._fetched: dict[str, list[str]] = {}
         #: The first sequence number of each stream of the client's the played server saw, case
         #: after case: R-RCTP-41's random start shows only over several runs.
@@ -105,8 +108,10 @@ class ClientListener:
 
     # -- the run's plan ------------------------------------------------------------------------
 
-    def plan(self, case_ids: Sequence[str]) -> None:
-        """The client cases of the run, in the order they run (repeats included)."""
+    def plan(self, case_ids: Sequence[str], served: Mapping[str, Served] | None = None) -> None:
+        """The client cases of the run, in the order they run (repeats included), and the RCML
+        of those that serve their own (`Case.served`)."""
+        self._served = dict(served or {})
         self._order = list(dict.fromkeys(case_ids))
         self._planned = Counter(case_ids)
         self.runs = len(case_ids)
@@ -122,11 +127,6 @@ class ClientListener:
     def files_url(self, case_id: str) -> str:
         host, port = self.address
         return f"{http_base(host, port + 1)}{case_path(case_id)}/"
-
-    def serve(self, case_id: str, name: str, data: bytes) -> None:
-        """A file of the case's own, at `name` among its files (before the case waits for its
-        client); `RCML_NAME` replaces the robot's RCML."""
-        self._own_files.setdefault(case_id, {})[name] = data
 
     def fetched(self, case_id: str) -> list[str]:
         """The paths of the case's files the client asked for, in order."""
@@ -267,14 +267,14 @@ class ClientListener:
 
     # -- the files -----------------------------------------------------------------------------
 
-    def rcml(self, case_id: str) -> bytes:
-        """The robot's RCML, naming the case's URL as its site."""
-        site = f'site="{self.url(case_id)}"'.encode()
-        return _SITE.sub(lambda _: site, self._rcml, count=1)
-
     def case_files(self, case_id: str) -> dict[str, bytes]:
-        """The case's files by name: the robot's RCML, and its own."""
-        return {RCML_NAME: self.rcml(case_id), **self._own_files.get(case_id, {})}
+        """The case's files by name: the robot's RCML naming the case's URL as its site, or
+        the case's own made from it."""
+        site = f'site="{self.url(case_id)}"'.encode()
+        rcml = _SITE.sub(lambda _: site, self._rcml, count=1)
+        if (served := self._served.get(case_id)) is not None:
+            rcml = served(rcml, self.files_url(case_id))
+        return {RCML_NAME: rcml}
 
     def case_of(self, path: str) -> str | None:
         """The case whose files `path` names."""
