@@ -4,7 +4,8 @@ faults is caught (issue 16). What the suite cannot catch yet is named in KNOWN_M
 a known miss that gets caught fails the test too, so the list never hides progress.
 
 A fault runs first the cases that check the requirement it breaks (fast), then, if none of them
-fails, every case of its role (a client's fault: only the first).
+fails, every case of its role (a client's fault: only the first: it must be caught where its
+requirement is checked).
 """
 
 from __future__ import annotations
@@ -75,7 +76,7 @@ def _catchers(implementation: Implementation, fault: Fault, tmp: Path) -> list[s
     if aimed:
         failed = implementation.run_suite(tmp, [fault.name], aimed).having("fail")
         if failed or role is Role.CLIENT:
-            # An external client runs D-RCTP-31 once per case, one case after another (about
-            # 6 s each): a client fault must be caught by a case of the requirement it breaks.
+            # Every client requirement has cases of its own (`cases --matrix`): a client fault
+            # another requirement's case catches would be caught for the wrong reason.
             return sorted(failed)
     return sorted(implementation.run_suite(tmp, [fault.name]).having("fail"))

@@ -1,5 +1,6 @@
 """The independent implementations of tests/foreign/ run as a user runs rcmlconf against theirs:
-each its own process, reached only through its address, `rcmlconf run` at default settings.
+each its own process, reached only through its address, `rcmlconf run` at default settings (a
+client started by the harness for each case, `--client-command`, as a client's CI would).
 
 Each implementation is written from specs/ alone and imports nothing of rcmlconf; `--fault NAME`
 makes it misbehave in one of its own ways (`--list-faults` prints NAME, requirement, what).
@@ -10,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import shlex
 import signal
 import subprocess
 import sys
@@ -18,7 +20,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from support.processes import COMMAND, free_pair, free_port, wait_listening
+from support.processes import COMMAND, free_pair, free_port
 
 FOREIGN = Path(__file__).resolve().parents[1] / "foreign"
 #: The longest one run of the suite against one implementation may take (seconds).
@@ -82,9 +84,17 @@ class Implementation:
         if self.role in ("server", "robot"):
             with self._listening(tmp, fault_args) as address:
                 done = _suite([*self._target(address), *chosen, "--json", str(report)])
+        elif self.role == "client":
+            # Started by the harness once per case (--client-command), as a client author's CI
+            # would: its cases then run side by side. The loop over /cases is
+            # tests/conformance/test_run_command.py's.
+            words = [sys.executable, str(self.main), *fault_args, "--url"]
+            command = shlex.join(words) + " {url}"
+            listen = ["--role", "client", "--listen", str(free_pair())]
+            done = _suite([*listen, "--client-command", command, *chosen, "--json", str(report)])
         else:
-            port = free_pair() if self.role == "client" else free_port()
-            local_key, ics = self._keyed(tmp) if self.role == "local" else ([], [])
+            port = free_port()
+            local_key, ics = self._keyed(tmp)
             fault_args += local_key
             suite = subprocess.Popen(
                 [*COMMAND, "run", *self._listen(port), *ics, *chosen, "--json", str(report)],
@@ -126,8 +136,6 @@ class Implementation:
         ]
 
     def _listen(self, port: int) -> list[str]:
-        if self.role == "client":
-            return ["--role", "client", "--listen", str(port)]
         return ["--role", "local", "--listen", str(port), "--model", str(self.file("robot.rmodel"))]
 
     @contextlib.contextmanager
@@ -145,14 +153,8 @@ class Implementation:
 
     @contextlib.contextmanager
     def _connecting(self, port: int, fault_args: list[str]) -> Iterator[None]:
-        if self.role == "client":
-            # D-RCTP-31: the client loops over the harness's case list, once it is served.
-            wait_listening(port + 1)
-            args = ["--cases", f"http://127.0.0.1:{port + 1}/cases"]
-        else:
-            args = ["--robot", f"127.0.0.1:{port}", "--model", str(self.file("robot.rmodel"))]
-            args.append("--loop")
-        with _process([sys.executable, str(self.main), *args, *fault_args]):
+        args = ["--robot", f"127.0.0.1:{port}", "--model", str(self.file("robot.rmodel"))]
+        with _process([sys.executable, str(self.main), *args, "--loop", *fault_args]):
             yield
 
 
