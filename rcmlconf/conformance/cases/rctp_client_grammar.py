@@ -1,0 +1,129 @@
+"""rctp/client, the message grammar from the other side: the malformed requests the server cases
+send a server, sent by the played server to the client under test once its session is open
+(specs/rctp-2.0.md D-RCTP-4 to D-RCTP-10, R-RCTP-8, R-RCTP-9, R-RCTP-11). A request that cannot
+be framed is answered with its status and the connection closed; one that is framed but wrong is
+answered and the connection goes on."""
+
+from __future__ import annotations
+
+from rcmlconf.conformance.cases.rctp_client import answer_to, client_case
+from rcmlconf.conformance.context import Context
+from rcmlconf.rctp.reader import LIMITS
+
+#: Requests that cannot be framed (D-RCTP-10), by case: what is wrong, the request ({s} the
+#: session), and the status that answers it (R-RCTP-8).
+_UNFRAMEABLE: dict[str, tuple[str, bytes, int]] = {
+    "request-bare-lf": (
+        "lines ending in a bare LF",
+        b"BYE * RCTP/2.0\nCSeq: 1\nSession: {s}\n\n",
+        400,
+    ),
+    "request-obs-fold": (
+        "a folded header line",
+        b"BYE * RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\nReason: shutdown\r\n  now\r\n\r\n",
+        400,
+    ),
+    "request-space-before-colon": (
+        "white space before a field's colon",
+        b"BYE * RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\nReason : shutdown\r\n\r\n",
+        400,
+    ),
+    "request-not-rctp-version": (
+        "another protocol's version, HTTP/1.1",
+        b"BYE * HTTP/1.1\r\nCSeq: 1\r\nSession: {s}\r\n\r\n",
+        400,
+    ),
+    "request-content-length-invalid": (
+        "a Content-Length that is not a number",
+        b"WRITE /settings RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\nContent-Length: 1x\r\n\r\n",
+        400,
+    ),
+    "request-transfer-encoding": (
+        "Transfer-Encoding, which RCTP/2.0 does not use",
+        b"WRITE /settings RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\nTransfer-Encoding: chunked"
+        b"\r\n\r\n0\r\n\r\n",
+        400,
+    ),
+    "request-start-line-limit": (
+        f"a request line past {LIMITS.start_line} bytes",
+        b"STOP /" + b"a" * LIMITS.start_line + b" RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\n\r\n",
+        414,
+    ),
+    "request-header-fields-limit": (
+        f"more than {LIMITS.header_fields} header fields",
+        b"BYE * RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\n"
+        + b"".join(b"X-Rcmlconf-%d: %d\r\n" % (i, i) for i in range(LIMITS.header_fields))
+        + b"\r\n",
+        431,
+    ),
+    "request-content-length-limit": (
+        f"a Content-Length above {LIMITS.body} bytes",
+        b"WRITE /settings RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\nContent-Length: "
+        + str(LIMITS.body + 1).encode()
+        + b"\r\nContent-Type: application/rctp-values\r\n\r\n",
+        413,
+    ),
+}
+
+
+def _unframeable(name: str, what: str, request: bytes, status: int) -> None:
+    @client_case(
+        f"rctp/client/{name}",
+        f"The client answers a server request with {what} with {status} and closes the connection",
+        ["R-RCTP-8"],
+    )
+    async def refused(ctx: Context) -> None:
+        probe, _ = await ctx.client_session()
+        answer = await answer_to(ctx, probe, request.replace(b"{s}", str(probe.session).encode()))
+        ctx.expect_status(answer, status, "R-RCTP-8")
+        closed = await probe.closes()
+        ctx.expect(closed, "the connection closed (D-RCTP-10)", "it stayed open", "R-RCTP-8")
+
+
+for _name, (_what, _request, _status) in _UNFRAMEABLE.items():
+    _unframeable(_name, _what, _request, _status)
+
+
+#: Requests that are framed but wrong, by case: what is wrong, the request, its status, and the
+#: requirement (D-RCTP-10: answered, and the connection goes on).
+_WRONG: dict[str, tuple[str, bytes, int, str]] = {
+    "cseq-not-number": (
+        "a CSeq that is not a number",
+        b"BYE * RCTP/2.0\r\nCSeq: abc\r\nSession: {s}\r\n\r\n",
+        400,
+        "R-RCTP-11",
+    ),
+    "cseq-twice": (
+        "CSeq twice",
+        b"BYE * RCTP/2.0\r\nCSeq: 1\r\nCSeq: 1\r\nSession: {s}\r\n\r\n",
+        400,
+        "R-RCTP-11",
+    ),
+    "lower-case-method": (
+        "the method in lower case, an unknown method",
+        b"bye * RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\n\r\n",
+        501,
+        "R-RCTP-9",
+    ),
+}
+
+
+def _wrong(name: str, what: str, request: bytes, status: int, requirement: str) -> None:
+    @client_case(
+        f"rctp/client/{name}",
+        f"The client answers a server request with {what} with {status}, and answers the next"
+        " request on the same connection",
+        [requirement],
+    )
+    async def answered(ctx: Context) -> None:
+        probe, _ = await ctx.client_session()
+        answer = await answer_to(ctx, probe, request.replace(b"{s}", str(probe.session).encode()))
+        ctx.expect_status(answer, status, requirement)
+        # The request's CSeq was read only if it was one number (the numbering goes on from it,
+        # D-RCTP-6); any answer to the next request shows the connection went on.
+        probe.cseq = int(answer.headers.get("CSeq") or 0)
+        await answer_to(ctx, probe, probe.request_bytes("BYE", "*", [("Reason", "shutdown")]))
+
+
+for _name, (_what, _request, _status, _requirement) in _WRONG.items():
+    _wrong(_name, _what, _request, _status, _requirement)
