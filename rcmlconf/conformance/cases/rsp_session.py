@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import functools
 import os
+import statistics
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.ics import FEATURES
-from rcmlconf.conformance.probes.pace import paced, spaced
+from rcmlconf.conformance.probes.pace import gaps, ms, paced, spaced
 from rcmlconf.conformance.probes.rsp import (
     Datagram,
     another_welcomed,
@@ -36,7 +37,6 @@ from rcmlconf.rsp.codec import (
     Welcome,
 )
 from rcmlconf.rsp.layout import NONCE_SIZE
-from rcmlconf.rsp.session.timing import KEEPALIVE_PERIODS, SESSION_TIMEOUT
 
 _ANSWERS = (PacketType.WELCOME, PacketType.REFUSED)
 #: The encryption bytes of the AEADs and the ICS features that declare them (D-RSP-21).
@@ -44,6 +44,10 @@ _AEADS = {
     Encryption.AES_256_GCM: "rsp-aes-256-gcm",
     Encryption.CHACHA20_POLY1305: "rsp-chacha20-poly1305",
 }
+#: D-RSP-13's numbers, stated here rather than read from the reference's constants: a robot built
+#: from a changed constant must not move the expectation with it.
+SESSION_TIMEOUT = 10.0
+KEEPALIVE_PERIODS = 5
 
 
 def _other_models(model_id: int) -> tuple[int, int]:
@@ -381,6 +385,17 @@ async def keep_alive(ctx: Context) -> None:
         timing=True,
     )
     spaced(ctx, uplinks, KEEPALIVE_PERIODS * period, "UPLINKs")
+    # Every 5 periods, not 4 or 6: the median gap is nearest 5 periods (spaced's bounds, for
+    # one gap the harness read late, let 6 through).
+    between = gaps(uplinks)
+    ctx.expect(
+        len(between) >= 2
+        and abs(statistics.median(between) - KEEPALIVE_PERIODS * period) <= period / 2,
+        f"UPLINKs {KEEPALIVE_PERIODS} periods apart ({KEEPALIVE_PERIODS * period * 1000:g} ms)",
+        ms(between),
+        "R-RSP-42",
+        timing=True,
+    )
 
 
 @case(
