@@ -15,6 +15,7 @@ from rcmlconf.conformance.probes.locals import REQUESTED, LocalProbe, zeros
 from rcmlconf.conformance.probes.pace import gaps, ms, paced, spaced
 from rcmlconf.conformance.probes.rsp import Datagram, first, newer, of_kind
 from rcmlconf.conformance.registry import CaseFunction, Role, case
+from rcmlconf.conformance.rsp_numbers import HELLO_INTERVAL, HELLO_RETRIES, KEEPALIVE_PERIODS
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import ByeReason, Encryption, Hello, Item, PacketType, Period, RefusedReason
 from rcmlconf.rsp.codec.bodies import MAX_PERIOD_MS
@@ -22,8 +23,6 @@ from rcmlconf.rsp.layout import MAC_SIZE
 from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
 from rcmlconf.rsp.reliable import MAX_RTO
 from rcmlconf.rsp.security import mac_matches
-from rcmlconf.rsp.session.local import HELLO_INTERVAL, HELLO_RETRIES
-from rcmlconf.rsp.session.timing import KEEPALIVE_PERIODS
 
 _SEQUENCE = 1 << 16
 #: Milliseconds a timestamp may be off the arrival times the harness sees (its clock and the

@@ -26,6 +26,7 @@ from rcmlconf.conformance.probes.rsp import (
     taken,
 )
 from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.rsp_numbers import KEEPALIVE_PERIODS, SESSION_TIMEOUT
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import (
     Bye,
@@ -44,10 +45,6 @@ _AEADS = {
     Encryption.AES_256_GCM: "rsp-aes-256-gcm",
     Encryption.CHACHA20_POLY1305: "rsp-chacha20-poly1305",
 }
-#: D-RSP-13's numbers, stated here rather than read from the reference's constants: a robot built
-#: from a changed constant must not move the expectation with it.
-SESSION_TIMEOUT = 10.0
-KEEPALIVE_PERIODS = 5
 
 
 def _other_models(model_id: int) -> tuple[int, int]:

@@ -41,6 +41,7 @@ from typing import TYPE_CHECKING
 from rcmlconf.conformance.probes.datagrams import DatagramLog
 from rcmlconf.conformance.probes.impaired import ImpairedPath
 from rcmlconf.conformance.probes.rsp import Datagram, newer, sequence_of, summary
+from rcmlconf.conformance.rsp_numbers import HELLO_INTERVAL, HELLO_RETRIES, KEEPALIVE_PERIODS
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Failed, HarnessError, Inconclusive
 from rcmlconf.errors import ProtocolError
@@ -66,8 +67,6 @@ from rcmlconf.rsp.codec.bodies import MAX_PERIOD_MS, Body
 from rcmlconf.rsp.layout import HEADER_SIZE, MAC_SIZE, NONCE_SIZE
 from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
 from rcmlconf.rsp.security import Direction, Sealer, session_key
-from rcmlconf.rsp.session.local import HELLO_INTERVAL, HELLO_RETRIES
-from rcmlconf.rsp.session.timing import KEEPALIVE_PERIODS
 from rcmlconf.rsp.session.wire import SessionWire
 from rcmlconf.values import Value
 
