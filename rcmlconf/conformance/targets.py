@@ -7,13 +7,15 @@ import contextlib
 import functools
 import logging
 import os
-from collections.abc import AsyncIterator
+import socket
+from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rcmlconf.conformance.probes.clients import HARNESS_RCML, ClientListener
 from rcmlconf.rcml.model import RcmlDocument
+from rcmlconf.rctp.url import FILES_PORT_OFFSET
 from rcmlconf.reference.faults import Fault
 from rcmlconf.rsp.codec import Encryption
 from rcmlconf.rsp.model import RobotModel
@@ -21,6 +23,7 @@ from rcmlconf.rsp.security import KEY_SIZE
 
 if TYPE_CHECKING:
     from rcmlconf.conformance.probes.locals import LocalListener
+    from rcmlconf.reference.server.adapter import ReferenceServer
 
 Address = tuple[str, int]
 REFERENCE = Path(__file__).resolve().parent.parent / "reference" / "robots"
@@ -31,13 +34,17 @@ REFERENCE_RMODEL = REFERENCE / "cubo" / "cubo.rmodel"
 REFERENCE_SESSION_TIMEOUT = 2
 #: Embedded RSP robots, so that RSP cases need not wait for each other's sessions.
 REFERENCE_RSP_ROBOTS = 8
+#: Ports the embedded reference tries before it gives up finding a free pair (`_paired`).
+PAIR_TRIES = 20
+MAX_PORT = 65535
 
 
 @dataclass(frozen=True)
 class Target:
     """The implementations under test. A role without its address is not under test."""
 
-    #: An RCTP/2.0 server, its robot and its site path (D-RCTP-3).
+    #: An RCTP/2.0 server, its robot and its site path (D-RCTP-3). Its files, if it offers
+    #: them, are on the port after `server`'s (D-RCTP-29).
     server: Address | None = None
     robot: RcmlDocument | None = None
     site_path: str = "/"
@@ -61,8 +68,9 @@ class Target:
 async def embedded_reference(
     features: frozenset[str], faults: frozenset[Fault] = frozenset()
 ) -> AsyncIterator[Target]:
-    """The reference RCTP server (the rover) and RSP robot (CUBO) on free loopback ports;
-    `faults` (`reference.faults`) make them misbehave, to test the harness itself."""
+    """The reference RCTP server (the rover, its files on the port after RCTP's as D-RCTP-29
+    says) and RSP robot (CUBO) on free loopback ports; `faults` (`reference.faults`) make them
+    misbehave, to test the harness itself."""
     from rcmlconf.conformance.probes.locals import LocalListener, reference_local
     from rcmlconf.reference.drivers import choose_driver
     from rcmlconf.reference.faults import ROBOT_FAULTS, SERVER_FAULTS
@@ -72,13 +80,16 @@ async def embedded_reference(
 
     robot = load_robot(REFERENCE_RCML)
     model = load_robot_model(REFERENCE_RMODEL)
-    settings = ServerSettings(
-        port=0,
-        http_port=0,
-        session_timeout=REFERENCE_SESSION_TIMEOUT,
-        faults=faults & SERVER_FAULTS,
-    )
-    server = ReferenceServer(REFERENCE_RCML, robot, choose_driver("auto", robot), settings)
+
+    def server_on(port: int) -> ReferenceServer:
+        settings = ServerSettings(
+            port=port,
+            http_port=port + FILES_PORT_OFFSET,  # D-RCTP-29, where a case looks for them
+            session_timeout=REFERENCE_SESSION_TIMEOUT,
+            faults=faults & SERVER_FAULTS,
+        )
+        return ReferenceServer(REFERENCE_RCML, robot, choose_driver("auto", robot), settings)
+
     psk = os.urandom(KEY_SIZE)
     robots = [
         ReferenceRobot(
@@ -93,7 +104,7 @@ async def embedded_reference(
     played = load_robot(HARNESS_RCML)
     clients = ClientListener(played, HARNESS_RCML.read_bytes(), summon=reference_client)
     local = LocalListener(model, psk, summon=functools.partial(reference_local, model, psk))
-    await server.start()
+    server = await _paired(server_on)
     try:
         await clients.start("127.0.0.1", 0)
         await local.start("127.0.0.1", 0)
@@ -118,6 +129,25 @@ async def embedded_reference(
         await clients.close()
         await local.close()
         await server.stop()
+
+
+async def _paired(server_on: Callable[[int], ReferenceServer]) -> ReferenceServer:
+    """The reference server started on a free loopback port P (RCTP's TCP, its data stream's
+    UDP) with its files on P+1 (D-RCTP-29): the kernel names a free port, and another is tried
+    while P, or the port after it, is taken by the time the server binds them."""
+    for _ in range(PAIR_TRIES):
+        with socket.socket() as probe:
+            probe.bind(("127.0.0.1", 0))
+            port: int = probe.getsockname()[1]
+        if port + FILES_PORT_OFFSET > MAX_PORT:
+            continue
+        server = server_on(port)
+        try:
+            await server.start()  # closes what it opened when a port is taken
+        except OSError:
+            continue
+        return server
+    raise OSError("no free pair of loopback ports for the embedded reference's RCTP and files")
 
 
 def quiet_reference_logs() -> None:
