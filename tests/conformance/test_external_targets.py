@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from support.processes import run_command, running
+from support.processes import free_pair, run_command, running
 
 from rcmlconf.conformance.targets import REFERENCE_RCML, REFERENCE_RMODEL
 
@@ -37,9 +37,10 @@ def test_one_external_robot_serves_the_robot_cases_in_turn(tmp_path: Path) -> No
 def test_the_reference_server_as_an_external_target_fails_nothing(tmp_path: Path) -> None:
     """Every server case, at default settings, against `rcmlconf serve` reached by its address
     alone (the RCML from its files, D-RCTP-29): no fail, no error; the cases that wait out its
-    60 s session timeout are inconclusive and say how to wait for it."""
+    60 s session timeout are inconclusive and say how to wait for it. Its files are on the port
+    after RCTP's, where D-RCTP-29 puts them and the rctp/files cases look."""
     report = tmp_path / "report.json"
-    with running(tmp_path, "serve", str(REFERENCE_RCML), "--port", "0", "--http-port", "0") as up:
+    with running(tmp_path, "serve", str(REFERENCE_RCML), "--port", str(free_pair())) as up:
         port = up.rctp_port
         target = ["--target", f"127.0.0.1:{port}", "--rcml", str(REFERENCE_RCML)]
         done = run_command("run", *target, "--json", str(report))
