@@ -205,9 +205,20 @@ async def head(ctx: Context) -> None:
 async def persistent(ctx: Context) -> None:
     probe = await connect(ctx, PERSISTENT)
     for number, method in enumerate(("GET", "HEAD", "GET"), 1):
+        kept = probe.reusable and number > 1
         if not probe.reusable:  # the last answer said Connection: close, and it closed
             probe = await connect(ctx, PERSISTENT)
-        answer = await probe.ask(method, "/", PERSISTENT)
+        try:
+            answer = await probe.ask(method, "/", PERSISTENT)
+        except Failed as failed:
+            if not kept:
+                raise
+            raise Failed(
+                PERSISTENT,
+                f"{method} / answered: request {number} of a connection whose answers kept it"
+                " (no Connection: close, RFC 9112 §9.3)",
+                failed.actual,
+            ) from None
         if method == "HEAD" and probe.unread:  # h11 read no body: these bytes are one
             raise Failed(
                 HEAD,
