@@ -136,9 +136,9 @@ _STYLE = {
     default=CONNECT_TIMEOUT,
     show_default=True,
     metavar="SECONDS",
-    help="With --role client: how long each case waits for its client to connect, before the"
-    " case's own clock starts. Once a case got no client while none had ever connected, the"
-    " rest give up at once (exit 2).",
+    help="With --role client or local: how long each case waits for its client to connect (or"
+    " its local system's HELLO), before the case's own clock starts. Once a case got none while"
+    " none had ever come, the rest give up at once (exit 2).",
 )
 @click.option("--list", "list_only", is_flag=True, help="List the cases that would run; run none.")
 @click.option(
@@ -374,11 +374,21 @@ async def _target(
 ) -> AsyncIterator[Target]:
     if isinstance(external, LocalTarget):
         command = external.command
+        heard: list[None] = []
+
+        def silent() -> None:
+            heard.append(None)
+            host, port = local.address
+            output.notice(
+                f"case {len(heard)} of {local.runs}: waiting for a HELLO at {host}:{port}"
+            )
+
         local = LocalListener(
             external.model,
             external.ics.psk,
             summon=None if command is None else command.at,
             stop=None if command is None else command.stop,
+            on_wait=silent,
         )
         await local.start(*external.listen)
         try:

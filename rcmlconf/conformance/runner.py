@@ -155,19 +155,24 @@ async def _judged(
 
 
 async def _absent(case: Case, target: Target, options: RunOptions, run: int) -> Result | None:
-    """A client case's wait for its client to connect, before its clock starts (a client that
-    takes its time to start is not slow to answer): the case's inconclusive if none came within
-    --connect-timeout, with how the client started for it ran."""
-    if case.role is not Role.CLIENT or target.clients is None:
-        return None
+    """A client or local case's wait for its implementation to connect or send its HELLO,
+    before the case's clock starts (one that takes its time to start is not slow to answer):
+    the case's inconclusive if none came within --connect-timeout, with how the one started for
+    it ran."""
     started = time.monotonic()
-    absent = await target.clients.arrival(case.id, options.connect_timeout)
+    if case.role is Role.CLIENT and target.clients is not None:
+        absent = await target.clients.arrival(case.id, options.connect_timeout)
+        report = target.clients.finish(case.id) if absent is not None else []
+    elif case.role is Role.LOCAL and target.locals is not None:
+        absent = await target.locals.arrival(options.connect_timeout)
+        report = target.locals.finish() if absent is not None else []
+    else:
+        return None
     if absent is None:
         return None
-    exchange = tuple(target.clients.finish(case.id))
     took = time.monotonic() - started
-    why = f"{absent} ({exchange[0]})" if exchange else absent
-    return Result(case.id, Verdict.INCONCLUSIVE, took, why, exchange=exchange, run=run)
+    why = f"{absent} ({report[0]})" if report else absent
+    return Result(case.id, Verdict.INCONCLUSIVE, took, why, exchange=tuple(report), run=run)
 
 
 def capture_path(directory: Path, case: Case, run: int) -> Path:
@@ -227,6 +232,8 @@ async def run_cases(
     for case in cases:
         if alone(case, target):
             lanes.setdefault(case.role, []).append(case)
+    if target.locals is not None:
+        target.locals.runs = sum(c.role is Role.LOCAL for c in cases) * options.repeat
     if target.clients is not None:  # D-RCTP-31: the case URLs, in the order they run
         clients = [c for c in cases if c.role is Role.CLIENT]
         served = {c.id: c.served for c in clients if c.served is not None}

@@ -172,6 +172,7 @@ class LocalListener:
         psk: bytes | None = None,
         summon: Summon | None = None,
         stop: Callable[[str], list[str]] | None = None,
+        on_wait: Callable[[], None] | None = None,
     ) -> None:
         self.model = model
         self.codec = RspCodec(model)
@@ -181,6 +182,12 @@ class LocalListener:
         #: `stop` stops it, by the address it was given, when its case ends.
         self._summon = summon
         self._stop = stop
+        #: Told of each case that waits for a local system it does not start itself.
+        self._on_wait = on_wait
+        self._ever_heard = False
+        self._given_up = False
+        #: The runs of local cases planned (the runner's), for the waiting line.
+        self.runs = 0
         self._loop = asyncio.get_running_loop()
         self._transport: asyncio.DatagramTransport | None = None
         self._started = 0.0
@@ -240,6 +247,7 @@ class LocalListener:
             if _repeated(data) and now - self._started < WARM_UP:
                 return
             entry = self._pending[key] = _Pending(source, nonce)
+            self._ever_heard = True
         entry.datagrams.append((now, data))
         self._hello.set()
 
@@ -249,6 +257,36 @@ class LocalListener:
                 del self._pending[key]
                 continue
             return entry
+        return None
+
+    async def arrival(self, wait: float) -> str | None:
+        """Before a local case's clock starts: a new session's HELLO, from a local system
+        started for the case if the harness starts them, waited for up to `wait`
+        (--connect-timeout). None once one came; else why not. After a case in which no local
+        system of the run had ever sent a HELLO, the rest give up at once."""
+        if self._next_live() is not None:
+            return None
+        host, port = self.address
+        if self._given_up:
+            return f"no local system has sent a HELLO to {host}:{port} (the first case waited)"
+        summoned: asyncio.Task[None] | None = None
+        if self._summon is not None:
+            summoned = asyncio.ensure_future(self._summon((host, port)))
+            self._tasks.add(summoned)
+            summoned.add_done_callback(self._tasks.discard)
+        elif self._on_wait is not None:
+            self._on_wait()
+        deadline = self.now + wait
+        while self._next_live() is None:
+            remaining = deadline - self.now
+            if remaining <= 0 or (summoned is not None and summoned.done()):
+                self._given_up = not self._ever_heard
+                if summoned is not None and summoned.done():
+                    return f"the local system started for {host}:{port} ended before a HELLO"
+                return f"no local system sent a HELLO to {host}:{port} within {wait:g} s"
+            self._hello.clear()
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._hello.wait(), min(remaining, 0.25))
         return None
 
     def finish(self) -> list[str]:
