@@ -100,6 +100,25 @@ def test_a_local_system_started_per_case_runs_the_local_cases(tmp_path: Path) ->
     assert {r["verdict"] for r in _results(report).values()} == {"pass"}
 
 
+def test_without_a_local_system_the_first_case_waits_and_says_so_and_the_rest_give_up(
+    tmp_path: Path,
+) -> None:
+    port = free_pair()
+    report = tmp_path / "run.json"
+    model = FOREIGN / "rsp_local" / "robot.rmodel"
+    done = run_command(
+        "run", "--role", "local", "--listen", str(port), "--model", str(model),
+        "--only", "rsp/local/downlink-header", "--only", "rsp/local/bye-ends",
+        "--connect-timeout", "0.5", "--json", str(report),
+    )  # fmt: skip
+    assert done.returncode == 2, done.stderr
+    assert f"case 1 of 2: waiting for a HELLO at 127.0.0.1:{port}" in done.stderr
+    assert "case 2 of 2" not in done.stderr
+    reasons = sorted(str(r["reason"]) for r in _results(report).values())
+    assert reasons[0].startswith("no local system has sent a HELLO"), reasons
+    assert reasons[1].startswith("no local system sent a HELLO"), reasons
+
+
 def test_a_command_without_its_url_or_role_is_a_usage_error() -> None:
     port = str(free_pair())
     no_url = run_command(
