@@ -614,9 +614,9 @@ def _report(
     partly = sum(1 for r in results if r.verdict is Verdict.PASS and r.reason.startswith(PARTLY))
     if partly:
         output.notice(
-            f"{partly} {'pass' if partly == 1 else 'passes'} checked part of the requirement"
-            " only, as the robot has no"
-            " node that could show the rest (run -v or --json says which)"
+            f"{partly} {'pass' if partly == 1 else 'passes'} checked only part of the"
+            " requirement, as the target could not show the rest (run -v or --json says which"
+            " part and why)"
         )
     found = counts(results)
     fresh = new_failures(results)

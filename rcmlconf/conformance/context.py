@@ -77,8 +77,9 @@ class Context:
         return self.started + self.timeout - asyncio.get_running_loop().time()
 
     def cannot_check(self, part: str) -> None:
-        """Say that this part of what the case checks cannot be checked on this target (the
-        robot has no node that could show it): a pass then says so, never silently."""
+        """Say that this part of what the case checks cannot be checked on this target (its
+        robot has no node that could show it, its client refused what would): a pass then says
+        so, never silently."""
         if part not in self.unchecked:
             self.unchecked.append(part)
 

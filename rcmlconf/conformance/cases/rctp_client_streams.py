@@ -200,9 +200,9 @@ def _random_start(ctx: Context, stream: PlayedStream) -> None:
     listener = ctx.target.clients
     starts = (listener.stream_starts if listener is not None else []) + stream.first_sequence()
     if len(starts) < RANDOM_STARTS:
-        ctx.transcript.note(
-            f"(the random start of R-RCTP-41 is judged over {RANDOM_STARTS} streams: this run"
-            f" has seen {len(starts)})"
+        ctx.cannot_check(
+            f"the random start of R-RCTP-41, judged over {RANDOM_STARTS} streams of a run: this"
+            f" run had {len(starts)} when the case ended"
         )
         return
     ctx.expect(
@@ -221,8 +221,11 @@ async def _slower(ctx: Context, stream: PlayedStream, access: AccessNode) -> tup
     answer = await stream.ask(ask, STREAM_ID)
     if isinstance(answer, IntervalSetAck) and answer.direction is Direction.WRITE:
         return answer.interval / 1e6, ""
-    ctx.transcript.note(f"(the write interval stays the RCML's: {flow_text(answer)})")
-    return rcml, f" (the RCML's: the request for {2 * rcml * 1000:g} ms got {flow_text(answer)})"
+    ctx.cannot_check(
+        f"DATA at an interval a FLOW set put in force: the request for {2 * rcml * 1000:g} ms got"
+        f" {flow_text(answer)}"
+    )
+    return rcml, " (the RCML's)"
 
 
 @scenario_case(
@@ -257,7 +260,10 @@ async def flow_answers(ctx: Context) -> None:
         IntervalSet(probe.next_request_id(), Direction.WRITE, 2 * interval), STREAM_ID
     )
     if not isinstance(changed, IntervalSetAck) or changed.interval == interval:
-        ctx.transcript.note(f"(the interval did not change: {flow_text(changed)})")
+        ctx.cannot_check(
+            "the answer already given to a repeated id, once the interval changed: the set"
+            f" request got {flow_text(changed)}"
+        )
     again = await stream.ask(ask, STREAM_ID)
     ctx.expect(
         again == first,
