@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import errno
 import logging
+import select
 import sys
 from pathlib import Path
 from typing import Any
@@ -15,6 +16,8 @@ from rcmlconf.wording import plural
 
 #: Exit status when capture cannot start: not permitted, no such interface.
 CANNOT_CAPTURE = 2
+#: Seconds the capture waits for a frame before it looks again (and at a Ctrl-C).
+POLL = 0.2
 
 
 @click.command()
@@ -104,6 +107,10 @@ def sniff(
     try:
         output.notice(f"capturing on {socket.iface} ({bpf}); Ctrl-C to stop")
         while count is None or shown < count:
+            # A bounded wait, not a blocking read: a Ctrl-C that lands just before the read
+            # would otherwise wait for the next frame, which a quiet filter may never let in.
+            if not select.select([socket], [], [], POLL)[0]:
+                continue
             layer, data, stamp = socket.recv_raw()
             if data is None:
                 continue

@@ -89,7 +89,8 @@ class FilesProbe:
             raise Failed(
                 requirement,
                 f"the robot's files on HTTP at {host}:{port}, the port after RCTP's (D-RCTP-29)",
-                f"no connection: {error or type(error).__name__}",
+                f"no connection: {error or type(error).__name__} (a server that does not offer"
+                " its files says so in its ICS: files = false)",
             ) from None
         name = f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
         probe = cls(reader, writer, transcript, wait, name)
