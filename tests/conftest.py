@@ -1,6 +1,7 @@
 """Test-wide settings."""
 
 import os
+import signal
 
 from hypothesis import HealthCheck, settings
 
@@ -16,3 +17,9 @@ settings.register_profile(
     suppress_health_check=[HealthCheck.too_slow],
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
+
+# The tests that stop a process as Ctrl-C does need SIGINT to reach it. A shell without job
+# control that starts the suite in the background hands it an ignored SIGINT, which every child
+# keeps across exec; a handler here is reset to the default in each child instead.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
