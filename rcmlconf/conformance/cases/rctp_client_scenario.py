@@ -420,6 +420,24 @@ async def event_push_out_of_range(ctx: Context) -> None:
         )
 
 
+@scenario_case(
+    "rctp/client/event-push-unknown-node",
+    "A data-change WRITE whose Nodes names a node its access lacks is refused and not taken",
+    ["R-RCTP-61", "R-RCTP-24", "R-RCTP-3"],
+)
+async def event_push_unknown_node(ctx: Context) -> None:
+    # `ghost` is no node of the access: a client that decodes by position alone takes it.
+    push = await _push(ctx, lambda pushed, codec: codec.encode(pushed) + b"\x00", extra="ghost")
+    answer = push.answer
+    ctx.expect(
+        400 <= answer.status < 500,
+        "a refusal (4xx): Nodes names ghost, which the access lacks",
+        f"{answer.status} {answer.reason}",
+        "R-RCTP-24",
+    )
+    push.written_back(ctx, push.before, "the values it had before: the refused push not taken")
+
+
 @dataclass
 class _Push:
     """What step 5 gave with a data-change WRITE: the values the client had before it and those
@@ -438,10 +456,13 @@ class _Push:
 
 
 async def _push(
-    ctx: Context, body: Callable[[dict[str, Value], ValuesCodec[DataNode]], bytes]
+    ctx: Context,
+    body: Callable[[dict[str, Value], ValuesCodec[DataNode]], bytes],
+    extra: str | None = None,
 ) -> _Push:
     """Step 5 with a data-change WRITE of the event access once it plays, its body made by
-    `body` from values at the high edge of each node; the scenario is then run to its BYE."""
+    `body` from values at the high edge of each node (its `Nodes` naming `extra` too, if
+    given); the scenario is then run to its BYE."""
     access = event_access(ctx)
     server = await played(ctx)
     go = await server.reach("GO", access.path)
@@ -450,7 +471,8 @@ async def _push(
     codec = ValuesCodec(access.writable(), access.path, "R-RCTP-28")
     before = {n.name: server.values[n.path] for n in codec.nodes}
     pushed = {n.name: edge(n, high=True) for n in codec.nodes}
-    answer = await server.push(access, codec, body(pushed, codec))
+    names = sorted([*codec.names, *([extra] if extra else [])])  # canonical order, D-RCML-4
+    answer = await server.push(access, names, body(pushed, codec))
     # Mid-scenario the client's own CSeq is well past the server's: an answer numbered by the
     # client's counter shows here (R-RCTP-3).
     cseq, sent = answer.headers.get("CSeq"), str(server.probe.cseq)

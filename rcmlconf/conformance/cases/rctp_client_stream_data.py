@@ -33,11 +33,12 @@ from rcmlconf.rctp.datastream import (
     UnknownPayload,
     stream_codec,
 )
+from rcmlconf.rctp.targets import format_target
 from rcmlconf.values import Kind, Value
 from rcmlconf.wording import plural
 
-#: How long the client's DATA is watched after it answered a server BYE: ten write intervals of
-#: the harness's robot.
+#: How long the client's DATA is watched after it answered a server BYE or STOP: ten write
+#: intervals of the harness's robot.
 WATCH = 0.5
 
 
@@ -178,25 +179,43 @@ async def stream_unknown_payload_skipped(ctx: Context) -> None:
     ["R-RCTP-23", "R-RCTP-44"],
 )
 async def bye_while_streaming(ctx: Context) -> None:
+    await _ended_while_streaming(ctx, "BYE", "*", "shutdown", "R-RCTP-23")
+
+
+@scenario_case(
+    "rctp/client/stop-while-streaming",
+    "A server STOP of the stream while it plays is answered 200, and no DATA follows its answer",
+    ["R-RCTP-24", "R-RCTP-44"],
+)
+async def stop_while_streaming(ctx: Context) -> None:
+    server = await _ended_while_streaming(ctx, "STOP", None, "test", "R-RCTP-24")
+    await server.reach("BYE")  # D-RCTP-31: a STOP ends the stream's step; the run goes on
+
+
+async def _ended_while_streaming(
+    ctx: Context, method: str, target: str | None, reason: str, requirement: str
+) -> PlayedServer:
+    """The server's `method` of `target` (the stream access by default) once the stream plays:
+    answered 200 (`requirement`), and no DATA of the client's after the answer, for a while."""
     server, stream, access = await until_playing(ctx)
     probe = server.probe
-    await probe.send(probe.request_bytes("BYE", "*", [("Reason", "shutdown")]))
+    target = target or format_target(access.path)
+    await probe.send(probe.request_bytes(method, target, [("Reason", reason)]))
     answer = await server.answer()
     answered = asyncio.get_running_loop().time()
-    ctx.expect_status(answer, 200, "R-RCTP-23")
+    ctx.expect_status(answer, 200, requirement)
     await asyncio.sleep(WATCH * ctx.scale)
     # One DATA may have been on its way when the answer left, and the loop lags a little.
     slack = (access.write_interval or 0.05) + 0.1 * ctx.scale
-    late = [one.at for one, _ in stream.data() if one.at > answered + slack]
+    late = [one.at - answered for one, _ in stream.data() if one.at > answered + slack]
     ctx.expect(
         not late,
-        "no DATA after the BYE was answered: the session is over",
-        f"{plural(len(late), 'DATA payload')} up to {late[-1] - answered:.2f} s after"
-        if late
-        else "",
+        f"no DATA after the {method} was answered: the stream no longer plays",
+        f"{plural(len(late), 'DATA payload')}, up to {max(late, default=0):.2f} s after",
         "R-RCTP-44",
         timing=True,
     )
+    return server
 
 
 async def _hushed(

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import asyncio
 import secrets
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -310,10 +310,10 @@ class PlayedServer:
 
     # -- the server's own requests ------------------------------------------------------------
 
-    async def push(self, access: AccessNode, codec: ValuesCodec[DataNode], body: bytes) -> Response:
-        """A data-change WRITE of `access` (D-RCTP-27) listing `codec`'s nodes, with `body`, and
-        the client's answer; its own requests meanwhile are served."""
-        fields = [("Nodes", format_nodes(codec.names))]
+    async def push(self, access: AccessNode, names: Sequence[str], body: bytes) -> Response:
+        """A data-change WRITE of `access` (D-RCTP-27) listing `names`, with `body`, and the
+        client's answer; its own requests meanwhile are served."""
+        fields = [("Nodes", format_nodes(names))]
         await self.probe.send(
             self.probe.request_bytes("WRITE", format_target(access.path), fields, body)
         )
