@@ -9,7 +9,7 @@ import sys
 import time
 from collections import Counter
 from collections.abc import AsyncIterator, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +19,13 @@ from rcmlconf.cli.cases import chosen_cases, list_cases
 from rcmlconf.cli.console import Output
 from rcmlconf.cli.hosts import Address, address_option, listen_option
 from rcmlconf.cli.params import Bounded
+from rcmlconf.cli.run_listen import (
+    ClientTarget,
+    LocalTarget,
+    client_target,
+    listen_command,
+    local_target,
+)
 from rcmlconf.cli.run_options import check_reports, loaded, robot_file, site_option, warn_unknown
 from rcmlconf.cli.run_target import (
     CONNECT_WAIT,
@@ -28,11 +35,9 @@ from rcmlconf.cli.run_target import (
     robot_problem,
     server_problem,
 )
-from rcmlconf.conformance.command import Command, CommandError
 from rcmlconf.conformance.files import shown
 from rcmlconf.conformance.ics import EVERYTHING, Ics, load_ics
-from rcmlconf.conformance.probes.clients import HARNESS_RCML, ClientListener
-from rcmlconf.conformance.probes.locals import LocalListener
+from rcmlconf.conformance.probes.clients import HARNESS_RCML
 from rcmlconf.conformance.registry import SESSION_WAIT, Case, Role, all_cases
 from rcmlconf.conformance.reports.baseline import load_baseline, mark_known
 from rcmlconf.conformance.reports.json_report import to_json
@@ -50,7 +55,6 @@ from rcmlconf.conformance.verdicts import Result, Verdict
 from rcmlconf.impair.spec import MOST_BURST, MOST_TIME, parse_impairment
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rctp.url import DEFAULT_PORT as RCTP_PORT
-from rcmlconf.rctp.url import http_base
 from rcmlconf.reference.faults import Fault, describe, faults_named
 from rcmlconf.rsp.model import RobotModel
 from rcmlconf.validate.validator import load_robot, load_robot_model
@@ -270,7 +274,7 @@ def run(
     known = loaded("--baseline", load_baseline, baseline) if baseline is not None else frozenset()
     impairment = loaded("--impair", parse_impairment, impair) if impair is not None else None
     _check_roles(role, target, rcml, site, rsp_target, model, listen, faults)
-    command = _command(client_command, listen)
+    command = listen_command(client_command, listen)
     robot = robot_file("--rcml", load_robot, rcml) if rcml is not None else None
     played = robot_file("--model", load_robot_model, model) if model is not None else None
     if not list_only:
@@ -373,70 +377,12 @@ async def _target(
     output: Output,
 ) -> AsyncIterator[Target]:
     if isinstance(external, LocalTarget):
-        command = external.command
-        heard: list[None] = []
-
-        def silent() -> None:
-            heard.append(None)
-            host, port = local.address
-            output.notice(
-                f"case {len(heard)} of {local.runs}: waiting for a HELLO at {host}:{port}"
-            )
-
-        local = LocalListener(
-            external.model,
-            external.ics.psk,
-            summon=None if command is None else command.at,
-            stop=None if command is None else command.stop,
-            on_wait=silent,
-        )
-        await local.start(*external.listen)
-        try:
-            host, port = local.address
-            output.notice(_local_banner(host, port, command))
-            yield Target(
-                rsp_model=external.model,
-                rsp_psk=external.ics.psk,
-                locals=local,
-                features=external.ics.features,
-                name=f"the local system sending to {host}:{port}",
-            )
-        finally:
-            await local.close()
-            if command is not None:
-                await command.close()
+        async with local_target(external, output) as target:
+            yield target
         return
     if isinstance(external, ClientTarget):
-        command = external.command
-        waited: list[str] = []
-
-        def waiting(case_id: str) -> None:
-            waited.append(case_id)
-            output.notice(
-                f"case {len(waited)} of {listener.runs}: waiting for a client at"
-                f" {listener.url(case_id)}"
-            )
-
-        listener = ClientListener(
-            external.robot,
-            external.rcml.read_bytes(),
-            summon=command,
-            stop=None if command is None else command.stop,
-            on_wait=waiting,
-        )
-        await listener.start(*external.listen)
-        try:
-            host, port = listener.address
-            output.notice(_client_banner(listener, command))
-            yield Target(
-                clients=listener,
-                features=external.features,
-                name=f"the client connecting to {host}:{port}",
-            )
-        finally:
-            await listener.close()
-            if command is not None:
-                await command.close()
+        async with client_target(external, output) as target:
+            yield target
         return
     if external is not None:
         yield external
@@ -482,62 +428,6 @@ def _external(
         rsp_psk=declared.psk,
         features=declared.features,
         name=" and ".join(names),
-    )
-
-
-@dataclass(frozen=True)
-class ClientTarget:
-    """--role client: where to listen, and the robot the harness serves."""
-
-    listen: tuple[str, int]
-    robot: RcmlDocument
-    #: The file the robot was read from, served to the client as D-RCTP-31's step 1 says.
-    rcml: Path
-    features: frozenset[str]
-    #: --client-command, started for each case.
-    command: Command | None = None
-
-
-@dataclass(frozen=True)
-class LocalTarget:
-    """--role local: where to listen, and the model of the robot the harness plays."""
-
-    listen: tuple[str, int]
-    model: RobotModel
-    ics: Ics
-    command: Command | None = None
-
-
-def _command(template: str | None, listen: Address | None) -> Command | None:
-    if template is None:
-        return None
-    if listen is None:
-        raise click.UsageError("--client-command is for --role client and --role local")
-    try:
-        return Command(template)
-    except CommandError as error:
-        raise click.BadParameter(str(error), param_hint="'--client-command'") from None
-
-
-def _client_banner(listener: ClientListener, command: Command | None) -> str:
-    host, port = listener.address
-    files = http_base(host, port + 1)
-    how = (
-        f"each started as {command.template!r}"
-        if command is not None
-        else "start yours: it may loop over the list, or be started once per case URL"
-    )
-    return (
-        f"RCTP clients under test: one run of D-RCTP-31's scenario a case, at"
-        f" rctp://{host}:{port}/<case id>; the case URLs in order at {files}/cases; {how}"
-    )
-
-
-def _local_banner(host: str, port: int, command: Command | None) -> str:
-    how = f"started as {command.template!r}" if command is not None else "start it once a case"
-    return (
-        f"RSP local system under test: one run of D-RSP-24's scenario a case, sending to"
-        f" {host}:{port}; {how}"
     )
 
 
