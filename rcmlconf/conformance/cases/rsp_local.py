@@ -612,10 +612,12 @@ async def idle_keep_alive(ctx: Context) -> None:
     probe = await session(ctx, free=0)  # memory commands held (R-RSP-32): nothing left to send
     period = probe.period
     await probe.listen(3 * period)  # the command acknowledged and gone
+    mark, asked = probe.mark(), probe.now
     change = await probe.answer_to(  # taken, the scenario goes idle at 2 T (step 4)
         lambda: probe.uplink([occurrence(found, 0)]), PacketType.PERIOD
     )
     if change is None or not isinstance(change.body, Period):
+        _welcome_pace_kept(ctx, probe, mark, asked, period)
         raise Inconclusive(f"no PERIOD after {found.name} #0 (D-RSP-24 step 4)")
     slower = change.body.period_ms / 1000
     keep = KEEPALIVE_PERIODS * slower
@@ -657,6 +659,25 @@ async def idle_keep_alive(ctx: Context) -> None:
         timing=True,
     )
     spaced(ctx, empty, keep, "empty DOWNLINKs")
+
+
+def _welcome_pace_kept(
+    ctx: Context, probe: LocalProbe, mark: int, since: float, period: float
+) -> None:
+    """No PERIOD came since `since` (received from `mark` on): T is still WELCOME's `period`
+    (R-RSP-42: the T of the newest WELCOME or PERIOD), so a DOWNLINK came every period, or an
+    empty one every 5 periods at least. A T changed without PERIOD shows as longer gaps."""
+    keep = KEEPALIVE_PERIODS * period
+    times = [since, *(d.at for d in probe.packets(PacketType.DOWNLINK, after=mark)), probe.now]
+    longest = max(b - a for a, b in itertools.pairwise(times))
+    ctx.expect(
+        longest <= 1.6 * keep,
+        f"no PERIOD, so WELCOME's T of {period * 1000:g} ms kept: a DOWNLINK every period, or"
+        f" an empty one every {KEEPALIVE_PERIODS} ({keep * 1000:g} ms)",
+        f"no DOWNLINK for {longest * 1000:.0f} ms",
+        "R-RSP-42",
+        timing=True,
+    )
 
 
 def _empty(downlinks: list[Datagram]) -> list[Datagram]:

@@ -1,6 +1,7 @@
 """rsp/local, receiving: what an RSP local system under test does with the robot's packets that it
-must drop or ignore (R-RSP-18, R-RSP-19, R-RCML-30 on the local side), and how soon it
-acknowledges a memory event (R-RSP-26). The harness plays the robot (`--role local`).
+must drop or ignore (R-RSP-18, R-RSP-19, R-RCML-30 on the local side), an event of an old ID it
+must not take again (R-RSP-25), and how soon it acknowledges a memory event (R-RSP-26). The
+harness plays the robot (`--role local`).
 
 The conformance scenario (D-RSP-24) makes taking a packet visible on the wire: a memory event the
 local system receives is acknowledged at once, new or repeated (R-RSP-26); an ACK of its command
@@ -25,7 +26,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-from rcmlconf.conformance.cases.rsp_local import carries, local_case, occurrence, session
+from rcmlconf.conformance.cases.rsp_local import (
+    carries,
+    ids,
+    local_case,
+    numbered,
+    occurrence,
+    session,
+)
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.locals import LocalProbe, zeros
 from rcmlconf.conformance.probes.rsp import Datagram, first, newer, patch, sequence_of
@@ -392,6 +400,50 @@ async def late_buffer_ignored(ctx: Context) -> None:
             f"no {memory.name} sent when a newer UPLINK freed a buffer: whether the late one's"
             " count was applied cannot be seen (D-RSP-24 step 2)"
         )
+
+
+# -- R-RSP-25: an old occurrence is not taken again ----------------------------------------------
+
+
+@local_case(
+    "rsp/local/event-old-id",
+    "An event whose ID is behind the last taken, by the model's ID length, is not taken again",
+    ["R-RSP-25"],
+)
+async def event_old_id(ctx: Context) -> None:
+    model = _model(ctx)
+    command = first(model, DeviceKind.COMMAND)
+    event = first(model, DeviceKind.EVENT)
+    # D-RSP-5, D-RSP-16: IDs are 8 times idLength bits; one is new when ahead of the last taken by 1
+    # to half the space. A quarter of the space behind #0 is old: ahead by three quarters.
+    space = 1 << (8 * model.id_length)
+    old = space - space // 4
+    probe = await session(ctx)
+    # Each event taken issues one more command (D-RSP-24 step 3), which rides the DOWNLINKs
+    # from the one after it was issued (D-RSP-17): a few periods show it.
+    shows = max(8 * probe.period, probe.quiet)
+
+    async def issued_for(ident: int) -> list[int]:
+        """The commands issued after `event` #`ident` is sent (the probe acknowledges each)."""
+        before = set(ids(probe.packets(PacketType.DOWNLINK), command))
+        probe.uplink([occurrence(event, ident)])
+        await probe.listen(shows)
+        return [i for i in ids(probe.packets(PacketType.DOWNLINK), command) if i not in before]
+
+    if not await issued_for(0):
+        raise Inconclusive(
+            f"no {command.name} issued for {event.name} #0, the session's first: whether an event"
+            " is taken cannot be seen (D-RSP-24 step 3)"
+        )
+    again = await issued_for(old)
+    ctx.expect(
+        not again,
+        f"{event.name} #{old} old: {space // 4} behind #0 on {8 * model.id_length} bits"
+        " (D-RSP-16), not taken: no command for it",
+        numbered(command, again) if again else "",
+    )
+    if not await issued_for(1):
+        raise Inconclusive(f"no {command.name} issued for {event.name} #1, new after #0")
 
 
 # -- R-RSP-26: at once -----------------------------------------------------------------------------

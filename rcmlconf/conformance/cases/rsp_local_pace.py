@@ -1,0 +1,128 @@
+"""rsp/local, the pace: when an RSP local system under test sends, and at which T (D-RSP-13), the
+harness playing its robot (`--role local`). Its session's packets begin as WELCOME is given, go on
+every period through a silence of the robot that loses the link (the session ends only after
+10 s), and the PERIOD it sends when the scenario slows down (D-RSP-24 step 4) says the T it now
+keeps: twice the one in force (R-RSP-42, R-RSP-43)."""
+
+from __future__ import annotations
+
+import math
+
+from rcmlconf.conformance.cases.rsp_local import local_case, occurrence, session
+from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.locals import LocalProbe
+from rcmlconf.conformance.probes.pace import paced
+from rcmlconf.conformance.probes.rsp import first, of_kind
+from rcmlconf.conformance.rsp_numbers import KEEPALIVE_PERIODS, LOST_PERIODS, SESSION_TIMEOUT
+from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
+from rcmlconf.rsp.codec import PacketType, Period
+from rcmlconf.rsp.codec.bodies import MAX_PERIOD_MS
+from rcmlconf.rsp.model import DeviceKind, RobotModel
+
+#: Periods rsp/local/lost-link-goes-on watches past the loss of the link.
+WATCH = 10
+#: rsp/local/period-doubles asks for a T this long at least (scaled): PERIOD carries T in whole
+#: milliseconds, and a doubled T of hundreds of them shows a new T computed a hair off (a factor,
+#: a rounding) that one of 40 ms would round away.
+SLOW_PERIOD = 0.3
+
+
+def _model(ctx: Context) -> RobotModel:
+    if ctx.target.rsp_model is None:
+        raise NotApplicable("the robot model the harness plays is not known (give --model)")
+    return ctx.target.rsp_model
+
+
+@local_case(
+    "rsp/local/welcome-opens",
+    "Once WELCOME is given, the local system's session begins: a DOWNLINK within 5 periods",
+    ["R-RSP-42"],
+)
+async def welcome_opens(ctx: Context) -> None:
+    probe = await session(ctx, used=False)
+    period = probe.period
+    # D-RSP-12: the local system takes the WELCOME; D-RSP-13: from then on it sends a DOWNLINK
+    # every T, or an empty one every 5 periods at least. Twice that, for a loaded machine.
+    bound = 2 * KEEPALIVE_PERIODS * period + probe.quiet
+    found = await probe.next(PacketType.DOWNLINK, after=0, wait=bound)
+    hellos = len(probe.hellos)
+    ctx.expect(
+        found is not None,
+        f"WELCOME taken (D-RSP-12): a DOWNLINK of session {probe.session_id:#x} within"
+        f" {KEEPALIVE_PERIODS} periods of {period * 1000:g} ms",
+        f"no DOWNLINK within {bound * 1000:.0f} ms ({hellos} HELLO{'s' * (hellos > 1)} in all)",
+        timing=True,
+    )
+
+
+@local_case(
+    "rsp/local/lost-link-goes-on",
+    "Through a silence of the robot longer than 25 periods a DOWNLINK still goes every T",
+    ["R-RSP-42"],
+    timeout=7.0,
+)
+async def lost_link_goes_on(ctx: Context) -> None:
+    model = _model(ctx)
+    # Nothing acknowledged and no keep-alive: after WELCOME the robot says nothing at all.
+    reliable = of_kind(model, DeviceKind.COMMAND, DeviceKind.MEMORY_COMMAND)
+    probe = await session(ctx, withheld=reliable, beating=False)
+    period = probe.period
+    watched = (LOST_PERIODS + WATCH) * period
+    if watched > SESSION_TIMEOUT / 2:
+        raise NotApplicable(
+            f"at {model.name}'s T of {period * 1000:g} ms the link is lost only"
+            f" {LOST_PERIODS * period:g} s into a silence (D-RSP-13), too near the session's"
+            f" {SESSION_TIMEOUT:g} s timeout to watch it"
+        )
+    # From the robot's last word: a WELCOME sent again to a repeated HELLO moves it.
+    while probe.now < (end := _last_word(probe) + watched):
+        await probe.listen(end - probe.now)
+    lost = _last_word(probe) + LOST_PERIODS * period
+    # One period on: the local system's clock started when the WELCOME reached it.
+    through = [d for d in probe.packets(PacketType.DOWNLINK) if d.at >= lost + period]
+    paced(
+        ctx,
+        through,
+        PacketType.DOWNLINK,
+        period,
+        f" from {LOST_PERIODS} periods into the robot's silence: the link is lost, the session"
+        f" goes on until {SESSION_TIMEOUT:g} s of it (D-RSP-13)",
+    )
+
+
+def _last_word(probe: LocalProbe) -> float:
+    """When the probe last sent the local system anything."""
+    return probe.sent[-1][0]
+
+
+@local_case(
+    "rsp/local/period-doubles",
+    "A memory event taken doubles T (D-RSP-24 step 4): each PERIOD says twice the T in force",
+    ["R-RSP-43", "R-RSP-16"],
+    timeout=6.0,
+)
+async def period_doubles(ctx: Context) -> None:
+    model = _model(ctx)
+    memory = first(model, DeviceKind.MEMORY_EVENT)
+    probe = await session(ctx, slower=math.ceil(SLOW_PERIOD * ctx.scale / model.period))
+    in_force = round(probe.period * 1000)
+    doubled = min(2 * in_force, MAX_PERIOD_MS)
+    slower = doubled / 1000
+    # R-RSP-43: a PERIOD in each of the three periods after the change, the first within one.
+    change = await probe.answer_to(
+        lambda: probe.uplink([occurrence(memory, 0)]), PacketType.PERIOD, wait=2 * slower
+    )
+    if change is None:
+        raise Inconclusive(
+            f"no PERIOD within {2 * slower * 1000:.0f} ms of {memory.name} #0 (D-RSP-24 step 4)"
+        )
+    await probe.listen(change.at + 3.5 * slower - probe.now)
+    said = [
+        d.body.period_ms for d in probe.packets(PacketType.PERIOD) if isinstance(d.body, Period)
+    ]
+    ctx.expect(
+        all(ms == doubled for ms in said),
+        f"PERIOD of {doubled} ms: twice WELCOME's {in_force} ms (at most {MAX_PERIOD_MS} ms)",
+        f"PERIOD of {', '.join(map(str, said))} ms",
+        "R-RSP-43",
+    )

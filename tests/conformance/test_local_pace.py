@@ -1,0 +1,42 @@
+"""The rsp/local cases of the pace (rcmlconf.conformance.cases.rsp_local_pace), of an old event ID,
+and the idle keep-alive's check of a T changed without PERIOD: they pass the embedded reference's
+local system and an independent one (tests/foreign/rsp_local, written from specs/ alone), and fail
+that independent one when it makes a fault they are aimed at, naming the requirement it breaks.
+Real processes on loopback, as in test_local_receiving."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from conformance.test_local_receiving import run, run_foreign, verdicts
+
+CASES = [
+    "rsp/local/welcome-opens",
+    "rsp/local/lost-link-goes-on",
+    "rsp/local/period-doubles",
+    "rsp/local/event-old-id",
+    "rsp/local/idle-keep-alive",
+]
+#: The fault of the independent local system a case is aimed at, and what it must fail with.
+AIMED = {
+    "rsp/local/period-doubles": ("welcome-period-ignored", "R-RSP-43"),
+    "rsp/local/event-old-id": ("event-no-dedup", "R-RSP-25"),
+}
+
+
+def test_the_cases_pass_the_embedded_reference(tmp_path: Path) -> None:
+    results = run(tmp_path, *(option for case in CASES for option in ("--only", case)))
+    assert verdicts(results) == dict.fromkeys(CASES, "pass"), results
+
+
+def test_the_cases_pass_an_independent_local_system(tmp_path: Path) -> None:
+    results = run_foreign(tmp_path, CASES)
+    assert verdicts(results) == dict.fromkeys(CASES, "pass"), results
+
+
+@pytest.mark.parametrize("case", AIMED)
+def test_each_case_fails_the_local_system_making_its_fault(tmp_path: Path, case: str) -> None:
+    fault, requirement = AIMED[case]
+    result = run_foreign(tmp_path, [case], fault)[case]
+    assert (result["verdict"], result["requirement"]) == ("fail", requirement), result
