@@ -46,7 +46,7 @@ from rcmlconf.conformance.probes.rsp import (
     zero_values,
 )
 from rcmlconf.conformance.registry import Role, case
-from rcmlconf.conformance.verdicts import CaseStop, Failed, Inconclusive
+from rcmlconf.conformance.verdicts import CaseStop, Failed, Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import (
     CLEAR_BUFFER,
     Encryption,
@@ -65,6 +65,8 @@ from rcmlconf.values.shown import values_text
 
 #: How long the first memory command of a buffer case keeps the robot busy (ms, D-RSP-19).
 BUSY_MS = 30_000
+#: rsp/reliable/keyframe-duration's keyframes last this long (ms, scaled): many periods.
+KEYFRAME_MS = 400
 
 
 def keyframe(found: Device) -> dict[str, Value]:
@@ -235,7 +237,7 @@ async def two_reliable_at_once(ctx: Context) -> None:
 
 @case(
     "rsp/reliable/memory-command-once",
-    "A memory command repeated with its ID is acknowledged again but takes one buffer only",
+    "A memory command repeated with its ID, or an old ID, is acknowledged again; takes no buffer",
     ["R-RSP-25", "R-RSP-26"],
     role=Role.ROBOT,
 )
@@ -251,8 +253,69 @@ async def memory_command_once(ctx: Context) -> None:
         f"{again} free",
         "R-RSP-25",
     )
+    # D-RSP-5, D-RSP-16: IDs are 8 times idLength bits; one a quarter of the space behind #1 is old
+    # (ahead by three quarters): acknowledged again, not taken.
+    bits = 8 * probe.model.id_length
+    behind = (1 << bits) // 4
+    old = (1 - behind) % (1 << bits)
+    stale = (await _take(ctx, probe, raw, memory, old)).header.buffer
+    ctx.expect(
+        stale == first_take,
+        f"{first_take} free buffers still ({memory.name} #{old}, {behind} behind #1 on {bits}"
+        " bits, old: not taken)",
+        f"{stale} free",
+        "R-RSP-25",
+    )
     then = (await _take(ctx, probe, raw, memory, 2)).header.buffer
     ctx.expect(then == first_take - 1, f"{first_take - 1} free after #2", f"{then}", "R-RSP-25")
+
+
+@case(
+    "rsp/reliable/keyframe-duration",
+    "CUBO's keyframe takes its duration: the one after it waits in the buffer as long, no longer",
+    ["R-RSP-31"],
+    role=Role.ROBOT,
+)
+async def keyframe_duration(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    memory = first(probe.model, DeviceKind.MEMORY_COMMAND)
+    timed = [f for f in memory.fields if "duration" in f.name.lower() and f.type.base.numeric]
+    if probe.model.name != "CUBO" or not timed:
+        raise NotApplicable(
+            "how long a memory command takes is the robot's (D-RSP-19): only CUBO's motion"
+            " keyframes take their duration"
+        )
+    raw.standing = flags(probe.model, reported(probe.model, 1)[0])  # an UPLINK every T
+    free = await _free(probe, raw)
+    period = raw.period
+    lasting = round(min(KEYFRAME_MS * ctx.scale, timed[0].maximum or BUSY_MS))
+    start = probe.now  # #0 cannot start before it is sent
+    # #1 waits in the buffer while #0 runs (D-RSP-19); itself as short as it may be, so that
+    # nothing of this case still runs when the next case's session begins.
+    for ident, values in ((0, {**keyframe(memory), timed[0].name: lasting}), (1, None)):
+        if await acked(probe, raw, memory, ident, values) is None:
+            raise Failed("R-RSP-26", f"ACK of {memory.name} #{ident}", "none")
+    waiting = probe.received[-1].header.buffer
+    if waiting >= free:
+        raise _not_held(probe, memory, f"#0 and #1 of {lasting} ms taken, still {waiting} free")
+    # #0 done, #1 starts and leaves the buffer: the free count comes back, at a tick of the
+    # robot's after `lasting` ms (a period), read off an UPLINK (one every T).
+    bound = start + lasting / 1000 + 3 * period + probe.quiet
+    back = await probe.next(
+        PacketType.UPLINK, where=lambda d: d.header.buffer >= free, wait=bound - probe.now
+    )
+    took = (back.at if back is not None else probe.now) - start
+    ctx.expect(
+        back is not None and took <= bound - start,
+        f"{free} free buffers again once #0's {lasting} ms are over (D-RSP-19)",
+        f"{probe.received[-1].header.buffer} free after {took * 1000:.0f} ms",
+        timing=True,
+    )
+    ctx.expect(
+        took >= 0.9 * lasting / 1000,
+        f"#1 waiting in the buffer until #0's {lasting} ms are over (D-RSP-19)",
+        f"{free} free after {took * 1000:.0f} ms",
+    )
 
 
 @case(
