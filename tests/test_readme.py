@@ -131,6 +131,10 @@ def shown_in_order(shown: list[str], *outputs: str) -> list[str]:
     return missing
 
 
+#: How many pairs of ports a server of the tour is given before the test gives up.
+PORT_TRIES = 5
+
+
 def free_port_pair() -> int:
     """A port P with TCP P, UDP P and TCP P+1 free: RCTP, its data stream, its files."""
     for _ in range(50):
@@ -182,20 +186,28 @@ class Tour:
         return word
 
     def start(self, example: Example) -> None:
-        ready = self.folder / f"ready-{len(self.servers)}.json"
-        process = subprocess.Popen(
-            [*COMMAND, *self.words(example), "--ready-file", str(ready)],
-            cwd=self.folder,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
-        self.servers.append(process)
-        deadline = time.monotonic() + BOUND
-        while not ready.exists():
-            assert process.poll() is None, (example.command, process.communicate())
-            assert time.monotonic() < deadline, f"README line {example.line} never got ready"
-            time.sleep(0.02)
+        # Ports picked free can be taken before the server binds them (other tests run beside
+        # this one): a server that finds its port in use gets another pair, a few times.
+        for _ in range(PORT_TRIES):
+            ready = self.folder / f"ready-{len(self.servers)}.json"
+            process = subprocess.Popen(
+                [*COMMAND, *self.words(example), "--ready-file", str(ready)],
+                cwd=self.folder,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+            self.servers.append(process)
+            deadline = time.monotonic() + BOUND
+            while not ready.exists() and process.poll() is None:
+                assert time.monotonic() < deadline, f"README line {example.line} never got ready"
+                time.sleep(0.02)
+            if ready.exists():
+                return
+            out, err = process.communicate()
+            assert "address already in use" in err, (example.command, (out, err))
+            self.ports["7330" if example.verb == "serve" else "7340"] = str(free_port_pair())
+        raise AssertionError(f"README line {example.line}: its ports were taken {PORT_TRIES} times")
 
     def run(self, example: Example) -> subprocess.CompletedProcess[str]:
         process = subprocess.Popen(
