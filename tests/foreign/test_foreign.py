@@ -74,7 +74,12 @@ def _catchers(implementation: Implementation, fault: Fault, tmp: Path) -> list[s
     cases = [c for c in all_cases().values() if c.role is role]
     aimed = [c.id for c in cases if fault.requirement in c.requirements]
     if aimed:
-        failed = implementation.run_suite(tmp, [fault.name], aimed).having("fail")
+        found = implementation.run_suite(tmp, [fault.name], aimed)
+        if not found.having("fail") and found.having("inconclusive"):
+            # A case that could not judge (a timing check on a loaded machine, the harness's
+            # loop held) may judge on a second try: as a user would run it again.
+            found = implementation.run_suite(tmp, [fault.name], aimed)
+        failed = found.having("fail")
         if failed or role is Role.CLIENT:
             # Every client requirement has cases of its own (`cases --matrix`): a client fault
             # another requirement's case catches would be caught for the wrong reason.
