@@ -147,7 +147,6 @@ async def _judged(
         reason = f"harness fault: {type(error).__name__}: {error}"
         return _result(case, ctx, started, run, Verdict.ERROR, reason)
     finally:
-        ctx.close()  # again, for a case that never ran: closing twice does nothing
         if options.capture is not None:
             _capture(options.capture, case, run, ctx)
     partly = "; ".join(ctx.unchecked)

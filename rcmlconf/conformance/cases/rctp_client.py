@@ -12,7 +12,6 @@ from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.registry import CaseFunction, Role, Served, case
 from rcmlconf.rcml.model import AccessType
 from rcmlconf.rctp.messages import Response
-from rcmlconf.rctp.reader import LIMITS
 from rcmlconf.rctp.targets import format_target
 
 
@@ -202,24 +201,6 @@ async def bad_target(ctx: Context) -> None:
     bare = event_path(ctx).lstrip("/")
     answer = await answer_to(ctx, probe, probe.request_bytes("STOP", bare, [("Reason", "test")]))
     ctx.expect_status(answer, 400, "R-RCTP-15")
-
-
-@client_case(
-    "rctp/client/header-line-too-long",
-    "The client answers a server request with a header line past 4,096 bytes with 431 and closes"
-    " the connection",
-    ["R-RCTP-16", "R-RCTP-8"],
-)
-async def header_line_too_long(ctx: Context) -> None:
-    probe, _ = await ctx.client_session()
-    # D-RCTP-9: a header line is at most 4,096 bytes; a BYE is what a client without the limit
-    # would answer 200.
-    long = ("X-Rcmlconf-Long", "x" * (LIMITS.header_line + 1000))
-    answer = await answer_to(ctx, probe, probe.request_bytes("BYE", "*", [long]))
-    ctx.expect_status(answer, 431, "R-RCTP-16")
-    ctx.expect(
-        await probe.closes(), "the connection closed (D-RCTP-10)", "it stayed open", "R-RCTP-8"
-    )
 
 
 #: Answers to CONNECT that cannot be framed (D-RCTP-4, D-RCTP-10), by case.

@@ -11,43 +11,60 @@ from rcmlconf.conformance.context import Context
 from rcmlconf.rctp.reader import LIMITS
 
 #: Requests that cannot be framed (D-RCTP-10), by case: what is wrong, the request ({s} the
-#: session), and the status that answers it (R-RCTP-8).
-_UNFRAMEABLE: dict[str, tuple[str, bytes, int]] = {
+#: session), the status that answers it, and the requirement that status is judged by (R-RCTP-8;
+#: R-RCTP-16 for a limit the server cases judge so too).
+_UNFRAMEABLE: dict[str, tuple[str, bytes, int, str]] = {
     "request-bare-lf": (
         "lines ending in a bare LF",
         b"BYE * RCTP/2.0\nCSeq: 1\nSession: {s}\n\n",
         400,
+        "R-RCTP-8",
     ),
     "request-obs-fold": (
         "a folded header line",
         b"BYE * RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\nReason: shutdown\r\n  now\r\n\r\n",
         400,
+        "R-RCTP-8",
     ),
     "request-space-before-colon": (
         "white space before a field's colon",
         b"BYE * RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\nReason : shutdown\r\n\r\n",
         400,
+        "R-RCTP-8",
     ),
     "request-not-rctp-version": (
         "another protocol's version, HTTP/1.1",
         b"BYE * HTTP/1.1\r\nCSeq: 1\r\nSession: {s}\r\n\r\n",
         400,
+        "R-RCTP-8",
     ),
     "request-content-length-invalid": (
         "a Content-Length that is not a number",
         b"WRITE /settings RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\nContent-Length: 1x\r\n\r\n",
         400,
+        "R-RCTP-8",
     ),
     "request-transfer-encoding": (
         "Transfer-Encoding, which RCTP/2.0 does not use",
         b"WRITE /settings RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\nTransfer-Encoding: chunked"
         b"\r\n\r\n0\r\n\r\n",
         400,
+        "R-RCTP-8",
     ),
     "request-start-line-limit": (
         f"a request line past {LIMITS.start_line} bytes",
         b"STOP /" + b"a" * LIMITS.start_line + b" RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\n\r\n",
         414,
+        "R-RCTP-8",
+    ),
+    "header-line-too-long": (
+        f"a header line past {LIMITS.header_line} bytes",
+        # A BYE is what a client without the limit would answer 200.
+        b"BYE * RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\nX-Rcmlconf-Long: "
+        + b"x" * (LIMITS.header_line + 1000)
+        + b"\r\n\r\n",
+        431,
+        "R-RCTP-16",
     ),
     "request-header-fields-limit": (
         f"more than {LIMITS.header_fields} header fields",
@@ -55,6 +72,7 @@ _UNFRAMEABLE: dict[str, tuple[str, bytes, int]] = {
         + b"".join(b"X-Rcmlconf-%d: %d\r\n" % (i, i) for i in range(LIMITS.header_fields))
         + b"\r\n",
         431,
+        "R-RCTP-8",
     ),
     "request-content-length-limit": (
         f"a Content-Length above {LIMITS.body} bytes",
@@ -62,26 +80,27 @@ _UNFRAMEABLE: dict[str, tuple[str, bytes, int]] = {
         + str(LIMITS.body + 1).encode()
         + b"\r\nContent-Type: application/rctp-values\r\n\r\n",
         413,
+        "R-RCTP-8",
     ),
 }
 
 
-def _unframeable(name: str, what: str, request: bytes, status: int) -> None:
+def _unframeable(name: str, what: str, request: bytes, status: int, requirement: str) -> None:
     @client_case(
         f"rctp/client/{name}",
         f"The client answers a server request with {what} with {status} and closes the connection",
-        ["R-RCTP-8"],
+        list(dict.fromkeys([requirement, "R-RCTP-8"])),
     )
     async def refused(ctx: Context) -> None:
         probe, _ = await ctx.client_session()
         answer = await answer_to(ctx, probe, request.replace(b"{s}", str(probe.session).encode()))
-        ctx.expect_status(answer, status, "R-RCTP-8")
+        ctx.expect_status(answer, status, requirement)
         closed = await probe.closes()
         ctx.expect(closed, "the connection closed (D-RCTP-10)", "it stayed open", "R-RCTP-8")
 
 
-for _name, (_what, _request, _status) in _UNFRAMEABLE.items():
-    _unframeable(_name, _what, _request, _status)
+for _name, (_what, _request, _status, _requirement) in _UNFRAMEABLE.items():
+    _unframeable(_name, _what, _request, _status, _requirement)
 
 
 #: Requests that are framed but wrong, by case: what is wrong, the request, its status, and the

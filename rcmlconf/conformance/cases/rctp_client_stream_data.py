@@ -75,15 +75,14 @@ async def stream_echo(ctx: Context) -> None:
 async def stream_stale_not_taken(ctx: Context) -> None:
     server, stream, access, codec, newer = await _hushed(ctx)
     marks = _marks(ctx, access, 2)
-    sequence = stream.probe.next_sequence()
+    sequence = stream.probe.last_sequence  # the newer packet's
     sent = [
-        (sequence, newer, "the newer packet"),
         (sequence, {**newer, **marks[0]}, "the packet with its number again"),
         ((sequence - 1) & 0xFFFF, {**newer, **marks[1]}, "the older packet"),
     ]
     for number, values, _ in sent:
         stream.probe.send_packet([DataPayload(STREAM_ID, codec.encode(values))], sequence=number)
-    await _judge_echo(ctx, server, stream, access, newer, [(v, what) for _, v, what in sent[1:]])
+    await _judge_echo(ctx, server, stream, access, newer, [(v, what) for _, v, what in sent])
 
 
 @scenario_case(
@@ -99,7 +98,6 @@ async def stream_out_of_range(ctx: Context) -> None:
     node = ranged[0]
     assert node.maximum is not None
     over = node.maximum * 2 + 1
-    stream.probe.send_packet([DataPayload(STREAM_ID, codec.encode(newer))])
     beyond = {**newer, node.name: over}
     for _ in range(3):
         stream.probe.send_packet([DataPayload(STREAM_ID, codec.encode(beyond))])
@@ -119,7 +117,6 @@ async def stream_foreign_packets_dropped(ctx: Context) -> None:
     set_up = probe.set_up
     assert set_up is not None
     marks = _marks(ctx, access, 3)
-    probe.send_packet([DataPayload(STREAM_ID, codec.encode(newer))])
     other = await StreamProbe.open(probe.local[0], ctx.transcript, probe.wait)
     ctx.on_close(other.close)
     kinds = ["version 3", "another tag", "another port"]
@@ -166,11 +163,14 @@ async def stream_foreign_packets_dropped(ctx: Context) -> None:
 )
 async def stream_unknown_payload_skipped(ctx: Context) -> None:
     server, stream, access, codec, newer = await _hushed(ctx)
-    # Its body looks like a DATA body of other values: read as one, it was not skipped.
-    decoy = codec.encode({**newer, **_marks(ctx, access, 1)[0]})
-    unknown = UnknownPayload(UNKNOWN_TYPE, STREAM_ID, decoy)
-    stream.probe.send_packet([unknown, DataPayload(STREAM_ID, codec.encode(newer))])
-    await _judge_echo(ctx, server, stream, access, newer, [])
+    decoy, after = ({**newer, **mark} for mark in _marks(ctx, access, 2))
+    # The unknown body looks like a DATA body of other values: read as one, it was not skipped;
+    # the DATA after it holds values of its own, which show it was taken.
+    unknown = UnknownPayload(UNKNOWN_TYPE, STREAM_ID, codec.encode(decoy))
+    stream.probe.send_packet([unknown, DataPayload(STREAM_ID, codec.encode(after))])
+    await _judge_echo(
+        ctx, server, stream, access, after, [(decoy, "the unknown payload's body, read as DATA")]
+    )
 
 
 @scenario_case(
@@ -222,12 +222,15 @@ async def _hushed(
     ctx: Context,
 ) -> tuple[PlayedServer, PlayedStream, AccessNode, ValuesCodec[DataNode], dict[str, Value]]:
     """The scenario up to its stream's GO, the played robot's own DATA stopped (the case's
-    packets are the only ones): the server, the stream, its access, the codec of the robot's
-    DATA, and values for a good packet."""
+    packets are the only ones), and a good packet sent: the server, the stream, its access, the
+    codec of the robot's DATA, and the good packet's values (its number is the probe's
+    `last_sequence`)."""
     server, stream, access = await until_playing(ctx)
     stream.sending = False
     codec = stream_codec(access, Direction.READ)
-    return server, stream, access, codec, {n.name: visible(n) for n in codec.nodes}
+    newer = {n.name: visible(n) for n in codec.nodes}
+    stream.probe.send_packet([DataPayload(STREAM_ID, codec.encode(newer))])
+    return server, stream, access, codec, newer
 
 
 async def _judge_echo(

@@ -6,6 +6,7 @@ step 7 (R-RCTP-39 to R-RCTP-50, R-RCTP-58; specs/rctp-2.0.md §6)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 from rcmlconf.conformance.cases.rctp_client_scenario import edge, scenario_case
 from rcmlconf.conformance.cases.rctp_streams import UNKNOWN_OPERATION
@@ -55,10 +56,14 @@ def stream_access(ctx: Context) -> AccessNode:
     return ctx.access(AccessType.STREAM, Permission.READ | Permission.WRITE)
 
 
-async def until_playing(ctx: Context) -> tuple[PlayedServer, PlayedStream, AccessNode]:
-    """The scenario run up to the GO of its stream (step 6)."""
+async def until_playing(
+    ctx: Context, holds: Mapping[str, float] | None = None
+) -> tuple[PlayedServer, PlayedStream, AccessNode]:
+    """The scenario run up to the GO of its stream (step 6), the played server holding its
+    answers to the methods of `holds` that long from the start."""
     access = stream_access(ctx)
     server = await played(ctx)
+    server.holds.update(holds or {})
     go = await server.reach("GO", access.path)
     if go is None or server.stream is None:
         raise Inconclusive(f"the client did not SETUP and GO {access.path} (D-RCTP-31 step 6)")
@@ -145,15 +150,9 @@ async def stream_packets(ctx: Context) -> None:
     ["R-RCTP-44"],
 )
 async def stream_pace(ctx: Context) -> None:
-    access = stream_access(ctx)
-    server = await played(ctx)
     # Slow answers to GO and to RELEASE (step 8, after the STOP) open windows in which DATA
     # sent at SETUP's answer or after STOP's shows.
-    server.holds.update(GO=HOLD, RELEASE=HOLD)
-    go = await server.reach("GO", access.path)
-    stream = server.stream
-    if go is None or stream is None:
-        raise Inconclusive(f"the client did not SETUP and GO {access.path} (D-RCTP-31 step 6)")
+    server, stream, access = await until_playing(ctx, {"GO": HOLD, "RELEASE": HOLD})
     interval, partly = await _slower(ctx, stream, access)
     await server.reach("BYE")
     go_at = [s.at for s in server.seen if s.names("GO", access.path)]
