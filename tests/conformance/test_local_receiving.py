@@ -13,6 +13,7 @@ from __future__ import annotations
 import asyncio
 import json
 import os
+import shutil
 import socket
 import subprocess
 import sys
@@ -22,6 +23,7 @@ from typing import Any
 import pytest
 from support.processes import COMMAND, free_port
 
+import rcmlconf
 from rcmlconf.conformance.cases.rsp_local import occurrence
 from rcmlconf.conformance.probes.locals import LocalListener
 from rcmlconf.conformance.probes.rsp import Datagram, first
@@ -35,6 +37,7 @@ from rcmlconf.rsp.session import events
 from rcmlconf.validate.validator import load_robot_model
 
 FOREIGN = Path(__file__).parents[1] / "foreign" / "rsp_local"
+PACKAGE = Path(rcmlconf.__file__).parent
 MODEL = FOREIGN / "robot.rmodel"
 #: The fault of the independent local system each case is aimed at, and what it must fail with.
 AIMED = {
@@ -46,21 +49,29 @@ AIMED = {
     "rsp/local/late-buffer-ignored": ("late-states", "R-RSP-19"),
     "rsp/local/ack-at-once": ("ack-deferred", "R-RSP-26"),
 }
+#: Cases no fault of the independent local system is aimed at: each fails the embedded
+#: reference made to make its fault in a copy (`mutated`).
+UNAIMED = ["rsp/local/downlink-dropped"]
 #: A run, at most (seconds): the BYE test waits out a session that goes on for 10 s.
 BOUND = 60.0
 
 Results = dict[str, dict[str, Any]]
 
 
-def run(tmp_path: Path, *options: str) -> Results:
-    """`rcmlconf run OPTIONS --json`: each result by case."""
+def run(tmp_path: Path, *options: str, python: Path | None = None) -> Results:
+    """`rcmlconf run OPTIONS --json`: each result by case; the package copied into `python`
+    (`mutated`) instead of the installed one if given."""
     report = tmp_path / "run.json"
+    copied = [sys.executable, "-m", "rcmlconf"] if python is not None else COMMAND
+    env = {**os.environ, "PYTHONPATH": str(python)} if python is not None else None
     done = subprocess.run(
-        [*COMMAND, "run", *options, "--json", str(report)],
+        [*copied, "run", *options, "--json", str(report)],
         capture_output=True,
         text=True,
         timeout=BOUND,
         check=False,
+        cwd=python,
+        env=env,
     )
     assert "Traceback" not in done.stderr, done.stderr
     assert done.returncode in (0, 1), done.stdout + done.stderr
@@ -92,13 +103,15 @@ def verdicts(results: Results) -> dict[str, str]:
 
 
 def test_the_receiving_cases_pass_the_embedded_reference(tmp_path: Path) -> None:
-    results = run(tmp_path, *(option for case in AIMED for option in ("--only", case)))
-    assert verdicts(results) == dict.fromkeys(AIMED, "pass"), results
+    cases = [*AIMED, *UNAIMED]
+    results = run(tmp_path, *(option for case in cases for option in ("--only", case)))
+    assert verdicts(results) == dict.fromkeys(cases, "pass"), results
 
 
 def test_the_receiving_cases_pass_an_independent_local_system(tmp_path: Path) -> None:
-    results = run_foreign(tmp_path, list(AIMED))
-    assert verdicts(results) == dict.fromkeys(AIMED, "pass"), results
+    cases = [*AIMED, *UNAIMED]
+    results = run_foreign(tmp_path, cases)
+    assert verdicts(results) == dict.fromkeys(cases, "pass"), results
 
 
 @pytest.mark.parametrize("case", AIMED)
@@ -106,6 +119,34 @@ def test_each_case_fails_the_local_system_making_its_fault(tmp_path: Path, case:
     fault, requirement = AIMED[case]
     result = run_foreign(tmp_path, [case], fault)[case]
     assert (result["verdict"], result["requirement"]) == ("fail", requirement), result
+
+
+def test_a_local_system_taking_a_downlink_as_an_ack_fails_downlink_dropped(tmp_path: Path) -> None:
+    """The embedded reference, in a copy, reading a DOWNLINK from the robot as an ACK (a type it
+    is not sent, D-RSP-11: bench/mutation_survivors.md's local.py 269): the DOWNLINK naming its
+    command in flight ends the command's ride."""
+    copy = mutated(
+        tmp_path,
+        "rsp/session/local.py",
+        "elif kind is PacketType.ACK:",
+        "elif kind in (PacketType.ACK, PacketType.DOWNLINK):",
+    )
+    case = "rsp/local/downlink-dropped"
+    result = run(tmp_path, "--only", case, python=copy)[case]
+    assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-18"), result
+
+
+def mutated(tmp_path: Path, module: str, line: str, fault: str) -> Path:
+    """A copy of the package (and the specs it reads) in which `line` of `module` (under
+    rcmlconf/) reads `fault`: the directory to run it from."""
+    copy = tmp_path / "mutant"
+    shutil.copytree(PACKAGE, copy / "rcmlconf", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(PACKAGE.parent / "specs", copy / "specs")
+    source = copy / "rcmlconf" / module
+    text = source.read_text()
+    assert text.count(line) == 1, f"{module} no longer has {line!r} once"
+    source.write_text(text.replace(line, fault))
+    return copy
 
 
 def test_a_session_going_on_after_bye_fails_bye_ends_and_the_next_case_has_its_own(

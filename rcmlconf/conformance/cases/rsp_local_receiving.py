@@ -8,7 +8,8 @@ local system receives is acknowledged at once, new or repeated (R-RSP-26); an AC
 ends that command's ride in every DOWNLINK (D-RSP-17); the robot's newest free-buffer count lets
 its memory commands go or holds them (D-RSP-19). So each case sends, as the robot, a packet the
 local system must not act on — naming another session, a byte after its payloads, a bool byte of
-2, seen before, 65 behind the newest, a late one whose buffer byte is older than the newest — and
+2, seen before, 65 behind the newest, a late one whose buffer byte is older than the newest, a
+DOWNLINK (a type it is not sent, D-RSP-11) naming its command as the command's ACK would — and
 checks that nothing of it shows; then it sends the same thing as a robot may, and checks that it
 shows: a local system that takes nothing passes none of these cases.
 
@@ -205,6 +206,69 @@ async def trailing_bytes_dropped(ctx: Context) -> None:
     memory = first(model, DeviceKind.MEMORY_EVENT)
     command = first(model, DeviceKind.COMMAND)
     probe = await session(ctx, withheld=[command])
+    ident = await _in_flight(probe, command)
+
+    def longer(body: bytes) -> bytes:
+        return body + b"\x00"
+
+    what = f"an ACK of {command.name} #{ident} with a byte after it"
+    await _acknowledged_only_by_ack(
+        ctx,
+        probe,
+        command,
+        ident,
+        lambda: probe.forged(
+            PacketType.ACK, MapBody((Item(command.position, ident),)), what, alter=longer
+        ),
+        what,
+        "the ACK with a byte after its IDs dropped",
+    )
+    await malformed_then_taken(
+        ctx,
+        probe,
+        memory,
+        (occurrence(memory, 0),),
+        "an UPLINK with a byte after its payloads",
+        alter=longer,
+    )
+
+
+@local_case(
+    "rsp/local/downlink-dropped",
+    "A DOWNLINK from the robot is dropped: one naming the command in flight does not ACK it",
+    ["R-RSP-18", "R-RSP-27"],
+)
+async def downlink_dropped(ctx: Context) -> None:
+    command = first(_model(ctx), DeviceKind.COMMAND)
+    probe = await session(ctx, withheld=[command])
+    ident = await _in_flight(probe, command)
+    # D-RSP-11: a type the local system is not sent is malformed, though a DOWNLINK of the
+    # command reads as its ACK would (Device Map, then the ID), and well-formed else.
+    what = f"a DOWNLINK naming {command.name} #{ident}, as its ACK would"
+    body = MapBody((occurrence(command, ident),))
+
+    def downlink() -> bytes:
+        free, probe.free = probe.free, 0  # a DOWNLINK's buffer byte: no Clear Buffer (D-RSP-10)
+        try:
+            return probe.forged(PacketType.DOWNLINK, body, what)
+        finally:
+            probe.free = free
+
+    await _acknowledged_only_by_ack(
+        ctx,
+        probe,
+        command,
+        ident,
+        downlink,
+        what,
+        "the DOWNLINK dropped: a type the local system is not sent (D-RSP-11)",
+    )
+
+
+async def _in_flight(probe: LocalProbe, command: Device) -> int:
+    """The ID of the scenario's `command` (D-RSP-24 step 2), which the probe does not
+    acknowledge, once it has ridden every DOWNLINK for three periods; Inconclusive if it did not
+    (R-RSP-27, which rsp/local/command-until-acked checks)."""
     carrying = await probe.next(PacketType.DOWNLINK, after=0, where=carries(command))
     found = carrying.item(command.position) if carrying is not None else None
     if found is None or found.id is None:
@@ -216,38 +280,37 @@ async def trailing_bytes_dropped(ctx: Context) -> None:
             f"{command.name} #{ident} not in every DOWNLINK before its ACK: R-RSP-27, which"
             " rsp/local/command-until-acked checks"
         )
-    mine = Item(command.position, ident)
+    return ident
 
-    def longer(body: bytes) -> bytes:
-        return body + b"\x00"
 
-    what = f"an ACK of {command.name} #{ident} with a byte after it"
-    bad = intact(
-        probe, lambda: probe.forged(PacketType.ACK, MapBody((mine,)), what, alter=longer), what
-    )
+async def _acknowledged_only_by_ack(
+    ctx: Context,
+    probe: LocalProbe,
+    command: Device,
+    ident: int,
+    send: Callable[[], bytes],
+    what: str,
+    dropped: str,
+) -> None:
+    """`send` sends a packet naming `command` #`ident` that the local system must drop
+    (`what`, R-RSP-18): the command must still ride every DOWNLINK. Then its well-formed ACK
+    must end the ride (R-RSP-27), which shows the first was dropped for what was wrong with it."""
+    bad = intact(probe, send, what)
     riding = await _downlinks_after(probe, bad)
     gone = [d for d in riding if not carries(command, ident)(d)]
     ctx.expect(
         not gone,
-        f"the ACK with a byte after its IDs dropped: {command.name} #{ident} in every DOWNLINK",
+        f"{dropped}: {command.name} #{ident} in every DOWNLINK",
         f"not in DOWNLINK #{gone[0].header.sequence}" if gone else "",
         "R-RSP-18",
     )
-    good = intact(probe, lambda: probe.ack([mine]), "the ACK")
+    good = intact(probe, lambda: probe.ack([Item(command.position, ident)]), "the ACK")
     still = [d for d in await _downlinks_after(probe, good) if carries(command, ident)(d)]
     ctx.expect(
         not still,
         f"the well-formed ACK taken: {command.name} #{ident} no more",
         f"in DOWNLINK #{still[0].header.sequence}" if still else "",
         "R-RSP-27",
-    )
-    await malformed_then_taken(
-        ctx,
-        probe,
-        memory,
-        (occurrence(memory, 0),),
-        "an UPLINK with a byte after its payloads",
-        alter=longer,
     )
 
 
