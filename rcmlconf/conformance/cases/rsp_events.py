@@ -48,7 +48,8 @@ from rcmlconf.rsp.codec import Item, MapBody, PacketType
 from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
 from rcmlconf.values import Kind, Value
 
-#: How long a case waits for the robot to raise what it needs, seconds (before --timeout-scale).
+#: D-RSP-25: how long a case watches for the robot to raise what it needs, seconds (before
+#: --timeout-scale).
 OCCURS_WITHIN = 2.0
 #: D-RSP-17: an event rides this many UPLINKs.
 RIDES = 3
