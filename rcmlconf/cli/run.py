@@ -327,9 +327,10 @@ def run(
         else:
             output.problem("run", f"cannot start the embedded reference: {why}")
         sys.exit(2)
+    span = (started, time.time())
     results = mark_known(results, known)
     settings = {"seed": seed, "repeat": repeat, "timeout_scale": timeout_scale, "impair": impair}
-    _write_reports(output, results, registry, tested, settings, started, junit, json_file)
+    _write_reports(output, results, registry, tested, settings, span, junit, json_file)
     _report(output, results, registry, tested)
     status, why = run_status(results, strict)
     if why:
@@ -472,13 +473,14 @@ def _write_reports(
     registry: dict[str, Case],
     target: Target,
     settings: dict[str, Any],
-    started: float,
+    span: tuple[float, float],
     junit: Path | None,
     json_file: Path | None,
 ) -> None:
+    """`span`: when the run started and ended (time.time())."""
     try:
         if junit is not None:
-            junit.write_bytes(to_junit(results, registry, started))
+            junit.write_bytes(to_junit(results, registry, *span))
         if json_file is not None:
             report = to_json(results, registry, target.name, settings)
             json_file.write_text(json.dumps(report, indent=2, ensure_ascii=False) + "\n")

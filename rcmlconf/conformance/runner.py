@@ -218,6 +218,7 @@ async def run_cases(
                 robots.put_nowait(robot)
             if case.role is Role.CLIENT and target.clients is not None:
                 target.clients.done(case.id)
+        result = replace(result, ended=time.time())
         results.append(result)
         done(result)
 

@@ -82,3 +82,6 @@ class Result:
     known: bool = False
     #: The nodes and devices the case named (`Transcript.used`): what its checks could show.
     used: tuple[str, ...] = ()
+    #: When the case ended (time.time()): with `duration`, when it ran, for the reports' spans
+    #: (cases run side by side, so an area's time is not the sum of its cases').
+    ended: float = 0.0

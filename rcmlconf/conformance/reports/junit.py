@@ -1,8 +1,14 @@
 """--junit: JUnit XML as Jenkins, GitLab and GitHub's test reporters read it: one <testsuite> per
 area (`rctp/msg`), one <testcase> per case and run, its classname the area and its name the
 case's ID. A failure is <failure>, an error <error>; not applicable and inconclusive are
-<skipped> with the verdict in the message (JUnit has no such verdicts). A known failure of the
-baseline stays a <failure>: the report says what happened, the exit code what is new."""
+<skipped> with the verdict and the reason as its text (JUnit has no such verdicts). A known
+failure of the baseline stays a <failure>: the report says what happened, the exit code what is
+new.
+
+Valid against the schema Jenkins' JUnit reader checks (tests/support/junit.xsd says its rules):
+<testsuites> takes no `skipped` count and <skipped> no attributes. Cases run side by side, so a
+time is the wall time they took, not the sum of their durations: the run's for <testsuites>, the
+span from an area's first case's start to its last one's end for its <testsuite>."""
 
 from __future__ import annotations
 
@@ -17,30 +23,42 @@ from rcmlconf.conformance.reports.summary import shown_exchange
 from rcmlconf.conformance.verdicts import Result, Verdict
 
 
-def to_junit(results: Sequence[Result], cases: Mapping[str, Case], started: float) -> bytes:
-    stamp = datetime.datetime.fromtimestamp(started, datetime.UTC).strftime("%Y-%m-%dT%H:%M:%S")
+def to_junit(
+    results: Sequence[Result], cases: Mapping[str, Case], started: float, ended: float
+) -> bytes:
+    """`started` and `ended`: the run's wall-clock times (time.time())."""
     root = etree.Element("testsuites", name="rcmlconf run")
-    _totals(root, results)
+    _counts(root, results)
+    root.set("time", _seconds(ended - started))
 
     def area(result: Result) -> str:
         return cases[result.case].area
 
     for name, group in groupby(sorted(results, key=area), key=area):
         members = list(group)
-        suite = etree.SubElement(root, "testsuite", name=name, timestamp=stamp)
-        _totals(suite, members)
+        first = min((r.ended - r.duration for r in members), default=started)
+        suite = etree.SubElement(root, "testsuite", name=name, timestamp=_stamp(first))
+        _counts(suite, members)
+        skipped = (Verdict.NOT_APPLICABLE, Verdict.INCONCLUSIVE)
+        suite.set("skipped", str(sum(r.verdict in skipped for r in members)))
+        suite.set("time", _seconds(max(r.ended for r in members) - first))
         for result in members:
             _case(suite, result, cases[result.case])
     return bytes(etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True))
 
 
-def _totals(element: etree._Element, results: Sequence[Result]) -> None:
+def _counts(element: etree._Element, results: Sequence[Result]) -> None:
     element.set("tests", str(len(results)))
     element.set("failures", str(sum(r.verdict is Verdict.FAIL for r in results)))
     element.set("errors", str(sum(r.verdict is Verdict.ERROR for r in results)))
-    skipped = (Verdict.NOT_APPLICABLE, Verdict.INCONCLUSIVE)
-    element.set("skipped", str(sum(r.verdict in skipped for r in results)))
-    element.set("time", f"{sum(r.duration for r in results):.3f}")
+
+
+def _seconds(seconds: float) -> str:
+    return f"{max(seconds, 0.0):.3f}"
+
+
+def _stamp(at: float) -> str:
+    return datetime.datetime.fromtimestamp(at, datetime.UTC).strftime("%Y-%m-%dT%H:%M:%S")
 
 
 def _case(suite: etree._Element, result: Result, case: Case) -> None:
@@ -50,19 +68,21 @@ def _case(suite: etree._Element, result: Result, case: Case) -> None:
     )
     if result.verdict is Verdict.PASS:
         return
-    tag = {Verdict.FAIL: "failure", Verdict.ERROR: "error"}.get(result.verdict, "skipped")
-    message = result.reason if tag != "skipped" else f"{result.verdict.value}: {result.reason}"
-    outcome = etree.SubElement(element, tag, message=_clean(message))
-    if tag != "skipped":
-        outcome.set("type", result.requirement or result.verdict.value)
-        details = [f"requirements: {', '.join(case.requirements)}"]
-        if result.expected:
-            details.append(f"expected: {' | '.join(result.expected)}")
-        if result.actual is not None:
-            details.append(f"actual: {result.actual}")
-        if result.known:
-            details.append("known failure (baseline)")
-        outcome.text = _clean("\n".join([*details, "", *shown_exchange(result)]))
+    tag = {Verdict.FAIL: "failure", Verdict.ERROR: "error"}.get(result.verdict)
+    if tag is None:
+        skipped = etree.SubElement(element, "skipped")
+        skipped.text = _clean(f"{result.verdict.value}: {result.reason}")
+        return
+    outcome = etree.SubElement(element, tag, message=_clean(result.reason))
+    outcome.set("type", result.requirement or result.verdict.value)
+    details = [f"requirements: {', '.join(case.requirements)}"]
+    if result.expected:
+        details.append(f"expected: {' | '.join(result.expected)}")
+    if result.actual is not None:
+        details.append(f"actual: {result.actual}")
+    if result.known:
+        details.append("known failure (baseline)")
+    outcome.text = _clean("\n".join([*details, "", *shown_exchange(result)]))
 
 
 def _clean(text: str) -> str:
