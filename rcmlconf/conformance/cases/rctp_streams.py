@@ -113,7 +113,9 @@ def _readable(ctx: Context, where: Callable[[AccessNode], bool] = lambda _: True
     return min(found, key=lambda a: a.read_interval or 0.0)
 
 
-def _writable(ctx: Context, where: Callable[[AccessNode], bool] = lambda _: True) -> AccessNode:
+def writable_stream(
+    ctx: Context, where: Callable[[AccessNode], bool] = lambda _: True
+) -> AccessNode:
     """A stream access with writable nodes and a `writeInterval` (and `where`)."""
     return ctx.access(
         AccessType.STREAM,
@@ -265,7 +267,7 @@ async def _reading(
     return control, probe, set_up
 
 
-async def _set_up_writing(
+async def set_up_writing(
     ctx: Context, access: AccessNode, mode: str
 ) -> tuple[ControlProbe, StreamProbe, StreamSetUp]:
     """A session holding the privilege of `access` (R-RCTP-34), set up with mode `mode` (write
@@ -276,7 +278,25 @@ async def _set_up_writing(
     return control, probe, await probe.setup(control, access, mode)
 
 
-async def _request(ctx: Context, control: ControlProbe, method: str, set_up: StreamSetUp) -> None:
+async def short_write_timeout(probe: StreamProbe, set_up: StreamSetUp) -> float:
+    """The stream's write timeout in seconds: its own, or shortened by set-timeout (D-RCTP-22)
+    when that is over 1 s, so that a case that waits it out is quick; inconclusive when the
+    server will not shorten it."""
+    assert set_up.write_interval is not None
+    if set_up.write_timeout <= 1.0:
+        return set_up.write_timeout
+    wanted = max(2 * set_up.micros(set_up.write_interval), 300_000)
+    answer = await probe.ask(lambda i: TimeoutSet(i, Direction.WRITE, wanted), set_up.stream)
+    if not isinstance(answer, TimeoutSetAck) or answer.timeout > 1_500_000:
+        raise Inconclusive(
+            f"writeTimeout {set_up.write_timeout:g} s could not be shortened: {flow_text(answer)}"
+        )
+    return answer.timeout / 1e6
+
+
+async def stream_request(
+    ctx: Context, control: ControlProbe, method: str, set_up: StreamSetUp
+) -> None:
     """GO, PAUSE or STOP of the set-up stream, answered 200 (the rctp/state cases check them).
     A GO of a stream slower than `SLOWEST` makes the case not applicable: its DATA would not
     come often enough for the case's time."""
@@ -309,9 +329,9 @@ async def _silenced(ctx: Context, method: str) -> tuple[ControlProbe, StreamProb
     """A stream set up for reading, played, then `method` (PAUSE or STOP): past what was in
     flight, no DATA of it comes (R-RCTP-44)."""
     control, probe, set_up = await _reading(ctx)
-    await _request(ctx, control, "GO", set_up)
+    await stream_request(ctx, control, "GO", set_up)
     await _first_data(ctx, probe, set_up)
-    await _request(ctx, control, method, set_up)
+    await stream_request(ctx, control, method, set_up)
     await asyncio.sleep(GRACE)
     probe.drain()
     late = [d for d in await probe.packets(_quiet(set_up)) if _has_data(d, set_up)]
@@ -419,10 +439,10 @@ class Writing:
         cls, ctx: Context, where: Callable[[AccessNode], bool] = lambda _: True
     ) -> Writing:
         """On the first stream access whose writing can be read back and `where` holds of."""
-        access = _writable(ctx, lambda a: _observable(a) and where(a))
-        control, probe, set_up = await _set_up_writing(ctx, access, "both")
+        access = writable_stream(ctx, lambda a: _observable(a) and where(a))
+        control, probe, set_up = await set_up_writing(ctx, access, "both")
         writing = cls(ctx, control, probe, set_up)
-        await _request(ctx, control, "GO", set_up)
+        await stream_request(ctx, control, "GO", set_up)
         first = await writing.readback()
         if first is None:
             raise Failed("R-RCTP-44", "DATA after GO", f"none within {probe.wait:g} s")
@@ -626,7 +646,7 @@ async def setup_mode_without_nodes(ctx: Context) -> None:
     serial=True,
 )
 async def setup_write_not_acquired(ctx: Context) -> None:
-    access = _writable(ctx)
+    access = writable_stream(ctx)
     control = await ctx.session()
     probe = await open_stream(ctx, control)
     transport = f"udp;client_port={probe.port};mode=write"
@@ -682,7 +702,7 @@ async def no_data_before_go(ctx: Context) -> None:
     early = await probe.packets(_quiet(set_up))
     data = [d for d in early if _has_data(d, set_up)]
     ctx.expect(not data, "no DATA before GO", f"{len(data)} packets with DATA")
-    await _request(ctx, control, "GO", set_up)
+    await stream_request(ctx, control, "GO", set_up)
     await _first_data(ctx, probe, set_up)
 
 
@@ -693,7 +713,7 @@ async def no_data_before_go(ctx: Context) -> None:
 )
 async def data_from_server_port(ctx: Context) -> None:
     control, probe, set_up = await _reading(ctx)
-    await _request(ctx, control, "GO", set_up)
+    await stream_request(ctx, control, "GO", set_up)
     for _ in range(3):  # `packet` checks the source of each (strict)
         await _first_data(ctx, probe, set_up, "R-RCTP-56")
 
@@ -706,7 +726,7 @@ async def data_from_server_port(ctx: Context) -> None:
 )
 async def packet_layout(ctx: Context) -> None:
     control, probe, set_up = await _reading(ctx)
-    await _request(ctx, control, "GO", set_up)
+    await stream_request(ctx, control, "GO", set_up)
     for _ in range(10):  # `packet` decodes each and checks its tag (strict)
         await _first_data(ctx, probe, set_up)
     for datagram in probe.history:
@@ -727,7 +747,7 @@ async def packet_layout(ctx: Context) -> None:
 )
 async def consecutive_sequence(ctx: Context) -> None:
     control, probe, set_up = await _reading(ctx)
-    await _request(ctx, control, "GO", set_up)
+    await stream_request(ctx, control, "GO", set_up)
     for _ in range(20):
         await _first_data(ctx, probe, set_up)
     got = [d for d in probe.history if d.packet is not None]
@@ -758,7 +778,7 @@ async def data_interval(ctx: Context) -> None:
     control, probe, set_up = await _reading(ctx)
     interval = _interval(set_up)
     window = min(MEASURE, max(0.5, 10 * interval))
-    await _request(ctx, control, "GO", set_up)
+    await stream_request(ctx, control, "GO", set_up)
     await _first_data(ctx, probe, set_up)
     count = 0
     for datagram in await probe.packets(window):
@@ -785,7 +805,7 @@ async def data_interval(ctx: Context) -> None:
 async def data_values(ctx: Context) -> None:
     control, probe, set_up = await _reading(ctx)
     codec = stream_codec(set_up.access, Direction.READ)
-    await _request(ctx, control, "GO", set_up)
+    await stream_request(ctx, control, "GO", set_up)
     for _ in range(5):
         _, payload = await _first_data(ctx, probe, set_up)
         values = _decode(codec, payload)
@@ -803,7 +823,7 @@ async def pause(ctx: Context) -> None:
     control, probe, set_up = await _silenced(ctx, "PAUSE")
     last = probe.history[-1].packet
     assert last is not None
-    await _request(ctx, control, "GO", set_up)
+    await stream_request(ctx, control, "GO", set_up)
     datagram, _ = await _first_data(ctx, probe, set_up)
     assert datagram.packet is not None
     expected = (last.sequence + 1) % MODULO
@@ -832,14 +852,14 @@ async def stop(ctx: Context) -> None:
 )
 async def latest_client_port(ctx: Context) -> None:
     control, first, set_up = await _reading(ctx)
-    await _request(ctx, control, "GO", set_up)
+    await stream_request(ctx, control, "GO", set_up)
     await _first_data(ctx, first, set_up)
-    await _request(ctx, control, "PAUSE", set_up)
+    await stream_request(ctx, control, "PAUSE", set_up)
     second = await open_stream(ctx, control, flow=1)
     moved = await second.setup(control, set_up.access)
     await asyncio.sleep(GRACE)
     first.drain()
-    await _request(ctx, control, "GO", moved)
+    await stream_request(ctx, control, "GO", moved)
     await _first_data(ctx, second, moved, "R-RCTP-56")
     stray = await first.packets(_quiet(set_up), strict=False)
     ctx.expect(
@@ -861,7 +881,7 @@ async def random_start(ctx: Context) -> None:
         control = await ctx.session()
         probe = await open_stream(ctx, control, flow)
         set_up = await probe.setup(control, access)
-        await _request(ctx, control, "GO", set_up)
+        await stream_request(ctx, control, "GO", set_up)
         datagram, _ = await _first_data(ctx, probe, set_up)
         assert datagram.packet is not None
         return datagram.packet.sequence
@@ -882,7 +902,7 @@ async def random_start(ctx: Context) -> None:
 )
 async def sequence_under_loss(ctx: Context) -> None:
     control, probe, set_up = await _reading(ctx)
-    await _request(ctx, control, "GO", set_up)
+    await stream_request(ctx, control, "GO", set_up)
     window = min(MEASURE, max(0.4, 30 * _interval(set_up)))
     got = [d for d in await probe.packets(window) if d.packet is not None]
     if len(got) < 2:
@@ -1043,7 +1063,7 @@ async def set_interval(ctx: Context) -> None:
     )
     interval = answer.interval / 1e6
     window = min(2.0, max(0.5, 8 * interval))
-    await _request(ctx, control, "GO", set_up)
+    await stream_request(ctx, control, "GO", set_up)
     await _first_data(ctx, probe, set_up)
     count = sum(
         1
@@ -1338,7 +1358,7 @@ async def packet_timestamp(ctx: Context) -> None:
     _, sample = await _clock(ctx, probe)
     loop = asyncio.get_running_loop()
     unix = time.time() - loop.time()
-    await _request(ctx, control, "GO", set_up)
+    await stream_request(ctx, control, "GO", set_up)
     slack = max(sample.delay, 0.0) / 2 + _precision(ctx)
     for _ in range(5):
         datagram, _ = await _first_data(ctx, probe, set_up)
@@ -1403,7 +1423,7 @@ async def undecodable_data_ignored(ctx: Context) -> None:
     serial=True,
 )
 async def out_of_range_data_ignored(ctx: Context) -> None:
-    access = _writable(ctx, _observable)
+    access = writable_stream(ctx, _observable)
     if not any(_outside(n) is not None for n in access.writable()):
         raise NotApplicable(f"no writable node of {access.path} has a range to leave")
     writing = await Writing.open(ctx)
@@ -1426,22 +1446,14 @@ async def out_of_range_data_ignored(ctx: Context) -> None:
     serial=True,
 )
 async def receive_timeout(ctx: Context) -> None:
-    access = _writable(ctx)
+    access = writable_stream(ctx)
     readable = {n.name for n in access.readable()}
     mode = "both" if {n.name for n in access.writable()} <= readable else "write"
-    control, probe, set_up = await _set_up_writing(ctx, access, mode)
+    control, probe, set_up = await set_up_writing(ctx, access, mode)
     assert set_up.write_interval is not None
-    timeout = set_up.write_timeout
-    if timeout > 1.0:  # shortened, so that the case is quick
-        wanted = max(2 * set_up.micros(set_up.write_interval), 300_000)
-        answer = await probe.ask(lambda i: TimeoutSet(i, Direction.WRITE, wanted), set_up.stream)
-        if not isinstance(answer, TimeoutSetAck) or answer.timeout > 1_500_000:
-            raise Inconclusive(
-                f"writeTimeout {timeout:g} s could not be shortened: {flow_text(answer)}"
-            )
-        timeout = answer.timeout / 1e6
+    timeout = await short_write_timeout(probe, set_up)
     writer = stream_codec(access, Direction.WRITE)
-    await _request(ctx, control, "GO", set_up)
+    await stream_request(ctx, control, "GO", set_up)
     if mode == "both":  # what the robot has now: feeding it changes nothing
         _, payload = await _first_data(ctx, probe, set_up)
         found = _decode(stream_codec(access, Direction.READ), payload)
@@ -1502,7 +1514,7 @@ async def receive_timeout(ctx: Context) -> None:
     serial=True,
 )
 async def timeout_too_short(ctx: Context) -> None:
-    control, probe, set_up = await _set_up_writing(ctx, _writable(ctx), "write")
+    control, probe, set_up = await set_up_writing(ctx, writable_stream(ctx), "write")
     interval = set_up.micros(set_up.write_interval)
     too_short = 2 * interval - 1
     answer = await probe.ask(lambda i: TimeoutSet(i, Direction.WRITE, too_short), set_up.stream)

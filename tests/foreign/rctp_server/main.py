@@ -101,6 +101,10 @@ FAULTS = {
         "R-RCTP-57",
         "SETUP with a Transport lacking client_port is answered 200",
     ),
+    "stop-init-at-sending": (
+        "R-RCTP-66",
+        "a server STOP puts its stream in init when sent, whatever the client answers",
+    ),
 }
 
 

@@ -66,6 +66,7 @@ class Stream:
     write_timeout_us: int = 0
     next_send: float = 0.0
     last_rx: float = 0.0
+    lost: bool = False  # its write timeout passed and the server sent STOP; a GO clears it
     snapshot: dict[str, bytes] = field(default_factory=dict)  # event: the values last told
 
     @property
@@ -111,7 +112,7 @@ class Connection:
         self.peer_ip = peer[0] if peer else ""
         self.session: Session | None = None
         self.out_cseq = 0 if "server-cseq-from-zero" in self.faults else 1
-        self.outstanding: collections.deque[tuple[str, int]] = collections.deque()
+        self.outstanding: collections.deque[tuple[str, int, str]] = collections.deque()
         self.pending_stops: list[str] = []
         self.closed = False
         self.linger = False
@@ -217,7 +218,7 @@ class Connection:
         assert self.session is not None
         cseq = self.out_cseq
         self.out_cseq += 1
-        self.outstanding.append((method, cseq))
+        self.outstanding.append((method, cseq, target))
         fields = [("CSeq", str(cseq)), ("Session", self.session.id), *headers]
         self.writer.write(wire.build(f"{method} {target} RCTP/2.0", fields, body, VALUES))
         self.log(f"server {method} {target}")
@@ -235,8 +236,11 @@ class Connection:
         self.close_timer = asyncio.get_running_loop().call_later(BYE_WAIT, self.close)
 
     def server_stop(self, st: Stream) -> None:
-        """D-RCTP-23: the write direction fell silent; the STOP goes out when there is room."""
-        st.state, st.sending = "init", False
+        """D-RCTP-23: the write direction fell silent; the STOP goes out when there is room.
+        The stream stays in its state until the STOP is answered 200 (D-RCTP-14)."""
+        st.sending, st.lost = False, True
+        if "stop-init-at-sending" in self.faults:
+            st.state = "init"
         self.server.reschedule(self.session)
         self.pending_stops.append(st.access.path)
         self.flush()
@@ -275,10 +279,14 @@ class Connection:
             self.log("a response that answers no outstanding request: closing")
             self.close()
             return
-        method, _ = self.outstanding.popleft()
+        method, _, target = self.outstanding.popleft()
         if method == "BYE":
             self.close()
             return
+        if method == "STOP" and msg.status == 200 and self.session is not None:
+            stopped = self.session.streams.get(target)
+            if stopped is not None:
+                stopped.state = "init"
         self.flush()
 
     def on_request(self, msg: wire.Message) -> None:
@@ -517,7 +525,7 @@ class Connection:
             if st.is_event:
                 body = self.server.body
                 st.snapshot = {n.path: n.encode(body.get(n.path)) for n in st.access.data("r")}
-        st.state, st.sending = "playing", True
+        st.state, st.sending, st.lost = "playing", True, False
         self.server.reschedule(sess)
         return [], b""
 
@@ -675,7 +683,7 @@ class Server:
                     continue
                 if st.is_event:
                     conn.push_changes(st)
-                elif st.writes() and "no-write-timeout" not in self.faults:
+                elif st.writes() and not st.lost and "no-write-timeout" not in self.faults:
                     silent = now - st.last_rx > st.write_timeout_us / 1e6
                     if silent:
                         conn.server_stop(st)
