@@ -5,7 +5,8 @@ fail on a files server that breaks R-RCTP-62 to R-RCTP-65, each naming what it b
 
 The faulty servers are files servers of the rover's real files on a real loopback socket, each
 wrong in one way a reference mutant was (bench/mutation_survivors.md, files.py): one answer per
-connection without `Connection: close`, a HEAD answered with a body, no RXID served, nothing
+connection without `Connection: close`, a connection kept after `Connection: close`, a HEAD
+answered with a body, a POST's 405 without the body its head promises, no RXID served, nothing
 answered; and one serving another robot's RCML.
 """
 
@@ -48,6 +49,10 @@ FAULTS: dict[str | None, dict[str, tuple[str, str | None]]] = {
     },
     # Mutants 103: the connection closed after its first answer, which does not say so.
     "one-per-connection": {PERSISTENT: ("fail", "R-RCTP-65")},
+    # Mutant 104 (`continue`): the connection kept after an answer to Connection: close.
+    "kept-after-close": {PERSISTENT: ("fail", "R-RCTP-65")},
+    # Mutant 130 (`>=`): a POST's 405 head with Content-Length 12 and no body, then the close.
+    "unframed-405": {PERSISTENT: ("fail", "R-RCTP-65")},
     # Mutant 130 (`!=`): a HEAD answered with the body a GET gets.
     "head-body": {HEAD: ("fail", "R-RCTP-64"), PERSISTENT: ("fail", "R-RCTP-64")},
     # Mutant 58 (`is not`): the RXID file neither listed nor served.
@@ -82,15 +87,22 @@ class FaultyFiles:
                 closing = b"\r\nconnection: close\r\n" in head.lower()
                 writer.write(self.answer(method, urlsplit(target.decode()).path, closing))
                 await writer.drain()
-                if closing or self.fault == "one-per-connection":
+                if closing and self.fault != "kept-after-close":
+                    break
+                if self.fault == "one-per-connection" or self.unframed(method):
                     break
         except (asyncio.IncompleteReadError, TimeoutError, ConnectionError):
             pass
         finally:
             writer.close()
 
+    def unframed(self, method: bytes) -> bool:
+        return self.fault == "unframed-405" and method not in (b"GET", b"HEAD")
+
     def answer(self, method: bytes, path: str, closing: bool) -> bytes:
-        if path == "/":
+        if method not in (b"GET", b"HEAD"):
+            status, body, kind = b"405 Method Not Allowed", b"GET or HEAD\n", b"text/plain"
+        elif path == "/":
             status, body, kind = b"200 OK", self.index, b"text/html; charset=utf-8"
         elif path in self.files:
             status, body, kind = b"200 OK", self.files[path], b"application/xml"
@@ -99,6 +111,7 @@ class FaultyFiles:
         fields = b"Content-Type: %s\r\nContent-Length: %d\r\n" % (kind, len(body))
         fields += b"Connection: close\r\n" if closing else b""
         sent = body if method != b"HEAD" or self.fault == "head-body" else b""
+        sent = b"" if self.unframed(method) else sent
         return b"HTTP/1.1 " + status + b"\r\n" + fields + b"\r\n" + sent
 
 

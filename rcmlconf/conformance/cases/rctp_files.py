@@ -37,6 +37,9 @@ _SHOWN_LINKS = 12
 TIMEOUT = 10.0
 #: How long a HEAD's body, sent with its head, is waited for (seconds, --timeout-scale applies).
 BODY_WAIT = 0.5
+#: rctp/files/persistent's requests of `/`, in turn: POST, which D-RCTP-29 serves nothing by (its
+#: answer's status is not judged, its framing is), and a last GET that says `Connection: close`.
+IN_TURN = ("GET", "HEAD", "POST", "GET")
 #: Characters a request target keeps unencoded besides `/`: RFC 3986's sub-delims, `:` and `@`.
 _PATH_SAFE = "/:@!$&'()*+,;="
 _NO_RXID = "the robot's RCML links no RXID file by a relative reference"
@@ -196,27 +199,28 @@ async def head(ctx: Context) -> None:
 
 @case(
     "rctp/files/persistent",
-    "GET /, HEAD / and GET / on one HTTP/1.1 connection are each answered, or an answer says "
-    "Connection: close and the server closes the connection after it",
+    "GET /, HEAD /, POST / and GET / saying Connection: close, on one HTTP/1.1 connection, are"
+    " each answered whole, and the connection closes after an answer that says Connection: close",
     [PERSISTENT, HEAD],
     timeout=TIMEOUT,
     features=["files"],
 )
 async def persistent(ctx: Context) -> None:
     probe = await connect(ctx, PERSISTENT)
-    for number, method in enumerate(("GET", "HEAD", "GET"), 1):
+    for number, method in enumerate(IN_TURN, 1):
+        last = number == len(IN_TURN)
         kept = probe.reusable and number > 1
         if not probe.reusable:  # the last answer said Connection: close, and it closed
             probe = await connect(ctx, PERSISTENT)
         try:
-            answer = await probe.ask(method, "/", PERSISTENT)
+            answer = await probe.ask(method, "/", PERSISTENT, last=last)
         except Failed as failed:
             if not kept:
                 raise
             raise Failed(
                 PERSISTENT,
-                f"{method} / answered: request {number} of a connection whose answers kept it"
-                " (no Connection: close, RFC 9112 §9.3)",
+                f"{method} / answered whole: request {number} of a connection whose answers kept"
+                " it (no Connection: close, RFC 9112 §9.3)",
                 failed.actual,
             ) from None
         if method == "HEAD" and probe.unread:  # h11 read no body: these bytes are one
@@ -231,9 +235,10 @@ async def persistent(ctx: Context) -> None:
             )
             continue
         extra, closed = await probe.closed(ctx.wait)
+        said = "asked with" if last else "answered with"
         ctx.expect(
             closed and not extra,
-            f"{method} / answered with Connection: close: the connection closed after it"
+            f"{method} / {said} Connection: close: the connection closed after its answer"
             " (RFC 9112 §9.6)",
             f"{len(extra)} more bytes" if extra else f"still open {ctx.wait:g} s later",
         )

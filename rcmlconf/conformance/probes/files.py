@@ -114,6 +114,8 @@ class FilesProbe:
         `last`: the request says `Connection: close`, so the server closes the connection after
         its answer (RFC 9112 §9.6) and `closed` reads what it sent up to then."""
         fields = [("Host", self._host), ("User-Agent", _AGENT), ("Accept", "*/*")]
+        if method not in ("GET", "HEAD"):  # it sends no content, and says so (RFC 9110 §8.6)
+            fields.append(("Content-Length", "0"))
         if last:
             fields.append(("Connection", "close"))
         request = h11.Request(method=method, target=target, headers=fields)
