@@ -1,16 +1,18 @@
 """rsp/local, the pace: when an RSP local system under test sends, and at which T (D-RSP-13), the
 harness playing its robot (`--role local`). Its session's packets begin as WELCOME is given, go on
 every period through a silence of the robot that loses the link (the session ends only after
-10 s), and the PERIOD it sends when the scenario slows down (D-RSP-24 step 4) says the T it now
-keeps: twice the one in force (R-RSP-42, R-RSP-43)."""
+10 s), go on until its BYE ends the run (D-RSP-24 step 5), and the PERIOD it sends when the
+scenario slows down (D-RSP-24 step 4) says the T it now keeps: twice the one in force (R-RSP-42,
+R-RSP-43)."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 from rcmlconf.conformance.cases.rsp_local import local_case, occurrence, session
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.locals import LocalProbe
+from rcmlconf.conformance.probes.locals import SCENARIO_LIFETIME, LocalProbe
 from rcmlconf.conformance.probes.pace import paced
 from rcmlconf.conformance.probes.rsp import first, of_kind
 from rcmlconf.conformance.rsp_numbers import KEEPALIVE_PERIODS, LOST_PERIODS, SESSION_TIMEOUT
@@ -126,3 +128,49 @@ async def period_doubles(ctx: Context) -> None:
         f"PERIOD of {', '.join(map(str, said))} ms",
         "R-RSP-43",
     )
+
+
+@local_case(
+    "rsp/local/kept-until-bye",
+    "The local system keeps its session until its BYE: a packet every 5 periods at least",
+    ["R-RSP-42"],
+    timeout=SCENARIO_LIFETIME + 6.0,
+)
+async def kept_until_bye(ctx: Context) -> None:
+    probe = await session(ctx, used=False)  # the robot beats and acknowledges all
+    keep = KEEPALIVE_PERIODS * probe.period
+    if keep > SCENARIO_LIFETIME / 4:
+        raise NotApplicable(
+            f"at a T of {probe.period * 1000:g} ms a run of D-RSP-24 ({SCENARIO_LIFETIME:g} s)"
+            " holds fewer than four keep-alive intervals"
+        )
+    opened = probe.opened_at
+    assert opened is not None
+    # D-RSP-12: a session ends by BYE or by the timeout (which this robot's beat never lets
+    # come); until then R-RSP-42 holds. D-RSP-24 step 5 ends the run 10 s after WELCOME.
+    slack = 1.6 * keep  # as `spaced` allows a keep-alive interval
+    end = opened + SCENARIO_LIFETIME + slack + probe.quiet
+    bye = await probe.next(PacketType.BYE, after=0, wait=end - probe.now)
+    ours = [
+        d.at
+        for d in probe.received
+        if d.type is not PacketType.HELLO and (bye is None or d.at <= bye.at)
+    ]
+    marks = [opened, *ours, *([] if bye is not None else [probe.now])]
+    since, until = max(itertools.pairwise(marks), key=lambda gap: gap[1] - gap[0])
+    # Over a 10 s watch the harness's loop is often held a little (`timing=True` would excuse
+    # any failure then); a hold delays what the harness reads by its length at most.
+    held = ctx.loop_watch.held(since) if ctx.loop_watch is not None else 0.0
+    ctx.expect(
+        until - since <= slack + held,
+        f"a packet of session {probe.session_id:#x} at least every {KEEPALIVE_PERIODS} periods"
+        f" ({keep * 1000:g} ms) until the local system's BYE (D-RSP-12: nothing else ends it)",
+        f"nothing from {since - opened:.2f} s to {until - opened:.2f} s after WELCOME"
+        + ("" if bye is not None else ", and no BYE")
+        + (f" (the harness's loop held {held * 1000:.0f} ms at most)" if held else ""),
+    )
+    if bye is None:
+        raise Inconclusive(
+            f"no BYE {SCENARIO_LIFETIME:g} s after WELCOME: the run's end (D-RSP-24 step 5) did"
+            " not come; the session was kept meanwhile"
+        )
