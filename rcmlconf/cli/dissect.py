@@ -25,6 +25,10 @@ from rcmlconf.wording import plural
 #: Lines written to the console at once: one write per batch, not per message.
 BATCH = 2048
 
+#: --format json's last line, {"version": N, "analysis": {...}}, says which shape its lines
+#: have: N grows by one whenever a field changes meaning or goes (a field added keeps it).
+JSON_VERSION = 1
+
 
 def _decode_as(
     ctx: click.Context, param: click.Parameter, values: tuple[str, ...]
@@ -210,7 +214,7 @@ def dissect(
         analysis = dissector.run(opened)
         lines.flush()
     if output_format == "json":
-        lines.json({"analysis": analysis_json(analysis)})
+        lines.json({"version": JSON_VERSION, "analysis": analysis_json(analysis)})
     else:
         for text, style in analysis_lines(analysis):
             output.out.line([(text, style)])

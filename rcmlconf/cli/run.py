@@ -482,7 +482,7 @@ def _write_reports(
         if junit is not None:
             junit.write_bytes(to_junit(results, registry, *span))
         if json_file is not None:
-            report = to_json(results, registry, target.name, settings)
+            report = to_json(results, registry, target.name, settings, span)
             json_file.write_text(json.dumps(report, indent=2, ensure_ascii=False) + "\n")
     except OSError as error:
         output.problem("run", f"cannot write the report: {error}")

@@ -13,7 +13,7 @@ from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.loopwatch import LoopWatch
 from rcmlconf.conformance.registry import SESSION_WAIT, Case, Role
 from rcmlconf.conformance.targets import Target
-from rcmlconf.conformance.transcript import Address
+from rcmlconf.conformance.transcript import Address, Entry
 from rcmlconf.conformance.verdicts import CaseStop, Failed, Result, Verdict
 from rcmlconf.impair.spec import Impairment
 from rcmlconf.pcap.writer import write_pcap
@@ -124,6 +124,7 @@ async def _judged(
             failed.actual,
             _exchange(ctx),
             run,
+            entries=_entries(ctx),
         )
     except CaseStop as stop:
         return _result(case, ctx, started, run, stop.verdict, stop.reason)
@@ -139,6 +140,7 @@ async def _judged(
             "the target kept the case waiting",
             _exchange(ctx),
             run,
+            entries=_entries(ctx),
         )
     except OSError as error:
         reason = f"network error: {error}"
@@ -256,8 +258,11 @@ async def run_cases(
 def _result(
     case: Case, ctx: Context, started: float, run: int, verdict: Verdict, reason: str
 ) -> Result:
-    exchange = _exchange(ctx) if verdict is not Verdict.PASS else ()
-    return Result(case.id, verdict, time.monotonic() - started, reason, exchange=exchange, run=run)
+    took = time.monotonic() - started
+    if verdict is Verdict.PASS:
+        return Result(case.id, verdict, took, reason, run=run)
+    entries = _entries(ctx)
+    return Result(case.id, verdict, took, reason, exchange=_exchange(ctx), run=run, entries=entries)
 
 
 def _exchange(ctx: Context) -> tuple[str, ...]:
@@ -266,6 +271,12 @@ def _exchange(ctx: Context) -> tuple[str, ...]:
         return tuple(lines)
     cut = len(lines) - EXCHANGE_LINES
     return (f"... {cut} earlier lines of the exchange cut", *lines[-EXCHANGE_LINES:])
+
+
+def _entries(ctx: Context) -> tuple[Entry, ...]:
+    """The exchange as data: its last entries, room for EXCHANGE_LINES lines and a payload
+    beside each (a longer exchange keeps its end, as `_exchange` does)."""
+    return tuple(ctx.transcript.entries[-2 * EXCHANGE_LINES :])
 
 
 def _lacks(features: list[str]) -> str:

@@ -1,5 +1,6 @@
 """What a case exchanged with the target, for the report of a failure (one line a message or
-event, timed from the case's start) and for --capture (every payload with its endpoints)."""
+event, timed from the case's start), for --json and --html (`entries`: the same lines and every
+payload, as data) and for --capture (every payload with its endpoints)."""
 
 from __future__ import annotations
 
@@ -13,6 +14,15 @@ Address = tuple[str, int]
 SHOWN = 160
 
 
+@dataclass(frozen=True, slots=True)
+class Entry:
+    """A line of the exchange or a payload that crossed, `at` seconds from the case's start."""
+
+    at: float
+    text: str | None = None
+    payload: Payload | None = None
+
+
 @dataclass
 class Transcript:
     start: float = field(default_factory=time.monotonic)
@@ -23,6 +33,8 @@ class Transcript:
     #: The nodes and devices the case's requests and packets named, in the order first named:
     #: which of the robot's a case chose decides what its check can show (`run -v`, --json).
     used: list[str] = field(default_factory=list)
+    #: `lines` and `packets` as they came, in one list: what the reports keep as data.
+    entries: list[Entry] = field(default_factory=list)
     _labels: dict[str, int] = field(default_factory=dict)
 
     def uses(self, *names: str) -> None:
@@ -35,7 +47,9 @@ class Transcript:
         return f"{prefix}{self._labels[prefix]}"
 
     def note(self, text: str) -> None:
-        self.lines.append(f"{time.monotonic() - self.start:7.3f}  {text}")
+        at = time.monotonic() - self.start
+        self.lines.append(f"{at:7.3f}  {text}")
+        self.entries.append(Entry(at, text=text))
 
     def notes(self, texts: list[str]) -> None:
         for text in texts:
@@ -48,8 +62,10 @@ class Transcript:
         self.note(f"{_arrow(what, '<-')} {show(data)}")
 
     def packet(self, transport: str, source: Address, destination: Address, data: bytes) -> None:
-        at = self.wall_start + time.monotonic() - self.start
-        self.packets.append(Payload(at, transport, source, destination, data))
+        since = time.monotonic() - self.start
+        payload = Payload(self.wall_start + since, transport, source, destination, data)
+        self.packets.append(payload)
+        self.entries.append(Entry(since, payload=payload))
 
 
 def _arrow(what: str, arrow: str) -> str:

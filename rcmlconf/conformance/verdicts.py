@@ -14,6 +14,8 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
+from rcmlconf.conformance.transcript import Entry
+
 
 class Verdict(enum.Enum):
     PASS = "pass"
@@ -85,3 +87,5 @@ class Result:
     #: When the case ended (time.time()): with `duration`, when it ran, for the reports' spans
     #: (cases run side by side, so an area's time is not the sum of its cases').
     ended: float = 0.0
+    #: The exchange as data (`Transcript.entries`), kept as `exchange` is: --json, --html.
+    entries: tuple[Entry, ...] = ()

@@ -1,15 +1,25 @@
-"""Summaries of a validation run, as data (for `--format json`) and as a sentence."""
+"""Summaries of a validation run, as data (for `--format json`) and as a sentence.
+
+`report.schema.json` beside this module is the JSON Schema of `--format json`; `version` grows
+by one whenever a field changes meaning or goes (a field added keeps it)."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
 from rcmlconf.validate.validator import FileReport
 from rcmlconf.wording import plural
 
+#: Version 1: the first with a version (the fields are those of the versionless output).
+VERSION = 1
+#: The JSON Schema of `--format json`, shipped in the package.
+SCHEMA = Path(__file__).with_name("report.schema.json")
+
 
 def to_json(reports: Sequence[FileReport]) -> dict[str, object]:
     return {
+        "version": VERSION,
         "files": [
             {
                 "path": r.path,

@@ -10,7 +10,10 @@ from pathlib import Path
 
 import pytest
 from support.processes import run_without_stdin
+from support.report_schemas import assert_json_valid
 from support.xml_vectors import XML_VECTORS
+
+from rcmlconf.validate.report import SCHEMA as REPORT_SCHEMA
 
 SCRIPT = Path(sys.executable).parent / "rcmlconf"
 COMMAND = [str(SCRIPT)] if SCRIPT.exists() else [sys.executable, "-m", "rcmlconf"]
@@ -32,6 +35,8 @@ def run(
         check=False,
     )
     assert "Traceback" not in done.stderr, done.stderr
+    if "json" in args and done.stdout:  # every report is what the schema shipped says
+        assert_json_valid(json.loads(done.stdout), REPORT_SCHEMA)
     return done
 
 
@@ -74,6 +79,7 @@ def test_json_holds_the_same_diagnostics() -> None:
     path = INVALID / "rxid-values.rxid"
     text = run("validate", str(path)).stdout.splitlines()
     report = json.loads(run("validate", "--format", "json", str(path)).stdout)
+    assert report["version"] == 1
     assert report["summary"] == {"files": 1, "valid": 0, "invalid": 1, "errors": 6, "warnings": 0}
     assert set(report["diagnostics"][0]) == {
         "path",

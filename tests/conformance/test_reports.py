@@ -11,7 +11,7 @@ import pytest
 from lxml import etree
 from scapy.layers.inet import IP, TCP, UDP
 from scapy.utils import rdpcap
-from support.report_schemas import assert_junit_valid
+from support.report_schemas import assert_junit_valid, assert_run_report_valid
 
 from rcmlconf.conformance.registry import all_cases
 from rcmlconf.conformance.reports.baseline import BaselineError, load_baseline, mark_known
@@ -20,6 +20,8 @@ from rcmlconf.conformance.reports.junit import to_junit
 from rcmlconf.conformance.reports.summary import explain
 from rcmlconf.conformance.verdicts import Result, Verdict
 from rcmlconf.pcap.writer import MSS, Payload, write_pcap
+
+SPAN = (0.0, 1.0)
 
 
 def results() -> list[Result]:
@@ -82,7 +84,10 @@ def test_an_area_s_suite_time_is_the_span_its_cases_ran_in_not_their_sum() -> No
 
 
 def test_json_report_holds_every_result_with_its_case() -> None:
-    report = to_json(results(), all_cases(), "the target", {"seed": 3})
+    report = to_json(results(), all_cases(), "the target", {"seed": 3}, (10.0, 12.5))
+    assert_run_report_valid(report)
+    assert (report["version"], report["duration"]) == (2, 2.5)
+    assert report["started"] == "1970-01-01T00:00:10.000+00:00"
     assert report["counts"]["fail"] == 2
     assert report["settings"] == {"seed": 3}
     failed = report["results"][1]
@@ -98,7 +103,7 @@ def test_a_baseline_of_ids_or_of_a_report_marks_those_failures_known(tmp_path: P
     listed.write_text(f"# known\n{found[1].case}  # flaky\n\n")
     assert load_baseline(listed) == {found[1].case}
     report = tmp_path / "report.json"
-    report.write_text(json.dumps(to_json(found, all_cases(), "t", {})))
+    report.write_text(json.dumps(to_json(found, all_cases(), "t", {}, SPAN)))
     assert load_baseline(report) == {found[1].case, found[2].case}
     marked = mark_known(found, frozenset({found[1].case, found[0].case}))
     assert [r.known for r in marked] == [False, True, False, False, False, True]
@@ -141,7 +146,10 @@ def test_a_long_exchange_is_whole_in_json_and_its_end_in_the_text_report() -> No
     case = next(iter(all_cases().values()))
     lines = tuple(f"{i:7.3f}  c1 -> line {i}" for i in range(100))
     failed = Result(case.id, Verdict.FAIL, 1.0, "why", "R-RCTP-1", ("x",), "y", lines)
-    assert to_json([failed], all_cases(), "t", {})["results"][0]["exchange"] == list(lines)
+    exchange = to_json([failed], all_cases(), "t", {}, SPAN)["results"][0]["exchange"]
+    assert [(e["time"], e["direction"], e["channel"], e["summary"]) for e in exchange] == [
+        (float(i), "sent", "c1", f"line {i}") for i in range(100)
+    ]
     shown = [text for name, text in explain(failed, case, {}) if name == "exchange"]
     assert shown[0] == "... 60 lines before (--json has them)"
     assert shown[1:] == list(lines[-40:])

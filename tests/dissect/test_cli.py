@@ -92,7 +92,8 @@ def test_json_lines_then_the_analysis(good: Path) -> None:
     assert [m["type"] for m in messages] == ["CONNECT", "200 OK", "HELLO", "DATA"]
     assert messages[3]["fields"]["tag"] == "0badcafe"
     assert messages[2]["fields"]["body"]["period_ms"] == 20
-    assert set(last) == {"analysis"}
+    assert set(last) == {"version", "analysis"}
+    assert last["version"] == 1
     assert last["analysis"]["errors"] == 0
     assert last["analysis"]["control"][0]["session"] == "abcdefgh1234"
 

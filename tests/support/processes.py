@@ -14,6 +14,8 @@ from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
 
+from support.report_schemas import assert_run_report_valid
+
 SCRIPT = Path(sys.executable).parent / "rcmlconf"
 COMMAND = [str(SCRIPT)] if SCRIPT.exists() else [sys.executable, "-m", "rcmlconf"]
 #: Every wait of these tests is bounded by this many seconds.
@@ -63,11 +65,25 @@ def running(tmp_path: Path, *args: str) -> Iterator[Running]:
 
 
 def run_command(*args: str) -> subprocess.CompletedProcess[str]:
+    reports = [path for path in _run_reports(args) if not path.exists()]
     done = subprocess.run(
         [*COMMAND, *args], capture_output=True, text=True, timeout=BOUND, check=False
     )
     assert "Traceback" not in done.stderr, done.stderr
+    # Every --json report a test has `rcmlconf run` write is valid against the schema rcmlconf
+    # ships for it (README: "The JSON report").
+    for written in (path for path in reports if path.is_file()):
+        assert_run_report_valid(json.loads(written.read_text()))
     return done
+
+
+def _run_reports(args: tuple[str, ...]) -> list[Path]:
+    """The --json files of `rcmlconf run ARGS`."""
+    if not args or args[0] != "run":
+        return []
+    named = [args[i + 1] for i, arg in enumerate(args[:-1]) if arg == "--json"]
+    named += [arg.removeprefix("--json=") for arg in args if arg.startswith("--json=")]
+    return [Path(name) for name in named]
 
 
 def run_without_stdin(*argv: str) -> subprocess.CompletedProcess[str]:
