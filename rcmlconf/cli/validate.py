@@ -11,8 +11,10 @@ import click
 from rcmlconf.cli.console import Output, printable
 from rcmlconf.cli.stdin import standard_input
 from rcmlconf.markup.document import MAX_DOCUMENT_BYTES
+from rcmlconf.validate.annotations import annotation
 from rcmlconf.validate.languages import EXTENSIONS
 from rcmlconf.validate.report import summary_line, to_json
+from rcmlconf.validate.sarif import to_sarif
 from rcmlconf.validate.validator import DEFAULT_MAX_FINDINGS, FileReport, Validator
 from rcmlconf.wording import one_of, plural
 
@@ -76,10 +78,13 @@ def _files(paths: tuple[str, ...], allow_empty: bool) -> list[str]:
 @click.option(
     "--format",
     "output_format",
-    type=click.Choice(["text", "json"]),
+    type=click.Choice(["text", "json", "sarif", "github"]),
     default="text",
     show_default=True,
-    help="text: one diagnostic a line; json: one object for the run.",
+    help="text: one diagnostic a line; json: one object for the run (its JSON Schema:"
+    " rcmlconf/validate/report.schema.json); sarif: a SARIF 2.1.0 log, for GitHub code scanning"
+    " (upload-sarif); github: a GitHub Actions workflow command a diagnostic (::error file=...,"
+    "line=...::...), which annotates the pull request's lines.",
 )
 @click.option(
     "--map",
@@ -137,6 +142,8 @@ def validate(
     Examples:
       rcmlconf validate robot.rcml panel.rxid
       rcmlconf validate --format json robots/ > report.json
+      rcmlconf validate --format sarif robots/ > rcmlconf.sarif   # GitHub code scanning
+      rcmlconf validate --format github robots/                   # in a GitHub Actions step
       rcmlconf validate --map http://cam.example/cam.rcml=cam.rcml panel.rxid
     """
     # A large robot makes a few hundred thousand objects and no reference cycles: the cyclic
@@ -164,8 +171,14 @@ def validate(
         if output_format == "text":
             for diagnostic in report.diagnostics:
                 output.diagnostic(diagnostic)
+        elif output_format == "github":
+            output.out.lines([annotation(d) for d in report.diagnostics])
     if output_format == "json":
         output.json(to_json(reports))
+    elif output_format == "sarif":
+        from rcmlconf.specs import requirements
+
+        output.json(to_sarif(reports, requirements()))
     failed = any(not r.valid or (strict and r.warnings) for r in reports)
     if not quiet:
         cannot = f"; {plural(unreadable, 'file')} could not be read" if unreadable else ""
