@@ -27,6 +27,7 @@ from rcmlconf.cli.run_listen import (
     local_target,
 )
 from rcmlconf.cli.run_options import check_reports, loaded, robot_file, site_option, warn_unknown
+from rcmlconf.cli.run_progress import log_progress
 from rcmlconf.cli.run_target import (
     CONNECT_WAIT,
     described,
@@ -351,22 +352,25 @@ async def _run(
         cases = [c for c in chosen if under_test(c, target)]
         if len(cases) < len(chosen):
             output.notice(_left_out([c for c in chosen if c not in cases], target.name))
-        with output.progress(len(cases) * options.repeat, "cases") as step:
+        total = len(cases) * options.repeat
+        with output.progress(total, "cases") as step:
+            async with log_progress(output, total) as logged:
 
-            def done(result: Result) -> None:
-                step(f"{result.verdict.value}: {result.case}")
-                if verbose or result.verdict in (Verdict.FAIL, Verdict.ERROR):
-                    output.live(
-                        [
-                            (f"{result.verdict.value:>14} ", _STYLE[result.verdict]),
-                            (result.case, "bold"),
-                            (f"  {result.reason}", "dim"),
-                        ]
-                    )
-                if verbose and result.used:
-                    output.live([(f"{'':>14} used {', '.join(result.used)}", "dim")])
+                def done(result: Result) -> None:
+                    step(f"{result.verdict.value}: {result.case}")
+                    logged(result)
+                    if verbose or result.verdict in (Verdict.FAIL, Verdict.ERROR):
+                        output.live(
+                            [
+                                (f"{result.verdict.value:>14} ", _STYLE[result.verdict]),
+                                (result.case, "bold"),
+                                (f"  {result.reason}", "dim"),
+                            ]
+                        )
+                    if verbose and result.used:
+                        output.live([(f"{'':>14} used {', '.join(result.used)}", "dim")])
 
-            results = await run_cases(cases, target, options, done)
+                results = await run_cases(cases, target, options, done)
         return target, results
 
 
