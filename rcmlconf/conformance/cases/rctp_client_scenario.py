@@ -35,6 +35,10 @@ from rcmlconf.wording import plural
 
 #: The fewest requests a run of the scenario makes on the harness's robot, less a margin.
 ENOUGH_REQUESTS = 10
+#: The session timeout refresh-connect's CONNECT answer gives (D-RCTP-11 sets no least one): step
+#: 5's 1 s, in which the scenario asks nothing, is then as long as the timeout itself, so a client
+#: that refreshes before its session could lapse does it there.
+REFRESH_TIMEOUT = 1
 _FLOAT32_MAX = struct.unpack(">f", b"\x7f\x7f\xff\xff")[0]
 
 
@@ -129,13 +133,18 @@ async def session_in_every_request(ctx: Context) -> None:
         made = plural(len(later) + 1, "request")
         raise Inconclusive(f"the client made {made}; the scenario makes more")
     for one in later:
-        found = one.request.headers.get("Session")
-        ctx.expect(
-            found == server.probe.session,
-            f"Session: {server.probe.session} in {one.request.method} {one.request.target}",
-            f"Session: {found}",
-            "R-RCTP-19",
-        )
+        _names_session(ctx, server, one)
+
+
+def _names_session(ctx: Context, server: PlayedServer, one: Seen) -> None:
+    """R-RCTP-19: a request after CONNECT names the session CONNECT opened."""
+    found = one.request.headers.get("Session")
+    ctx.expect(
+        found == server.probe.session,
+        f"Session: {server.probe.session} in {one.request.method} {one.request.target}",
+        f"Session: {found}",
+        "R-RCTP-19",
+    )
 
 
 @scenario_case(
@@ -166,6 +175,34 @@ async def targets_and_bye(ctx: Context) -> None:
         after,
         "R-RCTP-60" if after.startswith("it sent") else "R-RCTP-23",
     )
+
+
+@scenario_case(
+    "rctp/client/refresh-connect",
+    f"With a session timeout of {REFRESH_TIMEOUT} s, the CONNECTs that refresh the session name"
+    " the case's site path, as the first did, and carry the session",
+    ["R-RCTP-60", "R-RCTP-19"],
+)
+async def refresh_connect(ctx: Context) -> None:
+    server = await played(ctx)
+    server.session_timeout = REFRESH_TIMEOUT
+    await server.reach("BYE")
+    refreshes = server.requests("CONNECT")[1:]
+    if not refreshes:
+        raise Inconclusive(
+            f"the client sent no CONNECT to refresh its session of {REFRESH_TIMEOUT} s: D-RCTP-11"
+            " has a client with nothing else to say refresh, but the scenario's gaps are short"
+            " and its DATA keeps the session alive (D-RCTP-31 obliges no refresh)"
+        )
+    site = case_path(ctx.case.id)
+    for one in refreshes:
+        ctx.expect(
+            one.path == site,
+            f"CONNECT {site}: a refresh names the site path (D-RCTP-11)",
+            f"CONNECT {one.request.target}",
+            "R-RCTP-60",
+        )
+        _names_session(ctx, server, one)
 
 
 # -- values of every type ------------------------------------------------------------------------
@@ -422,18 +459,20 @@ async def event_push_out_of_range(ctx: Context) -> None:
 
 @scenario_case(
     "rctp/client/event-push-unknown-node",
-    "A data-change WRITE whose Nodes names a node its access lacks is refused and not taken",
-    ["R-RCTP-61", "R-RCTP-24", "R-RCTP-3"],
+    "A data-change WRITE whose Nodes names a node its access lacks is refused with 400 and not"
+    " taken",
+    ["R-RCTP-30", "R-RCTP-61", "R-RCTP-24", "R-RCTP-3"],
 )
 async def event_push_unknown_node(ctx: Context) -> None:
     # `ghost` is no node of the access: a client that decodes by position alone takes it.
     push = await _push(ctx, lambda pushed, codec: codec.encode(pushed) + b"\x00", extra="ghost")
     answer = push.answer
+    # D-RCTP-25: the Nodes check comes before the body's; a receiver answers 400 (R-RCTP-30).
     ctx.expect(
-        400 <= answer.status < 500,
-        "a refusal (4xx): Nodes names ghost, which the access lacks",
+        answer.status == 400,
+        "400: Nodes names ghost, which the access lacks",
         f"{answer.status} {answer.reason}",
-        "R-RCTP-24",
+        "R-RCTP-30",
     )
     push.written_back(ctx, push.before, "the values it had before: the refused push not taken")
 

@@ -1,17 +1,19 @@
 """rctp/client, the scenario's data stream (D-RCTP-31 step 6): the packets an RCTP/2.0 client
-under test sends while its stream plays, what it does with the played robot's DATA (stale,
-out of range, well-formed), its FLOW answers and heartbeats, and the clock estimate it writes in
-step 7 (R-RCTP-39 to R-RCTP-50, R-RCTP-58; specs/rctp-2.0.md §6)."""
+under test sends while its stream plays (and none when no GO was answered 200), what it does with
+the played robot's DATA (stale, out of range, well-formed), its FLOW answers and heartbeats, and
+the clock estimate it writes in step 7 (R-RCTP-39 to R-RCTP-50, R-RCTP-58; specs/rctp-2.0.md
+§6)."""
 
 from __future__ import annotations
 
+import asyncio
 import math
 from collections.abc import Mapping
 
 from rcmlconf.conformance.cases.rctp_client_scenario import edge, scenario_case
 from rcmlconf.conformance.cases.rctp_streams import UNKNOWN_OPERATION
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.played import PlayedServer, played
+from rcmlconf.conformance.probes.played import PlayedServer, path_of, played
 from rcmlconf.conformance.probes.played_stream import STREAM_ID, PlayedStream
 from rcmlconf.conformance.probes.stream import flow_text
 from rcmlconf.conformance.verdicts import Inconclusive
@@ -34,6 +36,7 @@ from rcmlconf.rctp.datastream import (
 )
 from rcmlconf.rctp.datastream.clock import unix_from_ntp
 from rcmlconf.rctp.datastream.endpoint import micros
+from rcmlconf.rctp.messages import Request
 from rcmlconf.values import Kind, Value
 from rcmlconf.values.shown import values_text
 from rcmlconf.wording import plural
@@ -191,6 +194,50 @@ async def stream_pace(ctx: Context) -> None:
             "R-RCTP-44",
             timing=True,
         )
+
+
+#: What the played server answers the GOs of the stream with: the first a status below 200,
+#: which is no interim answer in RCTP (D-RCTP-6: a response answers the oldest request still
+#: unanswered), any later one a refusal of D-RCTP-15's. Neither is the 200 that makes it play.
+_FIRST_GO, _LATER_GO = (100, "Continue"), (503, "Service Unavailable")
+
+
+@scenario_case(
+    "rctp/client/stream-go-not-ok",
+    f"No DATA when no GO of the stream is answered 200 (the first is answered {_FIRST_GO[0]},"
+    f" any later one {_LATER_GO[0]}): the stream never plays (D-RCTP-31: no DATA before a GO"
+    " answered 200)",
+    ["R-RCTP-44"],
+)
+async def stream_go_not_ok(ctx: Context) -> None:
+    access = stream_access(ctx)
+    server = await played(ctx)
+    answered: list[int] = []
+
+    def own(request: Request) -> bytes | None:
+        if request.method != "GO" or path_of(request) != access.path:
+            return None
+        status, reason = _LATER_GO if answered else _FIRST_GO
+        answered.append(status)
+        return server.probe.response_bytes(request, status, reason)
+
+    server.own = own
+    go = await server.reach("GO", access.path)
+    if go is None or server.stream is None:
+        raise Inconclusive(f"the client did not SETUP and GO {access.path} (D-RCTP-31 step 6)")
+    # The client's next request waits for its answer as a slow server's would (within the 5 s of
+    # D-RCTP-31): a client that took the GO for answered 200 plays meanwhile.
+    await asyncio.sleep(HOLD)
+    await server.reach("BYE")
+    times = [one.at - go.at for one, _ in server.stream.data()]
+    ctx.expect(
+        not times,
+        f"no DATA: the GOs of {access.path} were answered {', '.join(map(str, answered))},"
+        " so it never played",
+        f"{plural(len(times), 'DATA payload')}, the first at {min(times, default=0):+.2f} s"
+        " from the first GO's answer",
+        "R-RCTP-44",
+    )
 
 
 def _random_start(ctx: Context, stream: PlayedStream) -> None:

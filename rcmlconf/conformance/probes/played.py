@@ -118,6 +118,9 @@ class PlayedServer:
         #: Seconds the answer to a request of a method waits: a slow server, within the 5 s a
         #: client waits (D-RCTP-31), opens a window in which to see what the client does early.
         self.holds: dict[str, float] = {}
+        #: The session timeout CONNECT's answer gives (D-RCTP-11): a case makes it short to see
+        #: the client refresh.
+        self.session_timeout = SESSION_TIMEOUT
         self._playing: set[str] = set()
         self._set_up: set[str] = set()
         self.loop = asyncio.get_running_loop()
@@ -188,7 +191,8 @@ class PlayedServer:
             if method != "CONNECT":
                 return 454, "Session Not Found", [], b""
             self.probe.session = secrets.token_hex(8)
-            return 200, "OK", [("Session", f"{self.probe.session};timeout={SESSION_TIMEOUT}")], b""
+            session = f"{self.probe.session};timeout={self.session_timeout}"
+            return 200, "OK", [("Session", session)], b""
         if request.headers.get("Session") != self.probe.session:
             return 454, "Session Not Found", [], b""
         try:
