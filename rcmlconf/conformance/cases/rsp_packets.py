@@ -46,7 +46,16 @@ from rcmlconf.conformance.probes.rsp import (
 from rcmlconf.conformance.registry import Role, case
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
 from rcmlconf.impair import derive_seed
-from rcmlconf.rsp.codec import Encryption, Item, MapBody, PacketType, Welcome
+from rcmlconf.rsp.codec import (
+    Bye,
+    ByeReason,
+    Encryption,
+    Item,
+    MapBody,
+    PacketType,
+    Period,
+    Welcome,
+)
 from rcmlconf.rsp.model import DeviceKind
 
 # -- the header ---------------------------------------------------------------------------------
@@ -213,6 +222,52 @@ async def other_address(ctx: Context) -> None:
     for spoofer in await _either_side(ctx, probe):
         await dropped_then_taken(
             ctx, probe, raw, lambda d: d, "R-RSP-18", "from another port", sender=spoofer
+        )
+
+
+@case(
+    "rsp/header/outside-session",
+    "A DOWNLINK, PERIOD or BYE of another model ID from outside a session (before any HELLO, or"
+    " from another port while one runs) is dropped unanswered: only a HELLO is refused",
+    ["R-RSP-18"],
+    role=Role.ROBOT,
+)
+async def outside_session(ctx: Context) -> None:
+    probe = await open_probe(ctx)
+    model = probe.model
+    other = (model.model_id % 65535 + 1).to_bytes(2)
+
+    def of_other_model(data: bytes) -> bytes:
+        return patch(data, MODEL_AT, other)
+
+    stray = probe.raw()  # never opened: a session ID the robot never gave
+    stray.wire.session_id = random.randrange(1, 1 << 48)
+    start = probe.mark()
+    period = Period(round(model.period * 1000))
+    for kind, body in (
+        (PacketType.DOWNLINK, MapBody(())),
+        (PacketType.PERIOD, period),
+        (PacketType.BYE, Bye(ByeReason.CLOSED)),
+    ):
+        stray.send(kind, body, mutate=of_other_model)
+    await probe.listen(probe.quiet)
+    answers = probe.packets(after=start)
+    ctx.expect(
+        not answers,
+        "no answer to packets of no session (R-RSP-21 answers a HELLO of another model, only)",
+        ", ".join(f"{d.type.name} {getattr(d.body, 'reason', '')}" for d in answers),
+    )
+    raw = probe.raw()
+    await raw.open()
+    for spoofer in await _either_side(ctx, probe):
+        await dropped_then_taken(
+            ctx,
+            probe,
+            raw,
+            of_other_model,
+            "R-RSP-18",
+            "a DOWNLINK of another model ID from another port",
+            sender=spoofer,
         )
 
 
