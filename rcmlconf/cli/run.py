@@ -11,7 +11,7 @@ from collections import Counter
 from collections.abc import AsyncIterator, Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import click
 
@@ -26,7 +26,14 @@ from rcmlconf.cli.run_listen import (
     listen_command,
     local_target,
 )
-from rcmlconf.cli.run_options import check_reports, loaded, robot_file, site_option, warn_unknown
+from rcmlconf.cli.run_options import (
+    check_reports,
+    loaded,
+    report_option,
+    robot_file,
+    site_option,
+    warn_unknown,
+)
 from rcmlconf.cli.run_progress import log_progress
 from rcmlconf.cli.run_target import (
     CONNECT_WAIT,
@@ -41,6 +48,7 @@ from rcmlconf.conformance.ics import EVERYTHING, Ics, load_ics
 from rcmlconf.conformance.probes.clients import HARNESS_RCML
 from rcmlconf.conformance.registry import SESSION_WAIT, Case, Role, all_cases
 from rcmlconf.conformance.reports.baseline import load_baseline, mark_known
+from rcmlconf.conformance.reports.html import to_html
 from rcmlconf.conformance.reports.json_report import to_json
 from rcmlconf.conformance.reports.junit import to_junit
 from rcmlconf.conformance.reports.summary import counts, explain, new_failures, run_status
@@ -191,9 +199,17 @@ _STYLE = {
     show_default=True,
     help="Cases in flight at once (those that share state run alone).",
 )
-@click.option("--junit", type=click.Path(dir_okay=False, path_type=Path), help="JUnit XML here.")
-@click.option(
-    "--json", "json_file", type=click.Path(dir_okay=False, path_type=Path), help="JSON here."
+@report_option("--junit", "junit", "JUnit XML here.")
+@report_option(
+    "--json",
+    "json_file",
+    "JSON here, as its JSON Schema in the package says (run-report.schema.json).",
+)
+@report_option(
+    "--html",
+    "html_file",
+    "An HTML page here, one self-contained file: verdicts by area, filters, and each case's"
+    " requirement, outcome and exchange.",
 )
 @click.option(
     "--baseline",
@@ -238,6 +254,7 @@ def run(
     concurrency: int,
     junit: Path | None,
     json_file: Path | None,
+    html_file: Path | None,
     baseline: Path | None,
     capture: Path | None,
     faults: tuple[str, ...],
@@ -262,6 +279,7 @@ def run(
     Examples:
       rcmlconf run                           # the embedded reference
       rcmlconf run --target robot.local --rcml rover.rcml --junit run.xml
+      rcmlconf run --only 'rctp/msg/*' --html report.html
       rcmlconf run --rsp-target 10.0.0.7 --model cubo.rmodel --only 'rsp/*'
       rcmlconf run --only 'rsp/*' --repeat 20 --impair loss=5%,reorder=2%
       rcmlconf run --role client --listen 7330   # then start your client
@@ -279,7 +297,7 @@ def run(
     robot = robot_file("--rcml", load_robot, rcml) if rcml is not None else None
     played = robot_file("--model", load_robot_model, model) if model is not None else None
     if not list_only:
-        check_reports(junit, json_file, capture)
+        check_reports({"--junit": junit, "--json": json_file, "--html": html_file}, capture)
     registry = all_cases()
     chosen = chosen_cases(registry.values(), only, skip)
     if list_only:
@@ -331,7 +349,8 @@ def run(
     span = (started, time.time())
     results = mark_known(results, known)
     settings = {"seed": seed, "repeat": repeat, "timeout_scale": timeout_scale, "impair": impair}
-    _write_reports(output, results, registry, tested, settings, span, junit, json_file)
+    files = _Reports(junit, json_file, html_file)
+    _write_reports(output, results, registry, tested, settings, span, files)
     _report(output, results, registry, tested)
     status, why = run_status(results, strict)
     if why:
@@ -471,6 +490,14 @@ def _check_roles(
         )
 
 
+class _Reports(NamedTuple):
+    """The files the run's reports go to (--junit, --json, --html)."""
+
+    junit: Path | None
+    json: Path | None
+    html: Path | None
+
+
 def _write_reports(
     output: Output,
     results: list[Result],
@@ -478,16 +505,22 @@ def _write_reports(
     target: Target,
     settings: dict[str, Any],
     span: tuple[float, float],
-    junit: Path | None,
-    json_file: Path | None,
+    files: _Reports,
 ) -> None:
     """`span`: when the run started and ended (time.time())."""
     try:
-        if junit is not None:
-            junit.write_bytes(to_junit(results, registry, *span))
-        if json_file is not None:
-            report = to_json(results, registry, target.name, settings, span)
-            json_file.write_text(json.dumps(report, indent=2, ensure_ascii=False) + "\n")
+        if files.junit is not None:
+            files.junit.write_bytes(to_junit(results, registry, *span))
+        if files.json is None and files.html is None:
+            return
+        report = to_json(results, registry, target.name, settings, span)
+        if files.json is not None:
+            files.json.write_text(json.dumps(report, indent=2, ensure_ascii=False) + "\n")
+        if files.html is not None:
+            from rcmlconf.specs import requirements
+
+            texts = {k: f"{r.level}: {r.text}" for k, r in requirements().items()}
+            files.html.write_text(to_html(report, texts), encoding="utf-8")
     except OSError as error:
         output.problem("run", f"cannot write the report: {error}")
         sys.exit(2)

@@ -1,6 +1,7 @@
 """What `rcmlconf run` checks of its options beyond their click types, before any case runs and
 before anything is sent: the site path, the files it reads (--ics, --baseline, --rcml, --model,
-and the --impair spec) and the files and directory it writes (--junit, --json, --capture).
+and the --impair spec) and the files and directory it writes (--junit, --json, --html and
+--capture).
 
 Each fault is a usage error naming the option and the value, on one line (a file name with a
 newline in it is shown with `\\n`), so that a report path in a directory that does not exist is
@@ -12,9 +13,9 @@ from __future__ import annotations
 import os
 import re
 import stat
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import NoReturn, TypeVar
+from typing import Any, NoReturn, TypeVar
 
 import click
 
@@ -29,6 +30,7 @@ from rcmlconf.wording import one_line, plural, quoted
 
 T = TypeVar("T")
 V = TypeVar("V")
+F = TypeVar("F", bound=Callable[..., Any])
 
 #: What a baseline's warning lists of the IDs that name no case, at most.
 _LISTED_IDS = 10
@@ -109,14 +111,21 @@ def check_directory(path: Path, option: str) -> None:
         _refuse(option, path, f"cannot be made: {error.strerror or error}")
 
 
-def check_reports(junit: Path | None, json_file: Path | None, capture: Path | None) -> None:
-    """What the run will write can be written: said now, not after every case has run."""
-    if junit is not None:
-        check_report(junit, "--junit")
-    if json_file is not None:
-        check_report(json_file, "--json")
-    if junit is not None and json_file is not None and _same(junit, json_file):
-        raise click.UsageError(f"--junit and --json name the same file, {shown(junit)}")
+def report_option(name: str, dest: str, what: str) -> Callable[[F], F]:
+    """A report file's option (--junit, --json, --html): checked by `check_reports`."""
+    return click.option(name, dest, type=click.Path(dir_okay=False, path_type=Path), help=what)
+
+
+def check_reports(files: Mapping[str, Path | None], capture: Path | None) -> None:
+    """What the run will write can be written: said now, not after every case has run.
+    `files`: each report option (--junit, ...) to its file, if given."""
+    given = [(option, path) for option, path in files.items() if path is not None]
+    for option, path in given:
+        check_report(path, option)
+    for index, (option, path) in enumerate(given):
+        for other, again in given[index + 1 :]:
+            if _same(path, again):
+                raise click.UsageError(f"{option} and {other} name the same file, {shown(path)}")
     if capture is not None:
         check_directory(capture, "--capture")
 

@@ -81,10 +81,10 @@ def _files(paths: tuple[str, ...], allow_empty: bool) -> list[str]:
     type=click.Choice(["text", "json", "sarif", "github"]),
     default="text",
     show_default=True,
-    help="text: one diagnostic a line; json: one object for the run (its JSON Schema:"
-    " rcmlconf/validate/report.schema.json); sarif: a SARIF 2.1.0 log, for GitHub code scanning"
-    " (upload-sarif); github: a GitHub Actions workflow command a diagnostic (::error file=...,"
-    "line=...::...), which annotates the pull request's lines.",
+    help="text: one diagnostic a line; json: one object for the run (its JSON Schema is"
+    " report.schema.json in the package's validate/); sarif: a SARIF 2.1.0 log, for GitHub"
+    " code scanning (upload-sarif); github: a GitHub Actions workflow command a diagnostic"
+    " (::error file=...,line=...::...), which annotates the pull request's lines.",
 )
 @click.option(
     "--map",
