@@ -64,7 +64,7 @@ def test_a_client_that_exits_before_connecting_is_inconclusive_with_its_output(
     url = f"rctp://127.0.0.1:{port}/rctp/client/connect-first"
     exchange = result["exchange"]
     assert isinstance(exchange, list)
-    assert any(f"cannot start for {url}" in line for line in exchange)
+    assert any(f"cannot start for {url}" in str(entry["summary"]) for entry in exchange)
 
 
 def test_without_a_client_the_first_case_waits_and_says_so_and_the_rest_give_up(

@@ -59,7 +59,8 @@ def test_every_case_passes_on_the_reference_twice_with_the_same_verdicts(tmp_pat
     cases = all_cases()
     assert {r["case"] for r in results} == set(cases), done.stderr
     failing = [
-        f"{r['case']} (run {r['run']}): {r['verdict']}: {r['reason']}\n" + "\n".join(r["exchange"])
+        f"{r['case']} (run {r['run']}): {r['verdict']}: {r['reason']}\n"
+        + "\n".join(e["summary"] for e in r["exchange"])
         for r in results
         if r["verdict"] != Verdict.PASS.value
         and not (r["verdict"] == Verdict.NOT_APPLICABLE.value and r["case"] in NOT_APPLICABLE)
@@ -82,7 +83,8 @@ def test_under_a_run_wide_impairment_nothing_fails_and_few_are_inconclusive(
     )
     verdicts = [r["verdict"] for r in results]
     wrong = [
-        f"{r['case']}: {r['verdict']}: {r['reason']}\n" + "\n".join(r["exchange"])
+        f"{r['case']}: {r['verdict']}: {r['reason']}\n"
+        + "\n".join(e["summary"] for e in r["exchange"])
         for r in results
         if r["verdict"] in (Verdict.FAIL.value, Verdict.ERROR.value)
     ]
