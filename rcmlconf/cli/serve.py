@@ -14,6 +14,7 @@ from rcmlconf.cli.interrupts import Interrupts
 from rcmlconf.cli.logs import log_lines
 from rcmlconf.cli.models import load_or_exit
 from rcmlconf.cli.ready import write_ready
+from rcmlconf.cli.serve_limits import limit_options, limits_from
 from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
 from rcmlconf.rctp.url import DEFAULT_PORT, FILES_PORT_OFFSET, http_base
 from rcmlconf.reference.drivers import AUTO, DRIVERS, DriverError, choose_driver
@@ -73,6 +74,7 @@ _PORT = click.IntRange(0, 65535)
     help="Misbehave as NAME says (repeat for several): for testing a conformance harness, never "
     "for a real robot. NAME is one of " + ", ".join(names("server")) + ".",
 )
+@limit_options
 @click.option(
     "-v",
     "--verbose",
@@ -90,6 +92,10 @@ def serve(
     session_timeout: int,
     ready_file: Path | None,
     faults: tuple[str, ...],
+    max_connections: int,
+    max_connections_per_peer: int,
+    max_sessions_per_peer: int,
+    slow_timeout: float,
     verbose: int,
 ) -> None:
     """Serve the robot ROBOT.rcml describes: RCTP/2.0 on TCP, its data stream on UDP, and its
@@ -98,6 +104,10 @@ def serve(
     The RCML is validated first; an invalid one is reported as `validate` reports it. A driver
     simulates the robot (camera and rover for the bundled robots, sim for any other). At the
     end every session gets BYE with `Reason: shutdown`.
+
+    One client cannot hold the others up (D-RCTP-32): connections and sessions are capped, in
+    all and per address, a connection too slow to CONNECT or to finish a request is closed, and
+    a burst of pipelined requests is answered a slice at a time.
 
     \b
     Exit status: 0 stopped by Ctrl-C or SIGTERM; 1 invalid RCML;
@@ -125,7 +135,12 @@ def serve(
         seed=seed,
         session_timeout=session_timeout,
         faults=faults_named(faults),
+        limits=limits_from(
+            max_connections, max_connections_per_peer, max_sessions_per_peer, slow_timeout
+        ),
     )
+    for below in settings.limits.below_floor():
+        output.notice(f"{below}: below R-RCTP-67's floor, clients may be refused or cut off")
     server = ReferenceServer(rcml, model, chosen, settings)
     with log_lines(output, verbose, "rcmlconf.server"):
         status = asyncio.run(_serve(server, output, ready_file))

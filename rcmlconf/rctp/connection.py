@@ -218,6 +218,11 @@ class Connection:
         self._last_activity = now
 
     @property
+    def buffered(self) -> int:
+        """Bytes received that are not yet a whole message (a server times them, D-RCTP-32)."""
+        return self._reader.buffered
+
+    @property
     def peer(self) -> Role:
         return Role.SERVER if self.role is Role.CLIENT else Role.CLIENT
 

@@ -7,7 +7,11 @@ only when their `get_timer()` changes. After anything reaches a session, `_flush
 has and closes the connection once it is finished.
 
 A peer that does not read what it is sent cannot make the server buffer without bound: when a
-connection's write buffer is full, the server stops reading from it until the buffer drains.
+connection's write buffer is full, the server stops reading from it until the buffer drains. Nor
+can one peer hold the others up (D-RCTP-32, `limits`): a connection beyond the caps is closed as
+soon as it is accepted, a burst of pipelined requests is handed to its session a slice per turn
+of the loop (reading the connection paused meanwhile), and an accept that fails for want of file
+descriptors is one line in the log now and then, not a traceback each time.
 """
 
 from __future__ import annotations
@@ -15,8 +19,9 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rctp.datastream.endpoint import Address
@@ -26,6 +31,13 @@ from rcmlconf.rctp.url import DEFAULT_PORT, FILES_PORT_OFFSET, RctpUrl
 from rcmlconf.reference.drivers import Driver
 from rcmlconf.reference.faults import CONTROL_FAULTS, Fault, describe, rewrite_control
 from rcmlconf.reference.server.files import FileServer, robot_files
+from rcmlconf.reference.server.limits import (
+    ACCEPT_ERRNOS,
+    PeerCount,
+    ServerLimits,
+    Throttled,
+    connection_cap,
+)
 from rcmlconf.reference.server.robot import Robot
 from rcmlconf.reference.server.session import ServerSession
 from rcmlconf.reference.timers import BeatClock, LoopTimer
@@ -47,6 +59,8 @@ class ServerSettings:
     session_timeout: int = DEFAULT_SESSION_TIMEOUT
     #: Misbehaviours, none but to test a conformance harness (`reference.faults`).
     faults: frozenset[Fault] = frozenset()
+    #: What one peer may take (D-RCTP-32).
+    limits: ServerLimits = field(default_factory=ServerLimits)
 
 
 class _Control(asyncio.Protocol):
@@ -58,41 +72,99 @@ class _Control(asyncio.Protocol):
         self.transport: asyncio.Transport | None = None
         self.timer: LoopTimer | None = None
         self.closing = False
+        self.peer = "?"
+        #: Input not yet handed to the session (a burst, a slice a turn), and why reading is
+        #: paused: the backlog, or the peer not taking its answers.
+        self._backlog = bytearray()
+        self._slicing = False
+        self._write_paused = False
+        self._ended = False
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         assert isinstance(transport, asyncio.Transport)
         self.transport = transport
         peer = transport.get_extra_info("peername") or ("?", 0)
-        loop = self.server.loop
-        self.session = ServerSession(self.server.robot, (peer[0], peer[1]), loop.time())
+        server = self.server
+        if not server.connections.admit(peer[0]):
+            # D-RCTP-32: beyond a cap there is no request to answer: closed at once.
+            server.refused.happened(server.loop.time(), f"{peer[0]} (a cap of D-RCTP-32)")
+            transport.abort()
+            return
+        self.peer = peer[0]
+        loop = server.loop
+        self.session = ServerSession(server.robot, (peer[0], peer[1]), loop.time())
         self.timer = LoopTimer(loop, self._timer_fired)
-        self.server.controls[self.session] = self
+        self.timer.set(self.session.maintenance_timer())  # D-RCTP-32: from the first moment
+        server.controls[self.session] = self
 
     def data_received(self, data: bytes) -> None:
-        if self.session is not None:
-            self.session.receive_data(data, self.server.loop.time())
-            self.server.flush(self)
+        if self.session is None:
+            return
+        if self._backlog:  # still answering a burst: this joins it
+            self._backlog += data
+            return
+        self._backlog += data
+        self._take_slice()
+
+    def _take_slice(self) -> None:
+        """Hand the session the next slice of the backlog; if more is left, pause reading and
+        come back at the next turn of the loop (after the other connections and the beats)."""
+        self._slicing = False
+        session, transport = self.session, self.transport
+        if session is None or transport is None or self._ended or self._write_paused:
+            return  # resume_writing comes back for the rest
+        size = self.server.settings.limits.slice_bytes
+        piece = bytes(self._backlog[:size])
+        del self._backlog[:size]
+        session.receive_data(piece, self.server.loop.time())
+        self.server.flush(self)
+        if self._backlog and not self.closing:
+            transport.pause_reading()
+            self._slicing = True
+            self.server.loop.call_soon(self._take_slice)
+        elif not self._write_paused and not self.closing:
+            transport.resume_reading()
 
     def eof_received(self) -> bool:
-        self.connection_lost(None)
+        self._gone(eof=True)
         return False
 
     def connection_lost(self, exc: Exception | None) -> None:
-        if self.session is not None and not self.session.finished:
-            self.session.receive_data(b"", self.server.loop.time())
+        self._gone(eof=False)
+
+    def _gone(self, eof: bool) -> None:
+        """The peer closed (`eof`: its requests sent before still count) or the connection
+        broke; once, whichever comes first."""
+        session = self.session
+        if session is None or self._ended:
+            return  # refused at once (never counted in), or over already
+        self._ended = True
+        self.server.connections.leave(self.peer)
+        if not session.finished:
+            now = self.server.loop.time()
+            if eof and self._backlog:  # the rest of a burst sent before the close
+                session.receive_data(bytes(self._backlog), now)
+            session.receive_data(b"", now)
             self.server.flush(self)
+        self._backlog.clear()
         if self.timer is not None:
             self.timer.set(None)
         self.server.beats.set(self, None)
-        if self.session is not None:
-            self.server.controls.pop(self.session, None)
+        self.server.controls.pop(session, None)
 
     def pause_writing(self) -> None:
+        self._write_paused = True
         if self.transport is not None:
             self.transport.pause_reading()
 
     def resume_writing(self) -> None:
-        if self.transport is not None and not self.closing:
+        self._write_paused = False
+        if self.transport is None or self.closing:
+            return
+        if self._backlog:
+            if not self._slicing:
+                self._take_slice()
+        else:
             self.transport.resume_reading()
 
     def _timer_fired(self) -> None:
@@ -144,6 +216,14 @@ class ReferenceServer:
         self._robot_timer: LoopTimer | None = None
         self._beats: BeatClock[_Control] | None = None
         self.files: FileServer | None = None
+        limits = settings.limits
+        #: Open control connections against D-RCTP-32's caps, and the log of those refused.
+        self.connections = PeerCount(
+            connection_cap(limits.connections), limits.connections_per_peer
+        )
+        self.refused = Throttled("connections refused")
+        self._accept_failed = Throttled("cannot accept connections")
+        self._handler: Any = None
 
     @property
     def loop(self) -> asyncio.AbstractEventLoop:
@@ -180,6 +260,8 @@ class ReferenceServer:
     async def _listen(self) -> None:
         loop = self._loop = asyncio.get_running_loop()
         settings = self.settings
+        self._handler = loop.get_exception_handler()
+        loop.set_exception_handler(self._loop_exception)
         self._tcp = await loop.create_server(
             lambda: _Control(self), settings.host, settings.port, reuse_address=True
         )
@@ -197,13 +279,16 @@ class ReferenceServer:
             session_timeout=settings.session_timeout,
             unix_offset=time.time() - loop.time(),
             faults=settings.faults,
+            limits=settings.limits,
         )
         self._beats = BeatClock(loop, self._beat)
         self._robot_timer = LoopTimer(loop, self._tick)
         self._robot_timer.set(self._robot.get_timer())
         if settings.http_port is not None:
             self.files = FileServer(
-                self.model.title or self.rcml.name, robot_files(self.rcml, self.model)
+                self.model.title or self.rcml.name,
+                robot_files(self.rcml, self.model),
+                settings.limits,
             )
             self._http = await asyncio.start_server(
                 self.files.handle, settings.host, settings.http_port, reuse_address=True
@@ -245,7 +330,23 @@ class ReferenceServer:
                 control.transport.abort()
         await self._close_listeners()
 
+    def _loop_exception(self, loop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
+        """An accept that failed for want of descriptors or memory: asyncio tries again a
+        second later by itself, and the log says so once an interval, in a line, with how many
+        connections are open. Anything else goes to the handler there was."""
+        error = context.get("exception")
+        if isinstance(error, OSError) and error.errno in ACCEPT_ERRNOS:
+            detail = f"{error.strerror} ({self.connections.total} connections open)"
+            self._accept_failed.happened(loop.time(), detail)
+            return
+        if self._handler is not None:
+            self._handler(loop, context)
+        else:
+            loop.default_exception_handler(context)
+
     async def _close_listeners(self) -> None:
+        if self._loop is not None and self._loop.get_exception_handler() == self._loop_exception:
+            self._loop.set_exception_handler(self._handler)
         if self._robot_timer is not None:
             self._robot_timer.set(None)
         if self._udp is not None:

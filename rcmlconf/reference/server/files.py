@@ -4,7 +4,8 @@ RXID files "with a standard protocol" before it speaks RCTP).
 Only the RCML file and the RXID files its `UserInterface` links name are served, read once at
 start: a request can name nothing else, whatever its path says (no directory walking, no file read
 because a request or a document asks). h11 does the HTTP, asyncio the sockets; each connection
-answers its requests in turn and closes after 30 s of silence.
+answers its requests in turn and closes after 30 s of silence, or when a request is not whole 10 s
+after its first byte; connections beyond the caps of D-RCTP-32 are closed at once (`limits`).
 """
 
 from __future__ import annotations
@@ -21,6 +22,12 @@ import h11
 from rcmlconf import __version__
 from rcmlconf.markup.document import MAX_DOCUMENT_BYTES
 from rcmlconf.rcml.model import RcmlDocument
+from rcmlconf.reference.server.limits import (
+    DEFAULT_LIMITS,
+    PeerCount,
+    ServerLimits,
+    connection_cap,
+)
 
 IDLE_TIMEOUT = 30.0
 #: An RCML or RXID document is XML; the suffix tells which (R-XML-10).
@@ -74,12 +81,22 @@ def index_page(title: str, files: dict[str, Document]) -> bytes:
 class FileServer:
     """Serves `files` (from `robot_files`); `/` lists them."""
 
-    def __init__(self, title: str, files: dict[str, Document]) -> None:
+    def __init__(
+        self, title: str, files: dict[str, Document], limits: ServerLimits = DEFAULT_LIMITS
+    ) -> None:
         self.files = files
         self._index = index_page(title, files)
         self.served = 0
+        self.limits = limits
+        self.connections = PeerCount(
+            connection_cap(limits.connections), limits.connections_per_peer
+        )
 
     async def handle(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        peer = (writer.get_extra_info("peername") or ("?",))[0]
+        if not self.connections.admit(peer):
+            writer.transport.abort()  # D-RCTP-32: beyond a cap, closed at once
+            return
         try:
             await self._converse(reader, writer)
         except OSError as error:
@@ -88,6 +105,7 @@ class FileServer:
             # an error of the server's, so not a traceback on its standard error.
             log.debug("HTTP connection ended: %s", error.strerror or type(error).__name__)
         finally:
+            self.connections.leave(peer)
             writer.close()
 
     async def _converse(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
@@ -111,11 +129,20 @@ class FileServer:
                 )
 
     async def _next_event(self, conn: h11.Connection, reader: asyncio.StreamReader) -> object:
+        """The next event: silence between requests may last IDLE_TIMEOUT, a request must be
+        whole within the slow timeout of its first byte (TimeoutError otherwise)."""
+        loop = asyncio.get_running_loop()
+        started = loop.time() if conn.trailing_data[0] else None
         while True:
             event = conn.next_event()
             if event is not h11.NEED_DATA:
                 return event
-            data = await asyncio.wait_for(reader.read(_READ_SIZE), IDLE_TIMEOUT)
+            wait = IDLE_TIMEOUT
+            if started is not None:
+                wait = started + self.limits.slow_timeout - loop.time()
+            data = await asyncio.wait_for(reader.read(_READ_SIZE), max(wait, 0.0))
+            if data and started is None:
+                started = loop.time()
             conn.receive_data(data)
 
     async def _answer(

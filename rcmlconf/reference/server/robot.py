@@ -9,6 +9,7 @@ handed to the sessions that watch them.
 from __future__ import annotations
 
 import os
+from collections import Counter
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING
 
@@ -19,6 +20,7 @@ from rcmlconf.rctp.datastream.values import stream_codec
 from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
 from rcmlconf.reference.drivers import Driver
 from rcmlconf.reference.faults import LENIENT_VALUES, Fault, faulty_codec, faulty_stream_codec
+from rcmlconf.reference.server.limits import DEFAULT_LIMITS, ServerLimits
 from rcmlconf.reference.server.privileges import Privileges
 from rcmlconf.values import Value
 
@@ -46,10 +48,12 @@ class Robot:
         unix_offset: float = 0.0,
         random_bytes: Callable[[int], bytes] = os.urandom,
         faults: frozenset[Fault] = frozenset(),
+        limits: ServerLimits = DEFAULT_LIMITS,
     ) -> None:
         """`data_port` is the UDP port every session's data stream uses (D-RCTP-28);
         `unix_offset` turns `now` into Unix time, for data-stream timestamps; `faults` are
-        none but to test a conformance harness (`reference.faults`)."""
+        none but to test a conformance harness (`reference.faults`); `limits` what one peer
+        may take (D-RCTP-32)."""
         self.model = model
         self.site_path = model.site.path or "/"
         self.driver = driver
@@ -61,6 +65,9 @@ class Robot:
         self.privileges = Privileges(faults)
         #: Open sessions by ID, and by their data-stream tag (the adapter's demultiplexer).
         self.sessions: dict[str, ServerSession] = {}
+        self.limits = limits
+        #: Open sessions by peer address (D-RCTP-32's cap).
+        self._per_peer: Counter[str] = Counter()
         self.by_tag: dict[int, ServerSession] = {}
         #: Event access path -> the sessions where it plays.
         self._watchers: dict[str, set[ServerSession]] = {}
@@ -113,7 +120,13 @@ class Robot:
 
     # -- sessions ----------------------------------------------------------------------------
 
-    def open_session(self, session: ServerSession) -> str:
+    def open_session(self, session: ServerSession) -> str | None:
+        """A new session's ID, or None when its peer address has as many as it may
+        (D-RCTP-32: the CONNECT is answered 503)."""
+        peer = session.peer[0]
+        if self._per_peer[peer] >= self.limits.sessions_per_peer:
+            return None
+        self._per_peer[peer] += 1
         while True:
             session_id = self.random_bytes(_ID_BYTES).hex()
             if session_id not in self.sessions:
@@ -132,8 +145,11 @@ class Robot:
         self, session: ServerSession, session_id: str | None, tag: int | None
     ) -> None:
         """The session is over: its privileges go (R-RCTP-36), its watches and tag too."""
-        if session_id is not None:
-            self.sessions.pop(session_id, None)
+        if session_id is not None and self.sessions.pop(session_id, None) is not None:
+            peer = session.peer[0]
+            self._per_peer[peer] -= 1
+            if self._per_peer[peer] <= 0:
+                del self._per_peer[peer]
             if Fault.PRIVILEGES_KEPT not in self.faults:  # fault: privileges-kept
                 self.privileges.release_all(session_id)
         if tag is not None:

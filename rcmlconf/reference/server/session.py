@@ -99,12 +99,51 @@ class ServerSession(SessionEnd):
         self._stops: deque[tuple[str, str]] = deque()
         #: The connection is over: close it once everything is sent.
         self.finished = False
+        #: D-RCTP-32: when the connection opened, and when the request not yet whole began.
+        self._opened = now
+        self._partial_since: float | None = None
 
     def _bodies(self, due: tuple[int, ...]) -> dict[int, bytes]:
         """The robot's values, encoded once per tick for every session (`Robot.body`)."""
         assert self.endpoint is not None
         streams = self.endpoint.streams
         return {s: self.robot.body(streams[s].access, Direction.READ) for s in due}
+
+    # -- slow connections (D-RCTP-32) ----------------------------------------------------------
+
+    def receive_data(self, data: bytes, now: float) -> None:
+        super().receive_data(data, now)
+        # A request's first byte starts its clock; the request made whole stops it.
+        if not self.conn.buffered:
+            self._partial_since = None
+        elif self._partial_since is None:
+            self._partial_since = now
+
+    def _slow_deadline(self) -> float | None:
+        """When the connection is closed as too slow: no CONNECT taken by then, or the request
+        under way not whole by then."""
+        if self.finished:
+            return None
+        timeout = self.robot.limits.slow_timeout
+        deadline = self._opened + timeout if self.id is None else None
+        if self._partial_since is not None:
+            partial = self._partial_since + timeout
+            deadline = partial if deadline is None else min(deadline, partial)
+        return deadline
+
+    def maintenance_timer(self) -> float | None:
+        timer = super().maintenance_timer()
+        slow = self._slow_deadline()
+        return slow if timer is None or (slow is not None and slow < timer) else timer
+
+    def handle_timer(self, now: float) -> None:
+        super().handle_timer(now)
+        slow = self._slow_deadline()
+        if slow is not None and now >= slow:
+            what = "no CONNECT" if self.id is None else "a request not whole"
+            timeout = self.robot.limits.slow_timeout
+            log.info("%s closed: %s within %g s (D-RCTP-32)", self._who(), what, timeout)
+            self._end()
 
     def shut_down(self, now: float) -> None:
         """Graceful shutdown: BYE with `Reason: shutdown`; the session ends when it is answered
@@ -212,6 +251,9 @@ class ServerSession(SessionEnd):
             )
         if self.id is None:
             self.id = self.robot.open_session(self)
+            if self.id is None:
+                cap = self.robot.limits.sessions_per_peer
+                raise Refused(503, f"{cap} sessions of {self.peer[0]} are open", "R-RCTP-67")
         elif Fault.REFRESH_REFUSED in self.faults:  # fault: refresh-refused
             raise Refused(455, "this connection has a session already", "R-RCTP-22")
         session = f"{self.id};timeout={self.robot.session_timeout}"

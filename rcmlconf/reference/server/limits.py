@@ -1,0 +1,125 @@
+"""What the reference server refuses, so that one peer cannot degrade or block the others
+(specs/rctp-2.0.md D-RCTP-32, R-RCTP-67).
+
+A peer is an address: every connection from it counts against its caps, whatever its port. The
+defaults sit well above R-RCTP-67's floor (64 connections and 32 sessions a peer, 10 s before a
+slow connection is closed), so that a client, and a conformance harness running many cases at
+once, never meets them; a server behind a NAT that many clients share raises them.
+"""
+
+from __future__ import annotations
+
+import errno
+import logging
+import resource
+from collections import Counter
+from dataclasses import dataclass
+
+log = logging.getLogger("rcmlconf.server")
+
+#: R-RCTP-67's floor: a server that limits its peers serves at least this many of one address.
+MIN_CONNECTIONS_PER_PEER = 64
+MIN_SESSIONS_PER_PEER = 32
+#: ... and closes a slow connection no sooner than this (seconds).
+MIN_SLOW_TIMEOUT = 10.0
+#: File descriptors kept back from the connection cap: the listeners, the data stream's socket,
+#: the files server's connections, the log, and what the embedding application opens.
+RESERVED_FDS = 64
+#: An accept error is logged once in this many seconds, however often it happens.
+ACCEPT_ERROR_INTERVAL = 10.0
+
+
+@dataclass(frozen=True, slots=True)
+class ServerLimits:
+    """The caps and timeouts of D-RCTP-32, for RCTP's connections and the files' alike."""
+
+    #: Open connections at once, in all (RCTP's control connections; the files server has its
+    #: own count of the same size). Lowered at start to what the process may open.
+    connections: int = 1024
+    #: Open connections of one peer address at once.
+    connections_per_peer: int = 256
+    #: Sessions of one peer address at once; a CONNECT beyond is answered 503.
+    sessions_per_peer: int = 64
+    #: A connection that sends no CONNECT this long after it opened, or that has not finished a
+    #: request this long after its first byte, is closed (seconds).
+    slow_timeout: float = 10.0
+    #: Bytes of one connection's input taken per turn of the loop: a pipelined burst is answered
+    #: in slices, and the other sessions and their streams are served in between.
+    slice_bytes: int = 8192
+
+    def below_floor(self) -> list[str]:
+        """What breaks R-RCTP-67's floor (allowed, for tests; `serve` warns of it)."""
+        found = []
+        if self.connections_per_peer < MIN_CONNECTIONS_PER_PEER:
+            found.append(f"{self.connections_per_peer} connections a peer")
+        if self.sessions_per_peer < MIN_SESSIONS_PER_PEER:
+            found.append(f"{self.sessions_per_peer} sessions a peer")
+        if self.slow_timeout < MIN_SLOW_TIMEOUT:
+            found.append(f"a slow connection closed after {self.slow_timeout:g} s")
+        return found
+
+
+#: The defaults, one frozen instance (an argument's default value).
+DEFAULT_LIMITS = ServerLimits()
+
+
+def connection_cap(wanted: int) -> int:
+    """`wanted`, or fewer when the process may not open that many files (and sockets) besides
+    what it needs for everything else: a cap above the limit would only turn into EMFILE."""
+    soft, _hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if soft == resource.RLIM_INFINITY:
+        return wanted
+    return max(1, min(wanted, soft - RESERVED_FDS))
+
+
+class PeerCount:
+    """Open connections, in all and by peer address, against their caps."""
+
+    __slots__ = ("_by_peer", "cap", "per_peer", "total")
+
+    def __init__(self, cap: int, per_peer: int) -> None:
+        self.cap = cap
+        self.per_peer = per_peer
+        self.total = 0
+        self._by_peer: Counter[str] = Counter()
+
+    def admit(self, peer: str) -> bool:
+        """Count a new connection of `peer`, or refuse it (False: close it at once)."""
+        if self.total >= self.cap or self._by_peer[peer] >= self.per_peer:
+            return False
+        self.total += 1
+        self._by_peer[peer] += 1
+        return True
+
+    def leave(self, peer: str) -> None:
+        self.total -= 1
+        self._by_peer[peer] -= 1
+        if self._by_peer[peer] <= 0:
+            del self._by_peer[peer]
+
+
+class Throttled:
+    """Logs a recurring condition once an interval, with how often it happened meanwhile: a flood
+    of refused connections or failed accepts must not become a flood of log lines."""
+
+    __slots__ = ("_count", "_interval", "_last", "_what")
+
+    def __init__(self, what: str, interval: float = ACCEPT_ERROR_INTERVAL) -> None:
+        self._what = what
+        self._interval = interval
+        self._last: float | None = None
+        self._count = 0
+
+    def happened(self, now: float, detail: str) -> None:
+        self._count += 1
+        if self._last is not None and now - self._last < self._interval:
+            return
+        more = f" ({self._count - 1} more since the last notice)" if self._count > 1 else ""
+        log.warning("%s: %s%s", self._what, detail, more)
+        self._last = now
+        self._count = 0
+
+
+#: What an accept fails with when the process or the system is out of something: asyncio logs
+#: these with a traceback and tries again a second later; the server says it in one line.
+ACCEPT_ERRNOS = frozenset({errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM})

@@ -1,0 +1,221 @@
+"""What one peer may take from the reference server (D-RCTP-32): slow connections closed, the
+caps on connections and sessions, a pipelined burst answered whole while others are served, and
+a server out of file descriptors that says so in a line and goes on."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import errno
+import json
+import logging
+import resource
+import socket
+import subprocess
+import time
+from pathlib import Path
+from urllib.parse import urlsplit
+
+import pytest
+from support.processes import COMMAND, running
+from support.robots import TESTBOT
+from support.servers import Raw, RawSession, run, serving
+
+from rcmlconf.reference.server.limits import ServerLimits
+
+#: A slow timeout short enough for a test (R-RCTP-67's floor is 10 s; `serve` warns below it).
+SLOW = 0.5
+
+
+async def _from(server_port: int, source: str) -> Raw:
+    """A control connection from another loopback address: another peer."""
+    reader, writer = await asyncio.open_connection("127.0.0.1", server_port, local_addr=(source, 0))
+    return Raw(reader, writer)
+
+
+@run
+async def test_a_connection_without_connect_is_closed_after_the_slow_timeout() -> None:
+    async with serving(limits=ServerLimits(slow_timeout=SLOW)) as server:
+        idle = await Raw.open(server)
+        assert await idle.closed(timeout=5.0)
+
+
+@run
+async def test_a_request_not_whole_is_closed_after_the_slow_timeout() -> None:
+    async with serving(limits=ServerLimits(slow_timeout=SLOW)) as server:
+        session = await RawSession.open(server)
+        await session.raw.send(b"READ / RCTP/2.0\r\nCSeq: 2\r\n")  # the head never ends
+        assert await session.raw.closed(timeout=5.0)
+
+
+@run
+async def test_a_session_quiet_between_requests_is_kept() -> None:
+    async with serving(limits=ServerLimits(slow_timeout=SLOW)) as server:
+        session = await RawSession.open(server)
+        await asyncio.sleep(3 * SLOW)  # the session's own timeout (60 s) is what applies
+        answer = await session.ask("CONNECT", "/", [])
+        assert answer.status == 200, answer
+
+
+@run
+async def test_connections_beyond_the_peer_cap_are_closed_at_once_and_others_served() -> None:
+    async with serving(limits=ServerLimits(connections_per_peer=3)) as server:
+        kept = [await Raw.open(server) for _ in range(3)]
+        beyond = await Raw.open(server)
+        assert await beyond.closed(timeout=5.0)
+        # Another address is another peer: served.
+        other = await _from(server.port, "127.0.0.2")
+        await other.send(b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\n\r\n")
+        assert (await other.response()).status == 200
+        # A connection that leaves makes room again.
+        kept.pop().close()
+        await asyncio.sleep(0.2)
+        again = await Raw.open(server)
+        await again.send(b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\n\r\n")
+        assert (await again.response()).status == 200
+        for raw in (*kept, other, again):
+            raw.close()
+
+
+@run
+async def test_a_connect_beyond_the_peer_session_cap_is_answered_503() -> None:
+    async with serving(limits=ServerLimits(sessions_per_peer=2)) as server:
+        sessions = [await RawSession.open(server) for _ in range(2)]
+        third = await Raw.open(server)
+        await third.send(b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\n\r\n")
+        answer = await third.response()
+        assert answer.status == 503, answer
+        assert b"sessions" in answer.body
+        # One ends (BYE): its place is free again, on the same connection.
+        assert (await sessions[0].ask("BYE", "*")).status == 200
+        await asyncio.sleep(0.2)
+        await third.send(b"CONNECT / RCTP/2.0\r\nCSeq: 2\r\n\r\n")
+        assert (await third.response()).status == 200
+        for raw in (third, *(s.raw for s in sessions[1:])):
+            raw.close()
+
+
+@run
+async def test_a_pipelined_burst_is_answered_in_order_and_in_full_while_another_is_served() -> None:
+    async with serving(limits=ServerLimits(slice_bytes=1024)) as server:
+        flood = await RawSession.open(server)
+        other = await RawSession.open(server)
+        count = 3000
+        burst = b"".join(
+            f"CONNECT / RCTP/2.0\r\nCSeq: {cseq}\r\nSession: {flood.session}\r\n\r\n".encode()
+            for cseq in range(2, count + 2)
+        )
+        flood.raw.writer.write(burst)  # not drained: the answers are read below
+        # The other session's request, sent once the burst is on its way, is answered.
+        await asyncio.sleep(0)
+        assert (await other.ask("CONNECT", "/")).status == 200
+        cseqs = [int((await flood.raw.response()).headers.get("CSeq") or 0) for _ in range(count)]
+        assert cseqs == list(range(2, count + 2))
+        for raw in (flood.raw, other.raw):
+            raw.close()
+
+
+def _limited_nofile() -> None:
+    resource.setrlimit(resource.RLIMIT_NOFILE, (96, 96))
+
+
+def test_with_few_file_descriptors_the_cap_keeps_the_server_accepting(tmp_path: Path) -> None:
+    """With 96 files allowed, the connection cap is 32 (the rest kept back): beyond it each new
+    connection is closed at once, so accepting never runs out of descriptors, and the refusals
+    are a line in the log now and then, never a traceback."""
+    ready = tmp_path / "ready.json"
+    command = [*COMMAND, "serve", str(TESTBOT), "--port", "0", "--http-port", "0"]
+    process = subprocess.Popen(
+        [*command, "--ready-file", str(ready), "--max-connections", "1000000"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=_limited_nofile,
+    )
+    sockets: list[socket.socket] = []
+    try:
+        deadline = time.monotonic() + 20
+        while not ready.exists():
+            assert process.poll() is None
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+        port = urlsplit(json.loads(ready.read_text())["rctp"]).port
+        assert port is not None
+        for _ in range(120):
+            sockets.append(socket.create_connection(("127.0.0.1", port), timeout=5))
+        for sock in sockets:
+            sock.close()
+        sockets.clear()
+        # Once the server has seen them go (a moment, on a loaded machine), a client is served.
+        assert _served(port, within=10.0)
+    finally:
+        for sock in sockets:
+            sock.close()
+        process.terminate()
+        _out, err = process.communicate(timeout=20)
+    assert "Traceback" not in err, err
+    assert 1 <= err.count("connections refused") <= 2, err
+
+
+def _served(port: int, within: float) -> bool:
+    """Whether a CONNECT on a new connection is answered 200 within `within` seconds (a
+    connection the server refused, beyond its cap, is closed at once: tried again)."""
+    deadline = time.monotonic() + within
+    while time.monotonic() < deadline:
+        with contextlib.suppress(OSError), socket.create_connection(("127.0.0.1", port), 5) as c:
+            c.sendall(b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\n\r\n")
+            if c.recv(4096).startswith(b"RCTP/2.0 200 "):
+                return True
+        time.sleep(0.1)
+    return False
+
+
+def test_an_accept_out_of_descriptors_is_one_line_without_traceback(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """What asyncio hands the loop's exception handler when accept() fails with EMFILE (it
+    then tries again by itself a second later): the server's handler logs one line an
+    interval and passes anything else on."""
+
+    async def check() -> None:
+        async with serving():
+            loop = asyncio.get_running_loop()
+            failed = OSError(errno.EMFILE, "Too many open files")
+            context = {"message": "socket.accept() out of system resource", "exception": failed}
+            for _ in range(50):
+                loop.call_exception_handler(context)
+        # Once the server stops, the handler there was before (none) is back.
+        assert asyncio.get_running_loop().get_exception_handler() is None
+
+    with caplog.at_level(logging.WARNING, logger="rcmlconf.server"):
+        asyncio.run(asyncio.wait_for(check(), 30))
+    lines = [r.getMessage() for r in caplog.records if "cannot accept" in r.getMessage()]
+    assert len(lines) == 1, lines
+    assert "Too many open files" in lines[0]
+    assert not any(r.exc_info for r in caplog.records)
+
+
+def test_serve_warns_of_limits_below_the_floor(tmp_path: Path) -> None:
+    with running(
+        tmp_path, "serve", str(TESTBOT), "--port", "0", "--http-port", "0", "--slow-timeout", "2"
+    ) as server:
+        _status, _out, err = server.stop()
+    assert "a slow connection closed after 2 s: below R-RCTP-67's floor" in err, err
+
+
+@run
+async def test_the_files_server_closes_a_slow_request_and_refuses_beyond_the_peer_cap() -> None:
+    limits = ServerLimits(slow_timeout=SLOW, connections_per_peer=2)
+    async with serving(limits=limits) as server:
+        assert server.http_port is not None
+        slow = await asyncio.open_connection("127.0.0.1", server.http_port)
+        slow[1].write(b"GET / HTTP/1.1\r\nHost: x\r\n")  # the head never ends
+        assert await Raw(*slow).closed(timeout=5.0)
+        kept = [await asyncio.open_connection("127.0.0.1", server.http_port) for _ in range(2)]
+        beyond = Raw(*await asyncio.open_connection("127.0.0.1", server.http_port))
+        assert await beyond.closed(timeout=5.0)
+        reader, writer = kept[0]
+        writer.write(b"GET / HTTP/1.1\r\nHost: x\r\n\r\n")
+        assert (await asyncio.wait_for(reader.readline(), 5.0)).startswith(b"HTTP/1.1 200 ")
+        for _, other in kept:
+            other.close()
