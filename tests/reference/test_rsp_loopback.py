@@ -108,3 +108,23 @@ def test_blocking_reads_from_another_thread() -> None:
         loop.call_soon_threadsafe(robot.stop)
         loop.call_soon_threadsafe(loop.stop)
         thread.join(5)
+
+
+def test_a_new_session_keeps_its_own_pace_not_the_one_before() -> None:
+    """After a session at T = 1.2 s ends, the next one, at the model's period, gets its first
+    control tick within its own period (it had waited out the old 1.2 s)."""
+
+    async def main() -> None:
+        robot = await robot_on_loopback()
+        slow = Simulacrum(robot.model, robot.address, period=1.2)
+        await asyncio.wait_for(slow.open(), 5)
+        await asyncio.sleep(0.1)  # a tick at 1.2 s is due now
+        await slow.aclose()
+        fast = Simulacrum(robot.model, robot.address)
+        opened = await asyncio.wait_for(fast.open(), 5)
+        now = asyncio.get_running_loop().time()
+        assert robot._tick_at <= now + opened.period
+        await fast.aclose()
+        robot.stop()
+
+    asyncio.run(main())

@@ -309,6 +309,25 @@ def test_spoofed_and_replayed_packets_are_dropped() -> None:
     assert pair.robot.session is not None
 
 
+def test_a_packet_of_a_type_its_receiver_is_not_sent_is_dropped_unread() -> None:
+    """R-RSP-18 (D-RSP-11): a DOWNLINK reaching the local system, an UPLINK reaching the robot,
+    of the session and newer, are dropped before anything of them is taken: the local system's
+    free-buffer count stays what the robot said."""
+    pair = opened(open_pair(robot_model()))
+    pair.run_until(pair.now + 0.1)
+    free = pair.local.free_buffers
+    down = bytearray(pair.sent_down[-1])
+    down[5:7] = (int.from_bytes(down[5:7]) + 1000).to_bytes(2)  # newer than anything seen
+    down[19] = 0  # "no buffer free", it would say
+    pair.local.receive_datagram(bytes(down), pair.now)
+    drops = of(events.PacketDropped, list(iter(pair.local.next_event, None)))
+    assert [d.rule for d in drops] == ["R-RSP-18"]
+    assert pair.local.free_buffers == free
+    pair.robot.receive_datagram(pair.sent_up[-1], LOCAL_ADDR, pair.now)
+    drops = of(events.PacketDropped, list(iter(pair.robot.next_event, None)))
+    assert [d.rule for d in drops] == ["R-RSP-18"]
+
+
 def exchange(local: LocalEndpoint, robot: RobotEndpoint, now: float) -> int:
     """One period: the local system's due packets to the robot and the robot's back; how many
     memory commands the local system sent."""

@@ -172,6 +172,10 @@ class ReferenceRobot(asyncio.DatagramProtocol):
                 continue
             if isinstance(event, events.SessionOpened | events.SessionClosed):
                 self._forget()
+                # The control loop keeps the pace of the period in force, not of the session
+                # before: after one at T = 1.2 s, the next at 20 ms must not wait 1.2 s for its
+                # first tick (and its sensors for their first UPLINK).
+                self._tick_at = min(self._tick_at, self._now() + endpoint.period)
             self._log(event)
         if self._timer is not None:
             deadline = endpoint.get_timer()

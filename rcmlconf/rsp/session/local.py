@@ -44,7 +44,7 @@ from rcmlconf.rsp.security import Direction
 from rcmlconf.rsp.session import events
 from rcmlconf.rsp.session.devices import check_values, device
 from rcmlconf.rsp.session.timing import Beat, Liveness, Silence
-from rcmlconf.rsp.session.wire import SessionWire
+from rcmlconf.rsp.session.wire import SENT_TO_LOCAL, SessionWire, drop_unsent
 from rcmlconf.values import Value
 from rcmlconf.wording import indefinite
 
@@ -256,6 +256,7 @@ class LocalEndpoint:
             return
         if self.state != "open":
             return
+        drop_unsent(data, SENT_TO_LOCAL, "the local system")
         packet, arrival = self._wire.read(data, self._psk)
         if self._live.heard(now):
             self._events.append(events.LinkRestored())
@@ -278,10 +279,8 @@ class LocalEndpoint:
             assert isinstance(body, Bye)
             self.state = "closed"
             self._events.append(events.SessionClosed(body.reason, by_peer=True))
-        elif kind is not PacketType.WELCOME:  # a WELCOME again answers a repeated HELLO
-            raise ProtocolError(
-                f"{indefinite(kind.name)} is not sent to the local system", 4, "R-RSP-18"
-            )
+        # Else a WELCOME again, answering a repeated HELLO: nothing to do (a REFUSED, of no
+        # session, the wire dropped).
 
     def _answer(self, data: bytes, now: float) -> None:
         """WELCOME or REFUSED to our HELLO (D-RSP-12)."""

@@ -50,7 +50,7 @@ from rcmlconf.rsp.security import Direction
 from rcmlconf.rsp.session import events
 from rcmlconf.rsp.session.devices import check_values, device, same_values
 from rcmlconf.rsp.session.timing import Beat, Liveness, Silence
-from rcmlconf.rsp.session.wire import SessionWire
+from rcmlconf.rsp.session.wire import SENT_TO_ROBOT, SessionWire, drop_unsent
 from rcmlconf.values import Value
 from rcmlconf.wording import indefinite
 
@@ -275,6 +275,7 @@ class RobotEndpoint:
                 )
             self._hello(header, data, peer, now)
             return
+        drop_unsent(data, SENT_TO_ROBOT, "a robot")
         if self.faults:
             data = self._faulty_read(session, data)  # fault: those of _faulty_read
         packet, arrival = session.wire.read(data, self._psk)
@@ -300,8 +301,6 @@ class RobotEndpoint:
         elif kind is PacketType.BYE:
             assert isinstance(body, Bye)
             self._end(events.SessionClosed(body.reason, by_peer=True))
-        else:
-            raise ProtocolError(f"{indefinite(kind.name)} is not sent to a robot", 4, "R-RSP-18")
 
     def _hello(self, header: Header, data: bytes, peer: Address, now: float) -> None:
         """R-RSP-20, R-RSP-21, R-RSP-38: WELCOME, the WELCOME given again, or REFUSED."""

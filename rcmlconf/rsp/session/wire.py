@@ -15,8 +15,17 @@ from rcmlconf.rsp.codec.bodies import Body
 from rcmlconf.rsp.codec.header import WITHOUT_SESSION
 from rcmlconf.rsp.layout import HEADER_SIZE, MAC_SIZE
 from rcmlconf.rsp.security import Direction, Sealer, mac, mac_matches, session_key
+from rcmlconf.wording import indefinite
 
 DROP = "R-RSP-18"
+#: D-RSP-11: the packet types each side is sent; any other is malformed to it (R-RSP-18).
+SENT_TO_ROBOT = frozenset(
+    {PacketType.HELLO, PacketType.DOWNLINK, PacketType.ACK, PacketType.PERIOD, PacketType.BYE}
+)
+SENT_TO_LOCAL = frozenset(
+    {PacketType.WELCOME, PacketType.REFUSED, PacketType.UPLINK, PacketType.ACK, PacketType.BYE}
+)
+_TYPE_AT = 4
 #: D-RSP-15: a packet further behind the newest than this is dropped unread.
 REPLAY_WINDOW = 64
 #: Sent in the clear with a MAC in an encrypted session: there is no key yet (D-RSP-21).
@@ -25,6 +34,21 @@ _STAMP = 1 << 32
 _SEQUENCE = 1 << 16
 _SESSION_AT, _SEQUENCE_AT = 11, 5
 _new = tuple.__new__
+
+
+def drop_unsent(data: bytes, sent: frozenset[PacketType], receiver: str) -> None:
+    """Raise the R-RSP-18 ProtocolError for a packet of a type `receiver` is not sent, before
+    anything of it is read: it restores no link, moves no window, gives no buffer count. A type
+    no packet has is left to the codec, which calls it malformed."""
+    if len(data) > _TYPE_AT and data[_TYPE_AT] in _KNOWN:
+        kind = PacketType(data[_TYPE_AT])
+        if kind not in sent:
+            raise ProtocolError(
+                f"{indefinite(kind.name)} is not sent to {receiver}", _TYPE_AT, DROP
+            )
+
+
+_KNOWN = frozenset(int(kind) for kind in PacketType)
 
 
 class SessionWire:
