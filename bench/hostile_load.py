@@ -1,0 +1,651 @@
+"""Does the reference server hold up under hostile load? (issue 18, D-RCTP-32)
+
+`rcmlconf serve bench/hostile_load.rcml` runs as a real process on loopback, pinned to the first
+CPU, with `ulimit -n` 1024 (--nofile, as in the issue). Its robot is the camera's 16 ms stream
+(the paper's interval: the bundled rover's is 20 ms, and R-RCTP-47 forbids a client a shorter
+one) with the rover's half-second timeouts: the camera's are 10 s, which would hide a stall that
+STOPs a real writing stream, as the issue saw on the rover.
+
+Legitimate traffic, from 127.0.0.1 through the reference client library (what an embedding user
+has), in this process pinned to the last CPU: four sessions each playing the stream in mode read,
+one playing it in mode write (ACQUIRE, SETUP, GO: the client sends DATA every 16 ms), and a READ
+prober (one READ of a data node every 50 ms). First alone, then under each attack in turn, then
+under all of them at once (the mix); each attack is followed by a recovery period.
+
+The attacks (`hostile_attacks`, raw sockets) run in a process of their own, niced, on the last
+CPU: slowloris (1,000 connections that send a byte now and then), a pipelining flood (one
+connection, 20,000 READs without CONNECT, then with), a malformed flood (bad request lines, 256
+KiB headers, 4 MiB bodies, at RCTP's port and the files' HTTP port), a connect flood (waves of
+3,000 connections that each CONNECT), garbage UDP at the data port (10,000 datagrams a second).
+They bind source addresses other than 127.0.0.1 (127.0.0.2 to 127.0.0.11): the server's
+per-address caps then separate them from the legitimate clients, as a real network would.
+
+Per row: the read streams' gap between consecutive DATA (ms, p99 and max, by the arrival time in
+this process's loop; `sent` is the same by the server's own send stamps, which this process's
+delays do not touch), the READ prober's round trip (p99), STOP, BYE or a closed connection from
+the server to a legitimate session, streams lost (no DATA for 0.5 s), tracebacks and lines in
+the server's standard error, its RSS and open file descriptors (the most seen, /proc), its CPU
+and the attackers', and the recovery: how long after the attack ended the figures, in 0.5 s bins,
+were back to the alone row's for good (gap p99 within 1.5 times its p99 plus 1 ms, READ within
+twice its p99 plus 1 ms). Then the issue's goals beside the figures, and the anchor: the alone
+row of the same run, since the machine is shared and noisy.
+
+    python bench/hostile_load.py                     # 20 s a row, the mix 60 s, 10 s recovery
+    python bench/hostile_load.py --only pipelining --seconds 10
+    python bench/hostile_load.py --smoke             # 3 s a row: checks the script
+    python bench/hostile_load.py --json hostile.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import json
+import multiprocessing
+import os
+import re
+import resource
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections import Counter
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict, dataclass, field
+from itertools import pairwise
+from multiprocessing.connection import Connection
+from pathlib import Path
+from typing import Any
+
+from children import cpu_seconds
+from hostile_attacks import ATTACKS, SOURCES, Target, attack_process
+from scale import percentile, split_cpus
+
+from rcmlconf.reference.client.adapter import Client, RctpError
+from rcmlconf.reference.client.session import Closed, ServerRequest, StreamLost, StreamValues
+from rcmlconf.reference.server.limits import DEFAULT_LIMITS, RESERVED_FDS
+from rcmlconf.validate.validator import load_robot
+
+RCML = Path(__file__).resolve().parent / "hostile_load.rcml"
+STREAM = "/drive/stream"
+GROUP = "/drive"
+PROBED = "/identity/info/serial"
+READERS = 4
+PROBE_EVERY = 0.05
+SAMPLE_EVERY = 0.25
+BIN = 0.5
+MIX = "mix"
+ROWS = (*ATTACKS, MIX)
+
+#: The issue's goals (under the mix): stream gap p99 and max, READ p99 (ms); open FDs over the
+#: connection cap; RSS growth (MiB); back to the alone figures (s).
+GAP_P99_GOAL, GAP_MAX_GOAL, READ_P99_GOAL = 32.0, 100.0, 20.0
+FDS_OVER_CAP, RSS_GROWTH_GOAL, RECOVERY_GOAL = 50, 50.0, 5.0
+#: Recovered: a bin's gap p99 within this many times the alone p99 (+ 1 ms), its READs within
+#: twice the alone READ p99 (+ 1 ms).
+GAP_BACK, READ_BACK, SLACK_MS = 1.5, 2.0, 1.0
+
+
+# -- the server --------------------------------------------------------------------------------
+
+
+class Server:
+    """`rcmlconf serve` in a process of its own, its standard error in a file."""
+
+    def __init__(self, folder: Path, nofile: int, cpu: int | None) -> None:
+        self.stderr_path = folder / "serve.stderr"
+        ready = folder / "ready.json"
+        self._stderr = self.stderr_path.open("wb")
+
+        def limit() -> None:  # in the child, before exec
+            if nofile:
+                _soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+                resource.setrlimit(resource.RLIMIT_NOFILE, (nofile, hard))
+            if cpu is not None:
+                os.sched_setaffinity(0, {cpu})
+
+        command = [sys.executable, "-m", "rcmlconf", "serve", str(RCML), "--port", "0"]
+        command += ["--http-port", "0", "--ready-file", str(ready)]
+        self.process = subprocess.Popen(
+            command, stdout=subprocess.DEVNULL, stderr=self._stderr, preexec_fn=limit
+        )
+        deadline = time.monotonic() + 30.0
+        while not ready.exists():
+            if self.process.poll() is not None or time.monotonic() > deadline:
+                self.stop()
+                raise RuntimeError(f"rcmlconf serve did not start: {self.log()[-2000:]}")
+            time.sleep(0.05)
+        found = json.loads(ready.read_text())
+        self.url: str = found["rctp"]
+        self.data_port = int(found["data_port"])
+        self.http_port = int(found["http"].rsplit(":", 1)[1].strip("/"))
+        wanted = DEFAULT_LIMITS.connections
+        self.cap = min(wanted, nofile - RESERVED_FDS) if nofile else wanted
+
+    @property
+    def pid(self) -> int:
+        return self.process.pid
+
+    def log(self) -> str:
+        return self.stderr_path.read_text(errors="replace")
+
+    def stop(self) -> None:
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGTERM)
+            try:
+                self.process.wait(15)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait(5)
+        self._stderr.close()
+
+
+def rss_mib(pid: int) -> float:
+    with contextlib.suppress(OSError):
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    return 0.0
+
+
+def udp_drops(port: int) -> int:
+    """Datagrams the kernel dropped at the server's data socket (a full receive buffer)."""
+    with contextlib.suppress(OSError):
+        for line in Path("/proc/net/udp").read_text().splitlines()[1:]:
+            fields = line.split()
+            if fields[1].endswith(f":{port:04X}"):
+                return int(fields[-1])
+    return 0
+
+
+def open_fds(pid: int) -> int:
+    try:
+        return len(os.listdir(f"/proc/{pid}/fd"))
+    except OSError:
+        return 0
+
+
+# -- the legitimate clients --------------------------------------------------------------------
+
+
+@dataclass
+class Record:
+    """Everything the legitimate clients and the sampler saw, stamped with this loop's time."""
+
+    #: Per read stream: each DATA's arrival, and the server's send stamp (seconds).
+    arrivals: list[list[float]] = field(default_factory=lambda: [[] for _ in range(READERS)])
+    sent: list[list[float]] = field(default_factory=lambda: [[] for _ in range(READERS)])
+    #: (when the READ was sent, its round trip; inf: failed)
+    reads: list[tuple[float, float]] = field(default_factory=list)
+    #: (when, what): STOP, BYE or a close from the server, a stream lost, a READ failed.
+    incidents: list[tuple[float, str]] = field(default_factory=list)
+    #: (when, RSS MiB, open FDs, server CPU s, datagrams dropped at its data port)
+    samples: list[tuple[float, float, int, float, int]] = field(default_factory=list)
+
+
+class Legitimate:
+    """The four readers, the writer and the prober, until `stop`."""
+
+    def __init__(self, url: str, record: Record) -> None:
+        self.url = url
+        self.record = record
+        self.model = load_robot(RCML)
+        self.clients: list[Client] = []
+        self.tasks: list[asyncio.Task[None]] = []
+        self.running = True
+
+    async def start(self) -> None:
+        for index in range(READERS):
+            client = await self._open()
+            await client.setup(STREAM, mode="read")
+            await client.go(STREAM)
+            self.tasks.append(asyncio.ensure_future(self._events(client, f"reader {index}", index)))
+        writer = await self._open()
+        await writer.acquire(GROUP)
+        await writer.setup(STREAM, mode="write")
+        writer.write_values(STREAM, {"left": 0.25, "right": -0.25})
+        await writer.go(STREAM)
+        self.tasks.append(asyncio.ensure_future(self._events(writer, "writer", None)))
+        prober = await self._open()
+        self.tasks.append(asyncio.ensure_future(self._probe(prober)))
+
+    async def _open(self) -> Client:
+        client = await Client.connect(self.url, self.model)
+        self.clients.append(client)
+        return client
+
+    def _incident(self, who: str, event: object) -> None:
+        loop_time = asyncio.get_running_loop().time()
+        if isinstance(event, ServerRequest) and event.method in ("STOP", "BYE"):
+            self.record.incidents.append((loop_time, f"{who}: {event.method} ({event.reason})"))
+        elif isinstance(event, StreamLost):
+            self.record.incidents.append((loop_time, f"{who}: stream lost"))
+        elif isinstance(event, Closed):
+            self.record.incidents.append((loop_time, f"{who}: closed ({event.reason})"))
+
+    async def _events(self, client: Client, who: str, index: int | None) -> None:
+        loop = asyncio.get_running_loop()
+        while self.running:
+            event = await client.next_event(timeout=0.5)
+            if isinstance(event, StreamValues):
+                if index is not None:
+                    self.record.arrivals[index].append(loop.time())
+                    self.record.sent[index].append(event.sent / 2**32)
+            elif event is not None:
+                self._incident(who, event)
+            elif client.closed is not None:  # and its Closed taken
+                return
+
+    async def _probe(self, client: Client) -> None:
+        loop = asyncio.get_running_loop()
+        due = loop.time()
+        while self.running and client.closed is None:
+            start = loop.time()
+            try:
+                await client.read(PROBED)
+                self.record.reads.append((start, loop.time() - start))
+            except RctpError as error:
+                self.record.reads.append((start, float("inf")))
+                self.record.incidents.append((loop.time(), f"prober: {error}"))
+            while (event := await client.next_event(timeout=0)) is not None:
+                self._incident("prober", event)
+            due = max(due + PROBE_EVERY, loop.time())
+            await asyncio.sleep(due - loop.time())
+
+    async def stop(self) -> None:
+        self.running = False
+        await asyncio.wait(self.tasks, timeout=10.0)
+        for task in self.tasks:
+            task.cancel()
+        for client in self.clients:
+            with contextlib.suppress(RctpError, OSError):
+                await client.close(timeout=2.0)
+
+
+async def sample(server: Server, record: Record, running: list[bool]) -> None:
+    loop = asyncio.get_running_loop()
+    pid = server.pid
+    while running[0]:
+        now = loop.time()
+        drops = udp_drops(server.data_port)
+        record.samples.append((now, rss_mib(pid), open_fds(pid), cpu_seconds(pid), drops))
+        await asyncio.sleep(SAMPLE_EVERY)
+
+
+# -- the attackers -----------------------------------------------------------------------------
+
+
+@dataclass
+class Attacked:
+    """What the attacker process said: when it started and ended (monotonic, this loop's clock),
+    its CPU time, its counts by attack."""
+
+    started: float
+    ended: float
+    cpu: float
+    counts: dict[str, dict[str, int]]
+
+
+async def _message(pipe: Connection, timeout: float) -> Any:
+    loop = asyncio.get_running_loop()
+    if not await loop.run_in_executor(None, pipe.poll, timeout):
+        raise RuntimeError("the attacker process did not answer")
+    return pipe.recv()
+
+
+async def attack(
+    names: tuple[str, ...], target: Target, seconds: float, cpu: int | None
+) -> Attacked:
+    context = multiprocessing.get_context("spawn")
+    ours, theirs = context.Pipe()
+    process = context.Process(
+        target=attack_process, args=(names, target, seconds, cpu, theirs), daemon=True
+    )
+    process.start()
+    theirs.close()
+    try:
+        _, started = await _message(ours, 60.0)
+        _, ended, used, counts = await _message(ours, seconds + 60.0)
+        return Attacked(started, ended, used, counts)
+    finally:
+        process.join(10)
+        if process.is_alive():
+            process.kill()
+            process.join(5)
+        ours.close()
+
+
+# -- the figures -------------------------------------------------------------------------------
+
+
+@dataclass
+class Row:
+    name: str
+    seconds: float
+    gap_p99: float
+    gap_max: float
+    sent_p99: float
+    sent_max: float
+    read_p99: float
+    read_max: float
+    reads_failed: int
+    stop_bye: int
+    lost: int
+    tracebacks: int
+    log_lines: int
+    rss_mib: float
+    rss_growth_mib: float
+    fds: int
+    server_cpu: float
+    #: Datagrams the kernel dropped at the server's data socket, its receive buffer full.
+    udp_drops: int
+    attacker_cpu: float
+    #: Seconds after the attack's end until back to the alone figures; None: not within the
+    #: recovery period (or no attack).
+    recovery: float | None
+    recovery_period: float
+    counts: dict[str, dict[str, int]]
+    incidents: list[str]
+
+
+def _gaps(series: Iterable[Sequence[float]], start: float, end: float) -> list[int]:
+    """Sorted gaps (ns) between consecutive stamps within [start, end)."""
+    gaps = []
+    for stamps in series:
+        inside = [t for t in stamps if start <= t < end]
+        gaps.extend(round((b - a) * 1e9) for a, b in pairwise(inside))
+    return sorted(gaps)
+
+
+def _sent_in(record: Record, start: float, end: float) -> list[list[float]]:
+    """The send stamps of the DATA that arrived within [start, end)."""
+    return [
+        [s for t, s in zip(arrivals, sent, strict=True) if start <= t < end]
+        for arrivals, sent in zip(record.arrivals, record.sent, strict=True)
+    ]
+
+
+def _reads(record: Record, start: float, end: float) -> list[int]:
+    return sorted(
+        round(rtt * 1e9) if rtt != float("inf") else 2**62
+        for sent, rtt in record.reads
+        if start <= sent < end
+    )
+
+
+def _max(values: Sequence[int]) -> float:
+    return values[-1] / 1e6 if values else float("inf")
+
+
+def recovery(record: Record, end: float, period: float, alone: Row) -> float | None:
+    """Seconds from `end` to the first bin after which every bin is back to `alone`'s figures."""
+    gap_ok = alone.gap_p99 * GAP_BACK + SLACK_MS
+    read_ok = alone.read_p99 * READ_BACK + SLACK_MS
+    bins = int(period / BIN)
+    back = []
+    for index in range(bins):
+        start = end + index * BIN
+        gaps = _gaps(record.arrivals, start, start + BIN)
+        reads = _reads(record, start, start + BIN)
+        back.append(percentile(gaps, 99) <= gap_ok and _max(reads) <= read_ok)
+    for index in range(bins):
+        if all(back[index:]):
+            return index * BIN
+    return None
+
+
+def measure(
+    name: str,
+    record: Record,
+    window: tuple[float, float, float],
+    server: Server,
+    log_before: str,
+    attacked: Attacked | None,
+    alone: Row | None,
+) -> Row:
+    """The row of [start, end), its recovery period [end, after) counted in the incidents, the
+    server's figures and its log."""
+    start, end, after = window
+    gaps = _gaps(record.arrivals, start, end)
+    sent = _gaps(_sent_in(record, start, end), -1e18, 1e18)
+    reads = _reads(record, start, end)
+    incidents = [what for when, what in record.incidents if start <= when < after]
+    samples = [s for s in record.samples if start <= s[0] < after]
+    inside = [s for s in record.samples if start <= s[0] <= end]
+    cpu = (inside[-1][3] - inside[0][3]) / (inside[-1][0] - inside[0][0]) if len(inside) > 1 else 0
+    log = server.log()[len(log_before) :]
+    return Row(
+        name=name,
+        seconds=end - start,
+        gap_p99=percentile(gaps, 99),
+        gap_max=_max(gaps),
+        sent_p99=percentile(sent, 99),
+        sent_max=_max(sent),
+        read_p99=percentile(reads, 99),
+        read_max=_max(reads),
+        reads_failed=sum(1 for r in reads if r == 2**62),
+        stop_bye=sum(1 for i in incidents if "STOP" in i or "BYE" in i or "closed" in i),
+        lost=sum(1 for i in incidents if "lost" in i),
+        tracebacks=log.count("Traceback"),
+        log_lines=log.count("\n"),
+        rss_mib=max((s[1] for s in samples), default=0.0),
+        rss_growth_mib=max((s[1] for s in samples), default=0.0) - record.samples[0][1],
+        fds=max((s[2] for s in samples), default=0),
+        server_cpu=cpu,
+        udp_drops=samples[-1][4] - samples[0][4] if samples else 0,
+        attacker_cpu=attacked.cpu / (attacked.ended - attacked.started) if attacked else 0.0,
+        recovery=recovery(record, end, after - end, alone) if alone is not None else None,
+        recovery_period=after - end,
+        counts=attacked.counts if attacked else {},
+        incidents=incidents[:20],
+    )
+
+
+# -- the run -----------------------------------------------------------------------------------
+
+
+@dataclass
+class Plan:
+    rows: tuple[str, ...]
+    seconds: float
+    mix_seconds: float
+    recovery: float
+    warm_up: float
+
+
+async def run(plan: Plan, server: Server, bench_cpu: int | None) -> list[Row]:
+    loop = asyncio.get_running_loop()
+    record = Record()
+    running = [True]
+    sampler = asyncio.ensure_future(sample(server, record, running))
+    legitimate = Legitimate(server.url, record)
+    site = server.url.split("/", 3)[3]
+    target = Target(
+        rctp_port=int(server.url.split(":")[2].split("/")[0]),
+        http_port=server.http_port,
+        data_port=server.data_port,
+        site="/" + site,
+        node=PROBED,
+    )
+    rows: list[Row] = []
+    try:
+        await legitimate.start()
+        await asyncio.sleep(plan.warm_up)
+        log = server.log()
+        start = loop.time()
+        await asyncio.sleep(plan.seconds)
+        alone = measure("alone", record, (start, loop.time(), loop.time()), server, log, None, None)
+        rows.append(alone)
+        print(_line(alone), flush=True)
+        for name in plan.rows:
+            names = ATTACKS if name == MIX else (name,)
+            seconds = plan.mix_seconds if name == MIX else plan.seconds
+            log = server.log()
+            attacked = await attack(names, target, seconds, bench_cpu)
+            await asyncio.sleep(max(0.0, attacked.ended + plan.recovery - loop.time()))
+            window = (attacked.started, attacked.ended, attacked.ended + plan.recovery)
+            row = measure(name, record, window, server, log, attacked, alone)
+            rows.append(row)
+            print(_line(row), flush=True)
+    finally:
+        await legitimate.stop()
+        running[0] = False
+        await sampler
+    return rows
+
+
+# -- the report --------------------------------------------------------------------------------
+
+HEAD = (
+    f"{'row':<14}{'gap p99':>8}{'max':>7}{'sent99':>7}{'READ99':>7}{'max':>7}"
+    f"{'STOP/BYE':>9}{'lost':>5}{'tb':>4}{'log':>6}{'RSS':>6}{'FDs':>6}"
+    f"{'srvCPU':>7}{'drops':>7}{'atkCPU':>7}{'back':>7}"
+)
+
+
+def _ms(value: float) -> str:
+    return "inf" if value == float("inf") else f"{value:.1f}"
+
+
+def _line(row: Row) -> str:
+    back = (
+        "-"
+        if row.name == "alone"
+        else (f"{row.recovery:.1f}s" if row.recovery is not None else f">{row.recovery_period:g}s")
+    )
+    return (
+        f"{row.name:<14}{_ms(row.gap_p99):>8}{_ms(row.gap_max):>7}{_ms(row.sent_p99):>7}"
+        f"{_ms(row.read_p99):>7}{_ms(row.read_max):>7}{row.stop_bye:>9}{row.lost:>5}"
+        f"{row.tracebacks:>4}{row.log_lines:>6}{row.rss_mib:>6.0f}{row.fds:>6}"
+        f"{row.server_cpu:>7.0%}{row.udp_drops:>7}{row.attacker_cpu:>7.0%}{back:>7}"
+    )
+
+
+def goals(row: Row, cap: int) -> list[tuple[str, str, bool]]:
+    """The issue's goals, with `row`'s figures."""
+    back = row.recovery is not None and row.recovery <= RECOVERY_GOAL
+    return [
+        (f"stream gap p99 <= {GAP_P99_GOAL:g} ms", _ms(row.gap_p99), row.gap_p99 <= GAP_P99_GOAL),
+        (f"stream gap max <= {GAP_MAX_GOAL:g} ms", _ms(row.gap_max), row.gap_max <= GAP_MAX_GOAL),
+        (f"READ p99 <= {READ_P99_GOAL:g} ms", _ms(row.read_p99), row.read_p99 <= READ_P99_GOAL),
+        ("STOP/BYE to legitimate sessions: 0", str(row.stop_bye), row.stop_bye == 0),
+        ("tracebacks: 0", str(row.tracebacks), row.tracebacks == 0),
+        (
+            f"open FDs <= cap + {FDS_OVER_CAP} = {cap + FDS_OVER_CAP}",
+            str(row.fds),
+            row.fds <= cap + FDS_OVER_CAP,
+        ),
+        (
+            f"RSS growth <= {RSS_GROWTH_GOAL:g} MiB",
+            f"{row.rss_growth_mib:.1f}",
+            row.rss_growth_mib <= RSS_GROWTH_GOAL,
+        ),
+        (
+            f"back to alone within {RECOVERY_GOAL:g} s",
+            f"{row.recovery:.1f} s" if row.recovery is not None else "no",
+            back,
+        ),
+    ]
+
+
+def report(rows: list[Row], cap: int) -> None:
+    alone = rows[0]
+    print("\nwhat the attackers did:")
+    for row in rows[1:]:
+        for name, counts in row.counts.items():
+            said = ", ".join(f"{what} {count:,}" for what, count in sorted(counts.items()))
+            print(f"  {row.name:<14}{name:<14}{said}")
+    print("\nincidents of the legitimate sessions (first 20 a row):")
+    for row in rows:
+        for incident in row.incidents:
+            print(f"  {row.name:<14}{incident}")
+    print(
+        f"\nanchor: the alone row (gap p99 {_ms(alone.gap_p99)} ms, READ p99 "
+        f"{_ms(alone.read_p99)} ms); under attack / alone:"
+    )
+    for row in rows[1:]:
+        print(
+            f"  {row.name:<14}gap p99 x{_ratio(row.gap_p99, alone.gap_p99)}, "
+            f"READ p99 x{_ratio(row.read_p99, alone.read_p99)}"
+        )
+    judged = next((row for row in rows if row.name == MIX), rows[-1])
+    print(f"\ngoals (issue 18), under {judged.name}; every row:")
+    names = [row.name for row in rows[1:]]
+    print(f"  {'':<40}{judged.name:>10}  " + " ".join(f"{n[:6]:>6}" for n in names))
+    by_row = [goals(row, cap) for row in rows[1:]]
+    for index, (what, figure, met) in enumerate(goals(judged, cap)):
+        marks = " ".join(f"{'ok' if g[index][2] else 'MISS':>6}" for g in by_row)
+        print(f"  {what:<40}{figure:>10} {'ok' if met else 'MISS':>4} | {marks}")
+
+
+def log_summary(log: str, shown: int = 12) -> None:
+    """The server's standard error: its kinds of line (digits as N), the most frequent first."""
+    kinds = Counter(re.sub(r"\d+", "N", line)[:150] for line in log.splitlines())
+    print(
+        f"\nthe server's standard error: {log.count('Traceback')} tracebacks, "
+        f"{sum(kinds.values())} lines; by kind:"
+    )
+    for line, count in kinds.most_common(shown):
+        print(f"  {count:>7} {line}")
+
+
+def _ratio(value: float, anchor: float) -> str:
+    return f"{value / anchor:.2f}" if anchor > 0 and value != float("inf") else "?"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seconds", type=float, help="each row (default 20, the mix 60)")
+    parser.add_argument("--recovery", type=float, default=10.0, help="after each attack")
+    parser.add_argument("--only", choices=ROWS, help="the alone row and this one")
+    parser.add_argument(
+        "--nofile", type=int, default=1024, help="the server's RLIMIT_NOFILE (0: this process's)"
+    )
+    parser.add_argument("--json", type=Path, help="the rows, as JSON, to FILE")
+    parser.add_argument("--smoke", action="store_true", help="3 s a row: checks the script")
+    args = parser.parse_args()
+    if args.seconds is not None and not 1.0 <= args.seconds <= 3600.0:
+        parser.error("--seconds: from 1 to 3600")
+    if not 2.0 <= args.recovery <= 600.0:
+        parser.error("--recovery: from 2 to 600")
+    if args.nofile and args.nofile <= RESERVED_FDS:
+        parser.error(f"--nofile: more than {RESERVED_FDS}, or 0")
+    short = 3.0 if args.smoke else 20.0
+    plan = Plan(
+        rows=(args.only,) if args.only else ROWS,
+        seconds=args.seconds or short,
+        mix_seconds=args.seconds or (3.0 if args.smoke else 60.0),
+        recovery=3.0 if args.smoke else args.recovery,
+        warm_up=1.0 if args.smoke else 3.0,
+    )
+    server_cpu, bench_cpu = split_cpus()
+    sources = sorted({s for group in SOURCES.values() for s in group}, key=_address)
+    with tempfile.TemporaryDirectory(prefix="hostile-") as folder:
+        server = Server(Path(folder), args.nofile, server_cpu)
+        try:
+            print(
+                f"rcmlconf serve {RCML.name} (pid {server.pid}, CPU {server_cpu}, "
+                f"RLIMIT_NOFILE {args.nofile or 'inherited'}, connection cap {server.cap}); "
+                f"legitimate clients on 127.0.0.1, attackers from {sources[0]} to {sources[-1]} "
+                "(per-address caps tell them apart, as on a real network), both on CPU "
+                f"{bench_cpu}, the attackers niced; rows of {plan.seconds:g} s (the mix "
+                f"{plan.mix_seconds:g} s), {plan.recovery:g} s recovery each\n"
+            )
+            print(HEAD)
+            rows = asyncio.run(run(plan, server, bench_cpu))
+        finally:
+            server.stop()
+        report(rows, server.cap)
+        log_summary(server.log())
+    if args.json is not None:
+        args.json.write_text(json.dumps([asdict(row) for row in rows], indent=1) + "\n")
+
+
+def _address(text: str) -> tuple[int, ...]:
+    return tuple(int(part) for part in text.split("."))
+
+
+if __name__ == "__main__":
+    main()
