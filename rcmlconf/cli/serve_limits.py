@@ -22,8 +22,8 @@ _OPTIONS: tuple[tuple[str, click.ParamType[Any], str, str], ...] = (
         "--max-connections",
         _COUNT,
         "connections",
-        "Open connections at once, RCTP's and the files' each (fewer if the process may not "
-        "open that many files); one beyond is closed as soon as it is accepted.",
+        "Open connections at once, RCTP's and the files' together (fewer if the process may "
+        "not open that many files); one beyond is closed as soon as it is accepted.",
     ),
     (
         "--max-connections-per-peer",

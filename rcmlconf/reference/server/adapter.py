@@ -1,23 +1,26 @@
 """The reference server on asyncio: sockets and a clock around the sans-IO robot and sessions.
 
 Nothing here decides anything about RCTP. A TCP connection becomes a `ServerSession`; the one UDP
-socket hands each datagram to the session whose tag it carries (D-RCTP-28); the HTTP port serves
-the robot's files (`files`). Each session and the robot have one timer handle on the loop, moved
-only when their `get_timer()` changes. After anything reaches a session, `_flush` sends what it
-has and closes the connection once it is finished.
+socket (`datagrams`) hands each datagram to the session whose tag it carries (D-RCTP-28); the
+HTTP port serves the robot's files (`files`). Each session and the robot have one timer handle on
+the loop, moved only when their `get_timer()` changes. After anything reaches a session, `_flush`
+sends what it has and closes the connection once it is finished.
 
 A peer that does not read what it is sent cannot make the server buffer without bound: when a
 connection's write buffer is full, the server stops reading from it until the buffer drains. Nor
-can one peer hold the others up (D-RCTP-32, `limits`): a connection beyond the caps is closed as
-soon as it is accepted, a burst of pipelined requests is handed to its session a slice per turn
-of the loop (reading the connection paused meanwhile), and an accept that fails for want of file
-descriptors is one line in the log now and then, not a traceback each time.
+can one peer hold the others up (D-RCTP-32, `limits`): connections are accepted a few a turn of
+the loop, and one beyond the caps (RCTP's and the files' counted together) is closed as soon as it
+is accepted; a burst of pipelined requests is handed to its session a slice per turn of the loop
+(reading the connection paused meanwhile); the data socket is read several datagrams a wake-up,
+so that a flood of them does not crowd the sessions' out; and an accept that fails for want of
+file descriptors is one line in the log now and then, not a traceback each time.
 """
 
 from __future__ import annotations
 
 import asyncio
 import logging
+import socket
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,9 +33,12 @@ from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
 from rcmlconf.rctp.url import DEFAULT_PORT, FILES_PORT_OFFSET, RctpUrl
 from rcmlconf.reference.drivers import Driver
 from rcmlconf.reference.faults import CONTROL_FAULTS, Fault, describe, rewrite_control
+from rcmlconf.reference.server.datagrams import DataSocket
 from rcmlconf.reference.server.files import FileServer, robot_files
 from rcmlconf.reference.server.limits import (
     ACCEPT_ERRNOS,
+    ACCEPTS_A_TURN,
+    LISTEN_QUEUE,
     PeerCount,
     ServerLimits,
     Throttled,
@@ -173,8 +179,8 @@ class _Control(asyncio.Protocol):
             self.server.flush(self)
 
 
-class _Data(asyncio.DatagramProtocol):
-    """The data stream's one UDP socket, shared by every session (D-RCTP-28)."""
+class _Data:
+    """What comes on the data stream's one UDP socket, shared by every session (D-RCTP-28)."""
 
     def __init__(self, server: ReferenceServer) -> None:
         self.server = server
@@ -190,8 +196,16 @@ class _Data(asyncio.DatagramProtocol):
         session.receive_datagram(data, addr, self.server.loop.time())
         self.server.flush(control)
 
-    def error_received(self, exc: Exception) -> None:
-        log.debug("data stream: %s", exc)
+
+def _paced(server: asyncio.Server) -> asyncio.Server:
+    """`server`, told to accept ACCEPTS_A_TURN connections a turn of the loop (D-RCTP-32),
+    which asyncio also made its sockets' listen backlog: the kernel's queue is made LISTEN_QUEUE
+    long again (listen() of a listening socket sets its backlog anew, on any of its
+    descriptors)."""
+    for listening in server.sockets:
+        with socket.fromfd(listening.fileno(), listening.family, listening.type) as same:
+            same.listen(LISTEN_QUEUE)
+    return server
 
 
 class ReferenceServer:
@@ -212,7 +226,8 @@ class ReferenceServer:
         self._robot: Robot | None = None
         self._tcp: asyncio.Server | None = None
         self._http: asyncio.Server | None = None
-        self._udp: asyncio.DatagramTransport | None = None
+        self._udp: DataSocket | None = None
+        self.data = _Data(self)
         self._robot_timer: LoopTimer | None = None
         self._beats: BeatClock[_Control] | None = None
         self.files: FileServer | None = None
@@ -262,12 +277,18 @@ class ReferenceServer:
         settings = self.settings
         self._handler = loop.get_exception_handler()
         loop.set_exception_handler(self._loop_exception)
-        self._tcp = await loop.create_server(
-            lambda: _Control(self), settings.host, settings.port, reuse_address=True
+        self._tcp = _paced(
+            await loop.create_server(
+                lambda: _Control(self),
+                settings.host,
+                settings.port,
+                reuse_address=True,
+                backlog=ACCEPTS_A_TURN,
+            )
         )
         port = self.port
-        udp, _ = await loop.create_datagram_endpoint(
-            lambda: _Data(self), local_addr=(settings.host, port if settings.port else 0)
+        udp = await DataSocket.bind(
+            settings.host, port if settings.port else 0, self.data.datagram_received
         )
         self._udp = udp
         self._robot = Robot(
@@ -275,7 +296,7 @@ class ReferenceServer:
             self.driver,
             loop.time(),
             seed=settings.seed,
-            data_port=udp.get_extra_info("sockname")[1],
+            data_port=udp.port,
             session_timeout=settings.session_timeout,
             unix_offset=time.time() - loop.time(),
             faults=settings.faults,
@@ -289,9 +310,16 @@ class ReferenceServer:
                 self.model.title or self.rcml.name,
                 robot_files(self.rcml, self.model),
                 settings.limits,
+                self.connections,  # D-RCTP-32: one cap over the process's connections
             )
-            self._http = await asyncio.start_server(
-                self.files.handle, settings.host, settings.http_port, reuse_address=True
+            self._http = _paced(
+                await asyncio.start_server(
+                    self.files.handle,
+                    settings.host,
+                    settings.http_port,
+                    reuse_address=True,
+                    backlog=ACCEPTS_A_TURN,
+                )
             )
 
     @property

@@ -82,15 +82,22 @@ class FileServer:
     """Serves `files` (from `robot_files`); `/` lists them."""
 
     def __init__(
-        self, title: str, files: dict[str, Document], limits: ServerLimits = DEFAULT_LIMITS
+        self,
+        title: str,
+        files: dict[str, Document],
+        limits: ServerLimits = DEFAULT_LIMITS,
+        connections: PeerCount | None = None,
     ) -> None:
+        """`connections`: the count of open connections this server's count against, shared
+        with RCTP's (D-RCTP-32: one cap keeps the process below its file descriptors); one of
+        its own, of `limits`' size, when None."""
         self.files = files
         self._index = index_page(title, files)
         self.served = 0
         self.limits = limits
-        self.connections = PeerCount(
-            connection_cap(limits.connections), limits.connections_per_peer
-        )
+        if connections is None:
+            connections = PeerCount(connection_cap(limits.connections), limits.connections_per_peer)
+        self.connections = connections
 
     async def handle(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         peer = (writer.get_extra_info("peername") or ("?",))[0]

@@ -23,8 +23,15 @@ MIN_SESSIONS_PER_PEER = 32
 #: ... and closes a slow connection no sooner than this (seconds).
 MIN_SLOW_TIMEOUT = 10.0
 #: File descriptors kept back from the connection cap: the listeners, the data stream's socket,
-#: the files server's connections, the log, and what the embedding application opens.
+#: the log, the connections accepted in a turn of the loop and not yet closed again beyond the
+#: cap (`ACCEPTS_A_TURN` a listener), and what the embedding application opens.
 RESERVED_FDS = 64
+#: Connections a listener accepts in one turn of the loop at most. asyncio accepts as many as
+#: the backlog it is given at each wake-up of a listener, and sets each one up before the
+#: streams' beats then due can run: a flood of connects is taken a few a turn instead (D-RCTP-32),
+#: and waits in the kernel's queue, `LISTEN_QUEUE` long, with the legitimate connects among it.
+ACCEPTS_A_TURN = 8
+LISTEN_QUEUE = 1024
 #: An accept error is logged once in this many seconds, however often it happens.
 ACCEPT_ERROR_INTERVAL = 10.0
 
@@ -33,8 +40,9 @@ ACCEPT_ERROR_INTERVAL = 10.0
 class ServerLimits:
     """The caps and timeouts of D-RCTP-32, for RCTP's connections and the files' alike."""
 
-    #: Open connections at once, in all (RCTP's control connections; the files server has its
-    #: own count of the same size). Lowered at start to what the process may open.
+    #: Open connections at once, in all: RCTP's control connections and the files server's
+    #: together, so that the process stays below its file descriptors. Lowered at start to what
+    #: the process may open.
     connections: int = 1024
     #: Open connections of one peer address at once.
     connections_per_peer: int = 256

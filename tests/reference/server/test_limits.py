@@ -13,6 +13,7 @@ import resource
 import socket
 import subprocess
 import time
+from collections.abc import Callable
 from pathlib import Path
 from urllib.parse import urlsplit
 
@@ -21,7 +22,8 @@ from support.processes import COMMAND, running
 from support.robots import TESTBOT
 from support.servers import Raw, RawSession, run, serving
 
-from rcmlconf.reference.server.limits import ServerLimits
+from rcmlconf.reference.server.datagrams import DATAGRAMS_A_TURN, RECEIVE_BUFFER
+from rcmlconf.reference.server.limits import ACCEPTS_A_TURN, ServerLimits
 
 #: A slow timeout short enough for a test (R-RCTP-67's floor is 10 s; `serve` warns below it).
 SLOW = 0.5
@@ -143,6 +145,9 @@ def test_with_few_file_descriptors_the_cap_keeps_the_server_accepting(tmp_path: 
         assert port is not None
         for _ in range(120):
             sockets.append(socket.create_connection(("127.0.0.1", port), timeout=5))
+        # The server takes them from its queue a few a turn of its loop, and closes those
+        # beyond the cap at once.
+        assert _closed_by_the_server(sockets, at_least=120 - 32, within=10.0)
         for sock in sockets:
             sock.close()
         sockets.clear()
@@ -155,6 +160,30 @@ def test_with_few_file_descriptors_the_cap_keeps_the_server_accepting(tmp_path: 
         _out, err = process.communicate(timeout=20)
     assert "Traceback" not in err, err
     assert 1 <= err.count("connections refused") <= 2, err
+
+
+def _closed_by_the_server(sockets: list[socket.socket], at_least: int, within: float) -> bool:
+    """Whether at least `at_least` of `sockets` are closed by the server within `within` s."""
+    deadline = time.monotonic() + within
+    closed: set[int] = set()
+    while time.monotonic() < deadline:
+        for index, sock in enumerate(sockets):
+            if index not in closed and _closed(sock):
+                closed.add(index)
+        if len(closed) >= at_least:
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def _closed(sock: socket.socket) -> bool:
+    sock.setblocking(False)  # a socket with a timeout would wait for data first
+    try:
+        return sock.recv(1) == b""
+    except BlockingIOError:
+        return False
+    except OSError:  # reset
+        return True
 
 
 def _served(port: int, within: float) -> bool:
@@ -219,3 +248,73 @@ async def test_the_files_server_closes_a_slow_request_and_refuses_beyond_the_pee
         assert (await asyncio.wait_for(reader.readline(), 5.0)).startswith(b"HTTP/1.1 200 ")
         for _, other in kept:
             other.close()
+
+
+async def _until(condition: Callable[[], bool], within: float = 10.0) -> bool:
+    """Whether `condition` holds within `within` seconds, the loop running meanwhile."""
+    deadline = time.monotonic() + within
+    while not condition():
+        if time.monotonic() > deadline:
+            return False
+        await asyncio.sleep(0.01)
+    return True
+
+
+@run
+async def test_a_burst_of_connects_waits_in_the_queue_and_is_accepted_a_few_a_turn() -> None:
+    """D-RCTP-32: 200 connections made while the server's loop does not run all complete (the
+    kernel's queue holds them), and the loop then takes them ACCEPTS_A_TURN a turn, the other
+    work of each turn (the streams' beats) in between; none is lost."""
+    async with serving() as server:
+        burst = []
+        try:
+            for _ in range(200):  # blocking: the loop, the server's, does not run meanwhile
+                burst.append(socket.create_connection(("127.0.0.1", server.port), timeout=2.0))
+            for turn in range(1, 6):
+                await asyncio.sleep(0)  # one turn of the loop
+                assert server.connections.total <= turn * ACCEPTS_A_TURN
+            assert await _until(lambda: server.connections.total == 200)
+        finally:
+            for sock in burst:
+                sock.close()
+
+
+@run
+async def test_rctp_and_files_connections_count_against_one_cap() -> None:
+    """The files server's connections and RCTP's share the cap (D-RCTP-32), so that together
+    they stay below the process's file descriptors."""
+    async with serving(limits=ServerLimits(connections=3)) as server:
+        assert server.http_port is not None
+        rctp = [await Raw.open(server) for _ in range(2)]
+        files = Raw(*await asyncio.open_connection("127.0.0.1", server.http_port))
+        assert await _until(lambda: server.connections.total == 3)
+        beyond = await Raw.open(server)
+        assert await beyond.closed(timeout=5.0)
+        files.close()
+        assert await _until(lambda: server.connections.total == 2)
+        again = await Raw.open(server)
+        await again.send(b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\n\r\n")
+        assert (await again.response()).status == 200
+        for raw in (*rctp, again):
+            raw.close()
+
+
+@run
+async def test_the_data_socket_is_read_several_datagrams_a_turn() -> None:
+    """A flood at the data port is drained DATAGRAMS_A_TURN a wake-up from a large receive
+    buffer, not one a turn of the loop: the sessions' own datagrams are not crowded out of the
+    buffer (D-RCTP-32)."""
+    async with serving() as server:
+        udp = server._udp
+        assert udp is not None
+        rmem_max = int(Path("/proc/sys/net/core/rmem_max").read_text())
+        asked = udp.sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        assert asked >= min(RECEIVE_BUFFER, rmem_max)  # Linux reports twice what it keeps
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as flood:
+            for index in range(300):  # no session's tag: dropped unanswered (R-RCTP-42)
+                flood.sendto(b"\x02\x01" + index.to_bytes(14, "big"), ("127.0.0.1", udp.port))
+            for _ in range(2):
+                await asyncio.sleep(0)
+            assert server.data.unclaimed > 2  # more than one a turn
+            assert DATAGRAMS_A_TURN > 2
+            assert await _until(lambda: server.data.unclaimed == 300)
