@@ -49,7 +49,7 @@ def test_a_local_system_ending_its_run_without_bye_fails_kept_until_bye(tmp_path
     without BYE (bench/mutation_survivors.md's local.py 189): its packets stop, and nothing
     ended the session (D-RSP-12)."""
     copy = mutated(
-        tmp_path, "rsp/session/local.py", "self._bye(ByeReason.CLOSED, now)", "pass  # silently"
+        tmp_path, "rsp/session/local.py", ("self._bye(ByeReason.CLOSED, now)", "pass  # silently")
     )
     case = "rsp/local/kept-until-bye"
     result = run(tmp_path, "--only", case, python=copy)[case]

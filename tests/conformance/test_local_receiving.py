@@ -128,24 +128,26 @@ def test_a_local_system_taking_a_downlink_as_an_ack_fails_downlink_dropped(tmp_p
     copy = mutated(
         tmp_path,
         "rsp/session/local.py",
-        "elif kind is PacketType.ACK:",
-        "elif kind in (PacketType.ACK, PacketType.DOWNLINK):",
+        ("elif kind is PacketType.ACK:", "elif kind in (PacketType.ACK, PacketType.DOWNLINK):"),
+        ('drop_unsent(data, SENT_TO_LOCAL, "the local system")', "pass"),
     )
     case = "rsp/local/downlink-dropped"
     result = run(tmp_path, "--only", case, python=copy)[case]
     assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-18"), result
 
 
-def mutated(tmp_path: Path, module: str, line: str, fault: str) -> Path:
-    """A copy of the package (and the specs it reads) in which `line` of `module` (under
-    rcmlconf/) reads `fault`: the directory to run it from."""
+def mutated(tmp_path: Path, module: str, *faults: tuple[str, str]) -> Path:
+    """A copy of the package (and the specs it reads) in which each (line, fault) of `faults`
+    in `module` (under rcmlconf/) reads its fault: the directory to run it from."""
     copy = tmp_path / "mutant"
     shutil.copytree(PACKAGE, copy / "rcmlconf", ignore=shutil.ignore_patterns("__pycache__"))
     shutil.copytree(PACKAGE.parent / "specs", copy / "specs")
     source = copy / "rcmlconf" / module
     text = source.read_text()
-    assert text.count(line) == 1, f"{module} no longer has {line!r} once"
-    source.write_text(text.replace(line, fault))
+    for line, fault in faults:
+        assert text.count(line) == 1, f"{module} no longer has {line!r} once"
+        text = text.replace(line, fault)
+    source.write_text(text)
     return copy
 
 
