@@ -223,6 +223,10 @@ class Context:
             self.transcript,
             self.wait,
             summon=not again,
+            # Beside other cases' local systems, whose first HELLOs ask for none, the one that
+            # follows a REFUSED 2 of this case's is told apart by asking for encryption
+            # (D-RSP-24 step 1): it may come from another socket of the same local system.
+            sealed=again and listener.side_by_side,
             impairment=self.impairment,
             seed=self.impairment_seed("local", "forward"),
         )

@@ -59,8 +59,11 @@ def under_test(case: Case, target: Target) -> bool:
 def alone(case: Case, target: Target) -> bool:
     """Whether the case runs in its role's lane, one after another (`Case.serial`). Client
     cases run side by side when the harness starts the clients itself: each case has its own
-    URL, so each connection is its case's (D-RCTP-31)."""
+    URL, so each connection is its case's (D-RCTP-31); local cases when each summons a local
+    system of its own (`LocalListener.side_by_side`)."""
     if case.role is Role.CLIENT and target.clients is not None and target.clients.starts_clients:
+        return False
+    if case.role is Role.LOCAL and target.locals is not None and target.locals.side_by_side:
         return False
     return case.serial
 

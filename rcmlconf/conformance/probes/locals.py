@@ -209,6 +209,13 @@ class LocalListener:
         self._started = self._loop.time()
 
     @property
+    def side_by_side(self) -> bool:
+        """Whether local cases may run at once: each summons a local system of its own, on a
+        port of its own, which the listener tells apart by source address (the embedded
+        reference; a --client-command is started one at a time, at the one address)."""
+        return self._summon is not None and self._stop is None
+
+    @property
     def address(self) -> Address:
         assert self._transport is not None, "start() first"
         host, port = self._transport.get_extra_info("sockname")[:2]
@@ -251,13 +258,20 @@ class LocalListener:
         entry.datagrams.append((now, data))
         self._hello.set()
 
-    def _next_live(self) -> _Pending | None:
+    def _next_live(self, sealed: bool = False) -> _Pending | None:
+        """The oldest new session's HELLO still fresh (`sealed`: one asking for encryption)."""
         for key, entry in list(self._pending.items()):
             if self.now - entry.last > STALE:
                 del self._pending[key]
                 continue
-            return entry
+            if not sealed or self._sealed(entry):
+                return entry
         return None
+
+    def _sealed(self, entry: _Pending) -> bool:
+        with contextlib.suppress(ProtocolError):
+            return self.codec.pull_header(entry.datagrams[0][1]).encryption is not Encryption.NONE
+        return False
 
     async def arrival(self, wait: float) -> str | None:
         """Before a local case's clock starts: a new session's HELLO, from a local system
@@ -334,15 +348,17 @@ class LocalListener:
         wait: float,
         *,
         summon: bool = True,
+        sealed: bool = False,
         impairment: Impairment | None = None,
         seed: int = 0,
     ) -> LocalProbe:
         """The next new session's HELLO, as a probe; `summon` starts a local system (the embedded
-        reference) when none is waiting. Inconclusive if no HELLO comes within `wait`. What the
-        probe sends goes through `impairment` (seeded with `seed`)."""
+        reference) when none is waiting; `sealed` takes only a HELLO asking for encryption.
+        Inconclusive if no HELLO comes within `wait`. What the probe sends goes through
+        `impairment` (seeded with `seed`)."""
         deadline = self.now + wait
         summoned = not summon or self._summon is None
-        while (entry := self._next_live()) is None:
+        while (entry := self._next_live(sealed)) is None:
             if not summoned and self._summon is not None:
                 task = asyncio.ensure_future(self._summon(("127.0.0.1", self.address[1])))
                 self._tasks.add(task)
