@@ -40,6 +40,7 @@ from rcmlconf.reference.server.limits import (
     ACCEPTS_A_TURN,
     LISTEN_QUEUE,
     PeerCount,
+    Places,
     ServerLimits,
     Throttled,
     connection_cap,
@@ -80,10 +81,12 @@ class _Control(asyncio.Protocol):
         self.closing = False
         self.peer = "?"
         #: Input not yet handed to the session (a burst, a slice a turn), and why reading is
-        #: paused: the backlog, or the peer not taking its answers.
+        #: paused: the backlog, the peer not taking its answers, or a large request waiting for
+        #: a place (D-RCTP-32).
         self._backlog = bytearray()
         self._slicing = False
         self._write_paused = False
+        self._waiting = False
         self._ended = False
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
@@ -106,7 +109,7 @@ class _Control(asyncio.Protocol):
     def data_received(self, data: bytes) -> None:
         if self.session is None:
             return
-        if self._backlog:  # still answering a burst: this joins it
+        if self._backlog or self._waiting:  # still answering a burst: this joins it
             self._backlog += data
             return
         self._backlog += data
@@ -119,16 +122,55 @@ class _Control(asyncio.Protocol):
         session, transport = self.session, self.transport
         if session is None or transport is None or self._ended or self._write_paused:
             return  # resume_writing comes back for the rest
+        if self._waiting:
+            return  # _admitted comes back for it
         size = self.server.settings.limits.slice_bytes
         piece = bytes(self._backlog[:size])
         del self._backlog[:size]
         session.receive_data(piece, self.server.loop.time())
         self.server.flush(self)
-        if self._backlog and not self.closing:
+        if not self._has_room(session):
+            transport.pause_reading()
+        elif self._backlog and not self.closing:
             transport.pause_reading()
             self._slicing = True
             self.server.loop.call_soon(self._take_slice)
         elif not self._write_paused and not self.closing:
+            transport.resume_reading()
+
+    def _has_room(self, session: ServerSession) -> bool:
+        """Whether the request under way may take more input: a small one, or a large one with
+        a place (D-RCTP-32); a large one without waits, unread, for its turn."""
+        if session.conn.buffered <= self.server.settings.limits.large_bytes:
+            self._leave_place()
+            return True
+        if self.server.large.take(self):
+            return True
+        self._waiting = True
+        return False
+
+    def _leave_place(self) -> None:
+        for admitted in self.server.large.leave(self):
+            admitted._admitted()
+
+    def _admitted(self) -> None:
+        """A large request's turn has come."""
+        self._waiting = False
+        self._read_on()
+
+    def _read_on(self) -> None:
+        """Unless something else still holds reading back: the rest of the backlog at the next
+        turn of the loop, or reading again."""
+        transport = self.transport
+        if transport is None or self._ended or self.closing or self._waiting:
+            return
+        if self._write_paused:
+            return
+        if self._backlog:
+            if not self._slicing:
+                self._slicing = True
+                self.server.loop.call_soon(self._take_slice)
+        else:
             transport.resume_reading()
 
     def eof_received(self) -> bool:
@@ -146,6 +188,8 @@ class _Control(asyncio.Protocol):
             return  # refused at once (never counted in), or over already
         self._ended = True
         self.server.connections.leave(self.peer)
+        self._waiting = False
+        self._leave_place()
         if not session.finished:
             now = self.server.loop.time()
             if eof and self._backlog:  # the rest of a burst sent before the close
@@ -165,13 +209,7 @@ class _Control(asyncio.Protocol):
 
     def resume_writing(self) -> None:
         self._write_paused = False
-        if self.transport is None or self.closing:
-            return
-        if self._backlog:
-            if not self._slicing:
-                self._take_slice()
-        else:
-            self.transport.resume_reading()
+        self._read_on()
 
     def _timer_fired(self) -> None:
         if self.session is not None:
@@ -237,6 +275,8 @@ class ReferenceServer:
             connection_cap(limits.connections), limits.connections_per_peer
         )
         self.refused = Throttled("connections refused")
+        #: The connections with a large request under way (D-RCTP-32).
+        self.large: Places[_Control] = Places(limits.large_requests)
         self._accept_failed = Throttled("cannot accept connections")
         self._handler: Any = None
 

@@ -14,6 +14,9 @@ import logging
 import resource
 from collections import Counter
 from dataclasses import dataclass
+from typing import Generic, TypeVar
+
+T = TypeVar("T")
 
 log = logging.getLogger("rcmlconf.server")
 
@@ -54,6 +57,12 @@ class ServerLimits:
     #: Bytes of one connection's input taken per turn of the loop: a pipelined burst is answered
     #: in slices, and the other sessions and their streams are served in between.
     slice_bytes: int = 8192
+    #: A request under way that holds more than `large_bytes` of input (a body D-RCTP-9 allows
+    #: up to 4 MiB) is a large one: `large_requests` connections at most hold one at once, the
+    #: others are not read meanwhile (TCP holds their peers) and go on in turn. Memory then
+    #: grows with these few, not with the connections.
+    large_bytes: int = 64 * 1024
+    large_requests: int = 4
 
     def below_floor(self) -> list[str]:
         """What breaks R-RCTP-67's floor (allowed, for tests; `serve` warns of it)."""
@@ -131,3 +140,49 @@ class Throttled:
 #: What an accept fails with when the process or the system is out of something: asyncio logs
 #: these with a traceback and tries again a second later; the server says it in one line.
 ACCEPT_ERRNOS = frozenset({errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM})
+
+
+class Places(Generic[T]):
+    """At most `count` holders at once; the others wait, and take a place in turn as one is
+    left (D-RCTP-32: the connections with a large request under way)."""
+
+    __slots__ = ("_holders", "_waiting", "count")
+
+    def __init__(self, count: int) -> None:
+        self.count = count
+        self._holders: set[T] = set()
+        #: In the order they came (a dict for an ordered set).
+        self._waiting: dict[T, None] = {}
+
+    @property
+    def held(self) -> int:
+        return len(self._holders)
+
+    @property
+    def waiting(self) -> int:
+        return len(self._waiting)
+
+    def take(self, item: T) -> bool:
+        """Whether `item` holds a place (now, or already); if not, it waits in turn."""
+        if item in self._holders:
+            return True
+        if len(self._holders) < self.count and not self._waiting:
+            self._holders.add(item)
+            return True
+        self._waiting[item] = None
+        return False
+
+    def leave(self, item: T) -> list[T]:
+        """`item` holds no place and waits for none; the waiting ones that took the place, in
+        turn."""
+        self._waiting.pop(item, None)
+        if item not in self._holders:
+            return []
+        self._holders.discard(item)
+        admitted = []
+        while self._waiting and len(self._holders) < self.count:
+            first = next(iter(self._waiting))
+            del self._waiting[first]
+            self._holders.add(first)
+            admitted.append(first)
+        return admitted

@@ -318,3 +318,61 @@ async def test_the_data_socket_is_read_several_datagrams_a_turn() -> None:
             assert server.data.unclaimed > 2  # more than one a turn
             assert DATAGRAMS_A_TURN > 2
             assert await _until(lambda: server.data.unclaimed == 300)
+
+
+@run
+async def test_large_requests_take_turns_while_small_ones_are_served() -> None:
+    """D-RCTP-32: a request whose body holds more than `large_bytes` takes one of
+    `large_requests` places; one beyond waits, unread, until the place is left, and then goes on;
+    meanwhile a small request on another connection is answered."""
+    limits = ServerLimits(large_bytes=1024, large_requests=1)
+    body = bytes(64 * 1024)
+    head = b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\nContent-Length: %d\r\n\r\n" % len(body)
+    async with serving(limits=limits) as server:
+        first, second = await Raw.open(server), await Raw.open(server)
+        await first.send(head + body[:8192])  # a place taken, the body not whole
+        assert await _until(lambda: server.large.held == 1)
+        await second.send(head + body[:8192])
+        assert await _until(lambda: server.large.waiting == 1)
+        small = await RawSession.open(server)  # served while the second waits
+        assert (await small.ask("CONNECT", "/")).status == 200
+        assert server.large.waiting == 1
+        await first.send(body[8192:])
+        assert (await first.response()).status == 200
+        assert await _until(lambda: server.large.waiting == 0)  # the second's turn
+        await second.send(body[8192:])
+        assert (await second.response()).status == 200
+        for raw in (first, second, small.raw):
+            raw.close()
+
+
+@run
+async def test_a_peer_that_does_not_read_is_not_read_and_then_answered_in_full() -> None:
+    """The answers to a pipelined burst fill the connection's write buffer while the peer does
+    not read: the server stops reading it, and once the peer reads, goes on with the rest of the
+    burst, every request answered in order."""
+    async with serving() as server:
+        sock = socket.socket()
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # a small window
+        sock.setblocking(False)
+        await asyncio.get_running_loop().sock_connect(sock, ("127.0.0.1", server.port))
+        flood = Raw(*await asyncio.open_connection(sock=sock))
+        await flood.send(b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\n\r\n")
+        session = (await flood.response()).headers.get("Session")
+        for control in server.controls.values():  # a slow network: small kernel buffers
+            assert control.transport is not None
+            server_side = control.transport.get_extra_info("socket")
+            server_side.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)
+        count = 6000  # answers well beyond what the client's buffers take
+        flood.writer.write(
+            b"".join(
+                f"CONNECT / RCTP/2.0\r\nCSeq: {cseq}\r\nSession: {session}\r\n\r\n".encode()
+                for cseq in range(2, count + 2)
+            )
+        )
+
+        # Its answers over asyncio's high-water mark, the connection is paused.
+        assert await _until(lambda: any(c._write_paused for c in server.controls.values()))
+        cseqs = [int((await flood.response()).headers.get("CSeq") or 0) for _ in range(count)]
+        assert cseqs == list(range(2, count + 2))
+        flood.close()
