@@ -33,7 +33,7 @@ if TYPE_CHECKING:
 
 #: The session timeout the played server announces (D-RCTP-11's default).
 SESSION_TIMEOUT = 60
-#: D-RCTP-31's run takes about 6 s on the harness's robot (1 s of events, 3.5 s of stream).
+#: D-RCTP-31's run takes about 5 s on the harness's robot (1 s of events, 2.25 s of stream).
 SCENARIO_TIME = 15.0
 Fields = list[tuple[str, str]]
 #: A case's own answer to a request: the bytes to send, or None for the played server's.

@@ -28,7 +28,7 @@ T = TypeVar("T")
 #: pause and second play.
 EVENT_WAIT = 1.0
 HEARTBEAT_EVERY = 1.0
-PLAY, PAUSED, REPLAY = 2.0, 0.5, 1.0
+PLAY, PAUSED, REPLAY = 1.5, 0.25, 0.5
 #: The longest a run's steps take, and BYE's answer (R-RCTP-23), so that a run of a robot with
 #: many nodes, or against a server slow to answer, is over in about 30 s.
 LIMIT = 25.0
@@ -223,7 +223,7 @@ class _Run:
             await self._ok(self.client.stop(access.path))
 
     async def _stream(self, access: AccessNode) -> None:
-        """Step 6: SETUP, GO, 2 s, PAUSE, 0.5 s, GO, 1 s, STOP. While it plays the client beats
+        """Step 6: SETUP, GO, 1.5 s, PAUSE, 0.25 s, GO, 0.5 s, STOP. While it plays the client beats
         at once and every second (`HEARTBEAT_EVERY`), answers FLOW (its endpoint does), and
         sends `_echo` at the write interval in force."""
         readable, writable = access.readable(), access.writable()

@@ -11,7 +11,7 @@ from session import Access, Closed, Session
 from wire import VALUES, Message, encode_segment
 
 EVENT_TIME = 1.0  # step 5
-PLAY_TIME, PAUSE_TIME, REPLAY_TIME = 2.0, 0.5, 1.0  # step 6
+PLAY_TIME, PAUSE_TIME, REPLAY_TIME = 1.5, 0.25, 0.5  # step 6
 
 
 class Ended(Exception):
@@ -181,7 +181,7 @@ class Scenario:
             self.s.log(f"stream {access.path}: {acc.packets if acc else 0} DATA payloads applied")
 
     async def play(self, acc: Access) -> None:
-        """GO, 2 s, PAUSE, 0.5 s, GO, 1 s, STOP; a server STOP ends it at once."""
+        """GO, 1.5 s, PAUSE, 0.25 s, GO, 0.5 s, STOP; a server STOP ends it at once."""
         if await self.s.go(acc):
             await self.wait(PLAY_TIME, acc)
         for step in ("pause", "wait", "go", "stop"):
