@@ -186,7 +186,7 @@ async def stream_pace(ctx: Context) -> None:
         if end is math.inf or end - start < 9 * interval:
             continue
         expected = (end - start) / interval
-        ctx.expect(
+        ctx.expect(  # D-RCTP-33's bounds for a client
             0.5 * expected <= len(inside) <= 1.5 * expected + 2,
             f"about {expected:.0f} DATA payloads in {end - start:.2f} s at {interval * 1000:g} ms"
             f"{partly}",

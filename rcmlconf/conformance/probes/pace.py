@@ -33,7 +33,8 @@ def paced(
     requirement: str = "R-RSP-42",
 ) -> None:
     """`found`, packets of `kind`, came one every `period`: five at least, their median gap
-    within 0.7 to 1.4 periods (one packet the harness read late does not move the median);
+    within 0.7 to 1.4 periods (D-RSP-13's bounds; one packet the harness read late does not move
+    the median);
     `note` follows the expected pace in the failure's text."""
     name = kind.name
     article = "an" if name[0] in "AEIOU" else "a"
@@ -65,7 +66,7 @@ def spaced(
     note: str = "",
 ) -> None:
     """Each of `found` (`what`, in the failure's text) came `interval` after the one before,
-    within 0.6 to 1.6 intervals."""
+    within 0.6 to 1.6 intervals (D-RSP-13's bounds)."""
     between = gaps(found)
     ctx.expect(
         all(0.6 * interval <= gap <= 1.6 * interval for gap in between),
