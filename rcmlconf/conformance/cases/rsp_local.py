@@ -716,7 +716,7 @@ async def bye_ends(ctx: Context) -> None:
 @local_case(
     "rsp/local/welcome-mac",
     "A WELCOME with a wrong MAC is dropped (HELLO repeated); the right one opens a sealed session",
-    ["R-RSP-38", "R-RSP-37"],
+    ["R-RSP-38", "R-RSP-37", "R-RSP-13"],
 )
 async def welcome_mac(ctx: Context) -> None:
     psk = ctx.target.rsp_psk
@@ -748,12 +748,19 @@ async def welcome_mac(ctx: Context) -> None:
     ctx.expect(again is not None, "HELLO repeated: no session yet", "no HELLO again")
     mark = probe.mark()
     probe.welcome()
-    await probe.expect(
+    down = await probe.expect(
         PacketType.DOWNLINK,
         "R-RSP-37",
         after=mark,
         where=lambda d: d.body is not None,
         expected="a DOWNLINK sealed with the session's keys",
+    )
+    # One saying encryption 0 is read in the clear: sealed, it says the session's (D-RSP-21).
+    ctx.expect(
+        down.header.encryption is probe.encryption,
+        f"a DOWNLINK sealed: encryption {int(probe.encryption)} ({probe.encryption.name})",
+        f"DOWNLINK #{down.header.sequence} with encryption {int(down.header.encryption)}",
+        "R-RSP-13",
     )
 
 

@@ -547,8 +547,31 @@ def _session_case(encryption: Encryption) -> Callable[[Context], Awaitable[None]
             "none" if uplink is None else str(sorted(uplink.devices(model))),
             "R-RSP-37",
         )
+        _all_sealed(ctx, probe, raw, encryption)
 
     return run
+
+
+def _all_sealed(ctx: Context, probe: RspProbe, raw: RawSession, encryption: Encryption) -> None:
+    """Every packet of the session after WELCOME says the session's encryption (R-RSP-13) and so
+    was opened with its keys: a packet saying 0 is read in the clear, and a robot that never
+    seals its ACKs and UPLINKs would pass what is checked above (D-RSP-21: every packet of the
+    session after HELLO and WELCOME is sealed)."""
+    mine = [
+        d
+        for d in probe.received
+        if d.header.session_id == raw.session_id and d.type is not PacketType.WELCOME
+    ]
+    clear = [d for d in mine if d.header.encryption is not encryption]
+    ctx.expect(
+        not clear,
+        f"every packet of the session sealed: encryption {int(encryption)} ({encryption.name})",
+        ", ".join(
+            f"{d.type.name} #{d.header.sequence} with encryption {int(d.header.encryption)}"
+            for d in clear[:3]
+        ),
+        "R-RSP-13",
+    )
 
 
 def _tampered_case(encryption: Encryption) -> Callable[[Context], Awaitable[None]]:
@@ -568,7 +591,7 @@ for _encryption, _feature, _slug in _AEADS:
     case(
         f"rsp/security/{_slug}-session",
         f"A {_encryption.name} session: WELCOME's MAC right, DOWNLINKs opened, UPLINKs sealed",
-        ["R-RSP-37", "R-RSP-38"],
+        ["R-RSP-37", "R-RSP-38", "R-RSP-13"],
         role=Role.ROBOT,
         features=[_feature],
     )(_session_case(_encryption))

@@ -1,0 +1,43 @@
+"""The gaps bench/audit_rsp.md found in the rsp/* cases, closed: each case now fails the embedded
+reference made, in a copy of the package (`mutated`), to make the fault that used to pass it, and
+names the requirement the fault breaks. Real processes on loopback (`rcmlconf run` from the copy);
+the unmutated reference passing the same cases is tests/conformance/test_reference.py's."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from conformance.test_local_receiving import mutated, run
+
+#: SessionWire.build's header field and its sealing, as the reference has them.
+_ENCRYPTION_FIELD = "                self.encryption,\n                kind,\n"
+_SEALING = "        if self._sealer is None:\n            return data\n"
+
+
+def _unsealed(sends: str) -> tuple[tuple[str, str], ...]:
+    """The side sending in `sends` (Direction's member) seals nothing after HELLO and WELCOME: its
+    packets say encryption 0 and go in the clear, as an implementation that keys its session but
+    forgets to seal what it sends would."""
+    clear = f"self._sends is Direction.{sends}"
+    return (
+        (
+            _ENCRYPTION_FIELD,
+            f"                Encryption.NONE if {clear} and kind not in SIGNED"
+            " else self.encryption,\n                kind,\n",
+        ),
+        (_SEALING, f"        if self._sealer is None or {clear}:\n            return data\n"),
+    )
+
+
+@pytest.mark.parametrize(
+    ("case", "sends"),
+    [("rsp/security/aes-256-gcm-session", "UPLINK"), ("rsp/local/welcome-mac", "DOWNLINK")],
+)
+def test_a_side_that_does_not_seal_its_session_fails(tmp_path: Path, case: str, sends: str) -> None:
+    """R-RSP-13 (the session's encryption byte in every packet) and D-RSP-21: the probes read a
+    packet saying encryption 0 in the clear, so a robot (UPLINK) or a local system (DOWNLINK)
+    that sealed nothing passed every check of its sealed session but this one."""
+    copy = mutated(tmp_path, "rsp/session/wire.py", *_unsealed(sends))
+    result = run(tmp_path, "--only", case, python=copy)[case]
+    assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-13"), result
