@@ -41,3 +41,22 @@ def test_a_side_that_does_not_seal_its_session_fails(tmp_path: Path, case: str, 
     copy = mutated(tmp_path, "rsp/session/wire.py", *_unsealed(sends))
     result = run(tmp_path, "--only", case, python=copy)[case]
     assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-13"), result
+
+
+@pytest.mark.parametrize("case", ["rsp/header/replayed", "rsp/security/replayed-sealed"])
+def test_a_robot_remembering_only_its_newest_number_fails_the_replay_cases(
+    tmp_path: Path, case: str
+) -> None:
+    """R-RSP-18, D-RSP-15: the reference's replay list made to hold the newest number only (a
+    late packet's occurrences are taken, as they must be, but a replayed late one's too). The
+    cases replayed only the newest packet, which such a robot drops."""
+    copy = mutated(
+        tmp_path,
+        "rctp/datastream/order.py",
+        (
+            "return (_MODULO - ahead) % _MODULO > window or bool(self._seen[sequence])",
+            "return (_MODULO - ahead) % _MODULO > window or ahead == 0",
+        ),
+    )
+    result = run(tmp_path, "--only", case, python=copy)[case]
+    assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-18"), result

@@ -1075,13 +1075,16 @@ async def dropped_then_taken(
 
 async def replay_dropped(ctx: Context, probe: RspProbe, raw: RawSession, ident: int) -> None:
     """A DOWNLINK carrying command `ident` that the robot acknowledged, received again byte for
-    byte, must be dropped without a second ACK, the session going on (R-RSP-18); Inconclusive
-    without the first ACK."""
+    byte, must be dropped without a second ACK, the session going on (R-RSP-18): at once, the
+    newest the robot has, and again once newer ones came, late and seen before (D-RSP-15: a late
+    packet's occurrences are taken, a replayed one's are not; a robot that remembers only its
+    newest number takes the second). Inconclusive without the first ACK."""
     command = first(probe.model, DeviceKind.COMMAND)
     if await acked(probe, raw, command, ident) is None:
         raise Inconclusive(f"no ACK of {command.name} #{ident} in the first place")
     original = raw.last
-    await dropped_then_taken(ctx, probe, raw, lambda _: original, "R-RSP-18", "the replay")
+    for what in ("the replay", "the replay behind the newest"):
+        await dropped_then_taken(ctx, probe, raw, lambda _: original, "R-RSP-18", what)
 
 
 async def late_acked(
