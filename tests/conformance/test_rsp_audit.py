@@ -13,6 +13,8 @@ from conformance.test_local_receiving import mutated, run
 #: SessionWire.build's header field and its sealing, as the reference has them.
 _ENCRYPTION_FIELD = "                self.encryption,\n                kind,\n"
 _SEALING = "        if self._sealer is None:\n            return data\n"
+#: A module-level counter of session IDs, for the robot that counts them.
+_COUNTER = '_COUNTER = __import__("itertools").count(1)\n'
 
 
 def _unsealed(sends: str) -> tuple[tuple[str, str], ...]:
@@ -60,3 +62,20 @@ def test_a_robot_remembering_only_its_newest_number_fails_the_replay_cases(
     )
     result = run(tmp_path, "--only", case, python=copy)[case]
     assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-18"), result
+
+
+def test_a_robot_counting_its_session_ids_fails_fresh_session_ids(tmp_path: Path) -> None:
+    """R-RSP-20, D-RSP-12: the reference made to number its sessions 1, 2, 3 (distinct and not 0,
+    all the case checked) rather than draw 48 random bits."""
+    copy = mutated(
+        tmp_path,
+        "rsp/session/robot.py",
+        (
+            "            session_id = int.from_bytes(self._random(_SESSION_BITS // 8))",
+            "            session_id = next(_COUNTER)",
+        ),
+        ("_SESSION_BITS = 48\n", f"_SESSION_BITS = 48\n{_COUNTER}"),
+    )
+    case = "rsp/session/fresh-session-ids"
+    result = run(tmp_path, "--only", case, python=copy)[case]
+    assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-20"), result

@@ -40,6 +40,8 @@ from rcmlconf.rsp.codec import (
 from rcmlconf.rsp.layout import NONCE_SIZE
 
 _ANSWERS = (PacketType.WELCOME, PacketType.REFUSED)
+#: The low bits of a 48-bit session ID, above which a random one is all 0 once in 65,536.
+_LOW_BITS = 32
 #: The encryption bytes of the AEADs and the ICS features that declare them (D-RSP-21).
 _AEADS = {
     Encryption.AES_256_GCM: "rsp-aes-256-gcm",
@@ -132,7 +134,7 @@ async def welcome(ctx: Context) -> None:
 
 @case(
     "rsp/session/fresh-session-ids",
-    "Three sessions one after another get three different random non-zero session IDs",
+    "Three sessions one after another get three different random non-zero 48-bit session IDs",
     ["R-RSP-20"],
     role=Role.ROBOT,
 )
@@ -148,6 +150,14 @@ async def fresh_session_ids(ctx: Context) -> None:
     ctx.expect(
         0 not in seen and len(set(seen)) == len(seen),
         "three distinct non-zero session IDs",
+        ", ".join(f"{s:#x}" for s in seen),
+    )
+    # D-RSP-12: 48 random bits. One has its high 16 all 0 once in 65,536, all three once in 2^48:
+    # three that do are a counter or a narrower number (without encryption the session ID and
+    # the address are all that protects a session, D-RSP-21).
+    ctx.expect(
+        any(s >> _LOW_BITS for s in seen),
+        "random 48-bit session IDs: not all three below 2^32",
         ", ".join(f"{s:#x}" for s in seen),
     )
 
