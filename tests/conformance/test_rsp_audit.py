@@ -79,3 +79,21 @@ def test_a_robot_counting_its_session_ids_fails_fresh_session_ids(tmp_path: Path
     case = "rsp/session/fresh-session-ids"
     result = run(tmp_path, "--only", case, python=copy)[case]
     assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-20"), result
+
+
+def test_a_local_system_sending_its_periods_at_once_fails_idle_keep_alive(tmp_path: Path) -> None:
+    """R-RSP-43, D-RSP-13: the reference local system made to send its three PERIODs back to back
+    when T changes (three, within three periods: all the case checked), where one loss loses
+    them all."""
+    copy = mutated(
+        tmp_path,
+        "rsp/session/local.py",
+        (
+            '        if self.state == "open":\n            self._send_period(now)\n',
+            '        if self.state == "open":\n            while self._period_repeats > 0:\n'
+            "                self._send_period(now)\n",
+        ),
+    )
+    case = "rsp/local/idle-keep-alive"
+    result = run(tmp_path, "--only", case, python=copy)[case]
+    assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-43"), result

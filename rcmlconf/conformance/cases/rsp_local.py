@@ -643,6 +643,16 @@ async def idle_keep_alive(ctx: Context) -> None:
         f"over {spread * 1000:.0f} ms",
         "R-RSP-43",
     )
+    # Nor all at once, where one loss loses them all: in three periods, the first and the last
+    # are a period apart or more (D-RSP-13's least single gap, 0.6 of it), by the local system's
+    # own clock (R-RSP-14): a harness held up reads datagrams that waited together at once.
+    stamped = (periods[-1].header.timestamp - periods[0].header.timestamp) % (1 << 32)
+    ctx.expect(
+        stamped >= 0.6 * slower * 1000,
+        f"the PERIODs spread over three periods of {slower * 1000:g} ms, not sent at once",
+        f"stamped {', '.join(str(d.header.timestamp) for d in periods)} ms",
+        "R-RSP-43",
+    )
     downlinks = probe.packets(PacketType.DOWNLINK, after=start)
     busy = [d for d in downlinks if d.items and d.at > change.at + 1.5 * slower]
     if busy:
