@@ -47,6 +47,7 @@ from rcmlconf.reference.server.limits import (
 )
 from rcmlconf.reference.server.robot import Robot
 from rcmlconf.reference.server.session import ServerSession
+from rcmlconf.reference.server.turns import Turns
 from rcmlconf.reference.timers import BeatClock, LoopTimer
 
 log = logging.getLogger("rcmlconf.server")
@@ -107,17 +108,19 @@ class _Control(asyncio.Protocol):
         server.controls[self.session] = self
 
     def data_received(self, data: bytes) -> None:
-        if self.session is None:
+        if self.session is None or self.transport is None:
             return
-        if self._backlog or self._waiting:  # still answering a burst: this joins it
-            self._backlog += data
-            return
+        joins = bool(self._backlog) or self._waiting or self._slicing
         self._backlog += data
-        self._take_slice()
+        if joins:  # still answering a burst, or waiting its turn: this joins it
+            return
+        self._slicing = True
+        if not self.server.turns.run(self.peer, self._take_slice):
+            self.transport.pause_reading()  # until its turn (`turns`): the kernel holds the rest
 
     def _take_slice(self) -> None:
         """Hand the session the next slice of the backlog; if more is left, pause reading and
-        come back at the next turn of the loop (after the other connections and the beats)."""
+        come back in a next turn of the loop (after the other peers and the beats, `turns`)."""
         self._slicing = False
         session, transport = self.session, self.transport
         if session is None or transport is None or self._ended or self._write_paused:
@@ -134,7 +137,7 @@ class _Control(asyncio.Protocol):
         elif self._backlog and not self.closing:
             transport.pause_reading()
             self._slicing = True
-            self.server.loop.call_soon(self._take_slice)
+            self.server.turns.later(self.peer, self._take_slice)
         elif not self._write_paused and not self.closing:
             transport.resume_reading()
 
@@ -159,7 +162,7 @@ class _Control(asyncio.Protocol):
         self._read_on()
 
     def _read_on(self) -> None:
-        """Unless something else still holds reading back: the rest of the backlog at the next
+        """Unless something else still holds reading back: the rest of the backlog in a next
         turn of the loop, or reading again."""
         transport = self.transport
         if transport is None or self._ended or self.closing or self._waiting:
@@ -169,7 +172,7 @@ class _Control(asyncio.Protocol):
         if self._backlog:
             if not self._slicing:
                 self._slicing = True
-                self.server.loop.call_soon(self._take_slice)
+                self.server.turns.later(self.peer, self._take_slice)
         else:
             transport.resume_reading()
 
@@ -178,6 +181,12 @@ class _Control(asyncio.Protocol):
         return False
 
     def connection_lost(self, exc: Exception | None) -> None:
+        # Nothing can be written any more: the session's end waits its peer's turn (`turns`),
+        # so that a flood of resets is not one long turn of the loop.
+        if self.session is not None and not self._ended:
+            self.server.turns.run(self.peer, self._lost)
+
+    def _lost(self) -> None:
         self._gone(eof=False)
 
     def _gone(self, eof: bool) -> None:
@@ -213,6 +222,10 @@ class _Control(asyncio.Protocol):
 
     def _timer_fired(self) -> None:
         if self.session is not None:
+            self.server.turns.run(self.peer, self._timer_work)
+
+    def _timer_work(self) -> None:
+        if self.session is not None and not self._ended:
             self.session.handle_timer(self.server.loop.time())
             self.server.flush(self)
 
@@ -268,6 +281,7 @@ class ReferenceServer:
         self.data = _Data(self)
         self._robot_timer: LoopTimer | None = None
         self._beats: BeatClock[_Control] | None = None
+        self._turns: Turns | None = None
         self.files: FileServer | None = None
         limits = settings.limits
         #: Open control connections against D-RCTP-32's caps, and the log of those refused.
@@ -290,6 +304,12 @@ class ReferenceServer:
         """Every session's stream beats, on one clock (`BeatClock`)."""
         assert self._beats is not None, "start() first"
         return self._beats
+
+    @property
+    def turns(self) -> Turns:
+        """The connections' work, a budget a turn, peer by peer (`turns`)."""
+        assert self._turns is not None, "start() first"
+        return self._turns
 
     @property
     def robot(self) -> Robot:
@@ -317,6 +337,7 @@ class ReferenceServer:
         settings = self.settings
         self._handler = loop.get_exception_handler()
         loop.set_exception_handler(self._loop_exception)
+        self._turns = Turns(loop, settings.limits.turn_budget)
         self._tcp = _paced(
             await loop.create_server(
                 lambda: _Control(self),

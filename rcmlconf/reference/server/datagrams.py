@@ -31,6 +31,7 @@ DATAGRAMS_A_TURN = 64
 RECEIVE_BUFFER = 4 << 20
 #: The largest UDP payload (IPv4).
 MAX_DATAGRAM = 65_507
+_NUMERIC = socket.AI_NUMERICHOST | socket.AI_NUMERICSERV
 
 
 class DataSocket:
@@ -56,7 +57,10 @@ class DataSocket:
         """The socket bound to `host` (resolved as asyncio's `local_addr` is: the first
         address that binds) and `port` (0: a free one); the last OSError if none binds."""
         loop = asyncio.get_running_loop()
-        infos = await loop.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
+        try:  # an address as numbers needs no look-up, and no wait
+            infos = socket.getaddrinfo(host, port, type=socket.SOCK_DGRAM, flags=_NUMERIC)
+        except socket.gaierror:
+            infos = await loop.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
         failure: OSError = OSError(f"no address for {host!r}")
         for family, kind, proto, _name, address in infos:
             sock = socket.socket(family, kind, proto)

@@ -63,6 +63,9 @@ class ServerLimits:
     #: grows with these few, not with the connections.
     large_bytes: int = 64 * 1024
     large_requests: int = 4
+    #: Seconds of the connections' work a turn of the loop; the rest waits for the next turns,
+    #: peer by peer (`turns`).
+    turn_budget: float = 0.004
 
     def below_floor(self) -> list[str]:
         """What breaks R-RCTP-67's floor (allowed, for tests; `serve` warns of it)."""

@@ -376,3 +376,42 @@ async def test_a_peer_that_does_not_read_is_not_read_and_then_answered_in_full()
         cseqs = [int((await flood.response()).headers.get("CSeq") or 0) for _ in range(count)]
         assert cseqs == list(range(2, count + 2))
         flood.close()
+
+
+@run
+async def test_a_peer_with_many_requests_at_once_does_not_hold_up_another() -> None:
+    """D-RCTP-32: 400 connections of one address have a CONNECT ready at once, then one of
+    another address: its answer comes before the 400 are all answered, the work of a turn
+    being bounded and the peers served in turn (`turns`)."""
+    count = 400
+    limits = ServerLimits(connections_per_peer=count, sessions_per_peer=count)
+    async with serving(limits=limits) as server:
+        flood: list[socket.socket] = []
+        try:
+            for _ in range(count):
+                flood.append(
+                    socket.create_connection(
+                        ("127.0.0.1", server.port), timeout=2.0, source_address=("127.0.0.2", 0)
+                    )
+                )
+            other = await Raw.open(server)
+            assert await _until(lambda: server.connections.total == count + 1)
+            # Sent while the loop does not run: all ready in the same turn, the other last.
+            for sock in flood:
+                sock.sendall(b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\n\r\n")
+            other.writer.write(b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\n\r\n")
+            assert (await other.response()).status == 200
+            answered = sum(1 for sock in flood if _has_data(sock))
+            assert answered < count
+            other.close()
+        finally:
+            for sock in flood:
+                sock.close()
+
+
+def _has_data(sock: socket.socket) -> bool:
+    sock.setblocking(False)
+    try:
+        return bool(sock.recv(1, socket.MSG_PEEK))
+    except BlockingIOError:
+        return False
