@@ -10,3 +10,16 @@ HELLO_RETRIES = 5
 KEEPALIVE_PERIODS = 5
 LOST_PERIODS = 25
 SESSION_TIMEOUT = 10.0
+#: D-RSP-17's retransmission timeout: 10 T before the first round trip is measured, at least
+#: 2 T, at most 2 s (the ceiling wins), doubled after each retransmission.
+INITIAL_RTO_PERIODS = 10
+MIN_RTO_PERIODS = 2
+MAX_RTO = 2.0
+
+
+def unmeasured_rto(period: float, retransmissions: int) -> float:
+    """D-RSP-17's timeout before any round trip is measured, after `retransmissions` (seconds)."""
+    rto = min(max(INITIAL_RTO_PERIODS * period, MIN_RTO_PERIODS * period), MAX_RTO)
+    for _ in range(retransmissions):
+        rto = min(2 * rto, MAX_RTO)
+    return rto

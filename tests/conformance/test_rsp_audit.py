@@ -97,3 +97,17 @@ def test_a_local_system_sending_its_periods_at_once_fails_idle_keep_alive(tmp_pa
     case = "rsp/local/idle-keep-alive"
     result = run(tmp_path, "--only", case, python=copy)[case]
     assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-43"), result
+
+
+def test_a_local_system_starting_its_timeout_at_2_t_fails_memory_command_resent(
+    tmp_path: Path,
+) -> None:
+    """R-RSP-28, D-RSP-17: the reference's timeout made 2 T before a round trip is measured, not
+    10 T: its memory command goes again 40, 80, 160 ms apart at 20 ms, which the case's bounds
+    (at least 2 T, each about double the one before) let through."""
+    copy = mutated(
+        tmp_path, "rsp/reliable.py", ("INITIAL_RTO_PERIODS = 10\n", "INITIAL_RTO_PERIODS = 2\n")
+    )
+    case = "rsp/local/memory-command-resent"
+    result = run(tmp_path, "--only", case, python=copy)[case]
+    assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-28"), result

@@ -43,6 +43,7 @@ from rcmlconf.conformance.probes.rsp import (
     zero_values,
 )
 from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.rsp_numbers import unmeasured_rto
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import Item, MapBody, PacketType
 from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
@@ -53,11 +54,6 @@ from rcmlconf.values import Kind, Value
 OCCURS_WITHIN = 2.0
 #: D-RSP-17: an event rides this many UPLINKs.
 RIDES = 3
-#: D-RSP-17's retransmission timeout: 10 T before the first round trip is measured, at least
-#: 2 T, at most 2 s, doubled after each retransmission.
-INITIAL_RTO_PERIODS = 10
-MIN_RTO_PERIODS = 2
-MAX_RTO = 2.0
 #: Retransmissions a case times: the first at 10 T, the second at 20 T.
 RESENDS = 2
 #: How long the memory-event case withholds its ACK to leave the robot a second occurrence to hold
@@ -426,14 +422,6 @@ async def _memory_event_raised(
     return probe, raw, found, sent, ident
 
 
-def _rto(period: float, retransmissions: int) -> float:
-    """D-RSP-17's timeout before any round trip is measured, after `retransmissions`."""
-    rto = min(max(INITIAL_RTO_PERIODS * period, MIN_RTO_PERIODS * period), MAX_RTO)
-    for _ in range(retransmissions):
-        rto = min(2 * rto, MAX_RTO)
-    return rto
-
-
 def _elapsed_ms(earlier: Datagram, later: Datagram) -> int:
     """Milliseconds of the robot's clock between two of its packets (D-RSP-10's timestamp)."""
     return (later.header.timestamp - earlier.header.timestamp) % (1 << 32)
@@ -464,7 +452,7 @@ async def memory_event_resent(ctx: Context) -> None:
     begun = probe.received.index(sent)
     sends = [sent]
     for retransmission in range(RESENDS):
-        rto = _rto(period, retransmission)
+        rto = unmeasured_rto(period, retransmission)
         last = sends[-1]
         within = (1.25 * rto + 4 * period) * ctx.scale
         uplinks = await _watch(
@@ -500,7 +488,7 @@ async def memory_event_resent(ctx: Context) -> None:
     _, acked = _ack(raw, memory, ident)
     acked_at = probe.now
     # Until the next retransmission would have been due, and a little more.
-    wait = (_rto(period, RESENDS) + 4 * period) * ctx.scale
+    wait = (unmeasured_rto(period, RESENDS) + 4 * period) * ctx.scale
     await probe.listen(max(0.0, sends[-1].at + wait - acked_at))
     late = [
         u

@@ -15,19 +15,27 @@ from rcmlconf.conformance.probes.locals import REQUESTED, LocalProbe, zeros
 from rcmlconf.conformance.probes.pace import gaps, ms, paced, spaced
 from rcmlconf.conformance.probes.rsp import Datagram, first, newer, of_kind
 from rcmlconf.conformance.registry import CaseFunction, Role, case
-from rcmlconf.conformance.rsp_numbers import HELLO_INTERVAL, HELLO_RETRIES, KEEPALIVE_PERIODS
+from rcmlconf.conformance.rsp_numbers import (
+    HELLO_INTERVAL,
+    HELLO_RETRIES,
+    KEEPALIVE_PERIODS,
+    MAX_RTO,
+    unmeasured_rto,
+)
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import ByeReason, Encryption, Hello, Item, PacketType, Period, RefusedReason
 from rcmlconf.rsp.codec.bodies import MAX_PERIOD_MS
 from rcmlconf.rsp.layout import MAC_SIZE
 from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
-from rcmlconf.rsp.reliable import MAX_RTO
 from rcmlconf.rsp.security import mac_matches
 
 _SEQUENCE = 1 << 16
 #: Milliseconds a timestamp may be off the arrival times the harness sees (its clock and the
 #: local system's start at different moments, and a loaded machine delays what it reads).
 STAMP_SLACK = 60
+#: Milliseconds two stamps of the local system's may be closer than the time between them: each is
+#: rounded to a whole millisecond (R-RSP-14).
+STAMP_ROUNDING = 2
 
 
 def local_case(
@@ -408,11 +416,17 @@ async def memory_command_resent(ctx: Context) -> None:
         f"{memory.name} #{seen[0]} sent again after each retransmission timeout (at most 2 s)",
         f"sent {len(sends)} times in {probe.now - sent.at:.2f} s",
     )
-    floor = 2 * period
+    # Nothing acknowledged, nothing measured: 10 T, then doubled (D-RSP-17), each from the send
+    # before, by the local system's own stamps (R-RSP-14: a harness held up reads late).
+    timeouts = [unmeasured_rto(period, k) for k in range(len(sends) - 1)]
+    stamped = [
+        (b.header.timestamp - a.header.timestamp) % (1 << 32) for a, b in itertools.pairwise(sends)
+    ]
     ctx.expect(
-        all(gap >= 0.8 * floor for gap in between),
-        f"no sooner than the retransmission timeout (at least 2 T = {floor * 1000:g} ms)",
-        f"sent again after {ms(between)}",
+        all(gap >= rto * 1000 - STAMP_ROUNDING for gap, rto in zip(stamped, timeouts, strict=True)),
+        f"no sooner than each retransmission timeout: {ms(timeouts)} (10 T before a round trip"
+        " is measured, doubled after each, at most 2 s)",
+        f"sent again {', '.join(map(str, stamped))} ms after, by its stamps",
     )
     ctx.expect(
         all(b >= min(1.5 * a - period, 0.9 * MAX_RTO) for a, b in itertools.pairwise(between)),
