@@ -111,3 +111,26 @@ def test_a_local_system_starting_its_timeout_at_2_t_fails_memory_command_resent(
     case = "rsp/local/memory-command-resent"
     result = run(tmp_path, "--only", case, python=copy)[case]
     assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-28"), result
+
+
+def test_a_robot_taking_a_late_packets_requests_fails_late_request_ignored(tmp_path: Path) -> None:
+    """R-RSP-19, D-RSP-15: the reference made to take the request and module bits of every
+    DOWNLINK, late or not (its effector values still only from newer ones, which is all
+    rsp/payload/late-state-ignored sees)."""
+    copy = mutated(
+        tmp_path,
+        "rsp/session/robot.py",
+        (
+            "        newer = arrival is _NEWER\n        if newer:\n",
+            "        newer = arrival is _NEWER\n"
+            "        flags = frozenset([d for d, i, v in items if v is None and i is None])\n"
+            "        session.active_modules = flags & self._modules\n"
+            "        session.requested = flags - self._modules\n"
+            "        if newer:\n",
+        ),
+    )
+    cases = ["rsp/payload/late-request-ignored", "rsp/payload/late-state-ignored"]
+    results = run(tmp_path, *(option for case in cases for option in ("--only", case)), python=copy)
+    late, state = (results[case] for case in cases)
+    assert (late["verdict"], late["requirement"]) == ("fail", "R-RSP-19"), late
+    assert state["verdict"] == "pass", state
