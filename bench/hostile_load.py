@@ -1,34 +1,36 @@
 """Does the reference server hold up under hostile load? (issue 18, D-RCTP-32)
 
-`rcmlconf serve bench/hostile_load.rcml` runs as a real process on loopback, pinned to the first
-CPU, with `ulimit -n` 1024 (--nofile, as in the issue). Its robot is the camera's 16 ms stream
-(the paper's interval: the bundled rover's is 20 ms, and R-RCTP-47 forbids a client a shorter
-one) with the rover's half-second timeouts: the camera's are 10 s, which would hide a stall that
-STOPs a real writing stream, as the issue saw on the rover.
+`rcmlconf serve bench/hostile_load.rcml` runs as a real process on loopback with `ulimit -n` 1024
+(--nofile, as in the issue), on any CPU (--pin: the first, this process and the attackers on the
+last; on a machine that others load, a pinned server cannot get away from them). Its robot is the
+camera's 16 ms stream (the paper's interval: the bundled rover's is 20 ms, and R-RCTP-47 forbids a
+client a shorter one) with the rover's half-second timeouts: the camera's are 10 s, which would hide
+a stall that STOPs a real writing stream, as the issue saw on the rover.
 
 Legitimate traffic, from 127.0.0.1 through the reference client library (what an embedding user
-has), in this process pinned to the last CPU: four sessions each playing the stream in mode read,
-one playing it in mode write (ACQUIRE, SETUP, GO: the client sends DATA every 16 ms), and a READ
-prober (one READ of a data node every 50 ms). First alone, then under each attack in turn, then
-under all of them at once (the mix); each attack is followed by a recovery period.
+has), in this process: four sessions each playing the stream in mode read, one playing it in mode
+write (ACQUIRE, SETUP, GO: the client sends DATA every 16 ms), and a READ prober (one READ of a data
+node every 50 ms). First alone, then under each attack in turn, then under all of them at once (the
+mix); each attack is followed by a recovery period.
 
-The attacks (`hostile_attacks`, raw sockets) run in a process of their own, niced, on the last
-CPU: slowloris (1,000 connections that send a byte now and then), a pipelining flood (one
-connection, 20,000 READs without CONNECT, then with), a malformed flood (bad request lines, 256
-KiB headers, 4 MiB bodies, at RCTP's port and the files' HTTP port), a connect flood (waves of
-3,000 connections that each CONNECT), garbage UDP at the data port (10,000 datagrams a second).
-They bind source addresses other than 127.0.0.1 (127.0.0.2 to 127.0.0.11): the server's
+The attacks (`hostile_attacks`, raw sockets) run in a process of their own, niced (the legitimate
+clients are woken first): slowloris (1,000 connections that send a byte now and then), a pipelining
+flood (one connection, 20,000 READs without CONNECT, then with), a malformed flood (bad request
+lines, 256 KiB headers, 4 MiB bodies, at RCTP's port and the files' HTTP port), a connect flood
+(waves of 3,000 connections that each CONNECT), garbage UDP at the data port (10,000 datagrams a
+second). They bind source addresses other than 127.0.0.1 (127.0.0.2 to 127.0.0.11): the server's
 per-address caps then separate them from the legitimate clients, as a real network would.
 
 Per row: the read streams' gap between consecutive DATA (ms, p99 and max, by the arrival time in
-this process's loop; `sent` is the same by the server's own send stamps, which this process's
-delays do not touch), the READ prober's round trip (p99), STOP, BYE or a closed connection from
-the server to a legitimate session, streams lost (no DATA for 0.5 s), tracebacks and lines in
-the server's standard error, its RSS and open file descriptors (the most seen, /proc), its CPU
-and the attackers', and the recovery: how long after the attack ended the figures, in 0.5 s bins,
-were back to the alone row's for good (gap p99 within 1.5 times its p99 plus 1 ms, READ within
-twice its p99 plus 1 ms). Then the issue's goals beside the figures, and the anchor: the alone
-row of the same run, since the machine is shared and noisy.
+this process's loop; `sent` is the same by the server's own send stamps, which this process's delays
+do not touch), the READ prober's round trip (p99), STOP, BYE or a closed connection from the server
+to a legitimate session, streams lost (no DATA for 0.5 s), tracebacks and lines in the server's
+standard error, its RSS and open file descriptors (the most seen, /proc), its CPU, what other
+processes took of the machine's CPUs meanwhile (`others`, in CPUs: the noise of a shared machine),
+datagrams the kernel dropped at its data port, the attackers' CPU, and the recovery: how long after
+the attack ended the figures, in 0.5 s bins, were back to the alone row's for good (gap p99 within
+1.5 times its p99 plus 1 ms, READ within twice its p99 plus 1 ms). Then the issue's goals beside the
+figures, and the anchor: the alone row of the same run, since the machine is shared and noisy.
 
     python bench/hostile_load.py                     # 20 s a row, the mix 60 s, 10 s recovery
     python bench/hostile_load.py --only pipelining --seconds 10
@@ -57,11 +59,11 @@ from dataclasses import asdict, dataclass, field
 from itertools import pairwise
 from multiprocessing.connection import Connection
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from children import cpu_seconds
 from hostile_attacks import ATTACKS, SOURCES, Target, attack_process
-from scale import percentile, split_cpus
+from scale import load_average, percentile, split_cpus
 
 from rcmlconf.reference.client.adapter import Client, RctpError
 from rcmlconf.reference.client.session import Closed, ServerRequest, StreamLost, StreamValues
@@ -95,6 +97,7 @@ class Server:
     """`rcmlconf serve` in a process of its own, its standard error in a file."""
 
     def __init__(self, folder: Path, nofile: int, cpu: int | None) -> None:
+        self.cpu = cpu
         self.stderr_path = folder / "serve.stderr"
         ready = folder / "ready.json"
         self._stderr = self.stderr_path.open("wb")
@@ -160,6 +163,17 @@ def udp_drops(port: int) -> int:
     return 0
 
 
+def cpu_busy() -> float:
+    """Seconds the machine's CPUs have been busy (user, nice, system, irq, softirq) or stolen by
+    the hypervisor, all CPUs together; 0 where there is no /proc."""
+    with contextlib.suppress(OSError, ValueError, IndexError):
+        fields = Path("/proc/stat").read_text().splitlines()[0].split()[1:]
+        ticks = [int(f) for f in fields]
+        busy = ticks[0] + ticks[1] + ticks[2] + ticks[5] + ticks[6] + ticks[7]
+        return busy / os.sysconf("SC_CLK_TCK")
+    return 0.0
+
+
 def open_fds(pid: int) -> int:
     try:
         return len(os.listdir(f"/proc/{pid}/fd"))
@@ -168,6 +182,19 @@ def open_fds(pid: int) -> int:
 
 
 # -- the legitimate clients --------------------------------------------------------------------
+
+
+class Sample(NamedTuple):
+    when: float
+    rss_mib: float
+    fds: int
+    #: CPU seconds of the server, of this process (the legitimate clients).
+    server_cpu: float
+    bench_cpu: float
+    #: Datagrams the kernel dropped at the server's data port.
+    drops: int
+    #: Seconds the machine's CPUs were busy, or stolen by the hypervisor, whoever ran.
+    busy: float
 
 
 @dataclass
@@ -181,8 +208,7 @@ class Record:
     reads: list[tuple[float, float]] = field(default_factory=list)
     #: (when, what): STOP, BYE or a close from the server, a stream lost, a READ failed.
     incidents: list[tuple[float, str]] = field(default_factory=list)
-    #: (when, RSS MiB, open FDs, server CPU s, datagrams dropped at its data port)
-    samples: list[tuple[float, float, int, float, int]] = field(default_factory=list)
+    samples: list[Sample] = field(default_factory=list)
 
 
 class Legitimate:
@@ -269,8 +295,17 @@ async def sample(server: Server, record: Record, running: list[bool]) -> None:
     pid = server.pid
     while running[0]:
         now = loop.time()
-        drops = udp_drops(server.data_port)
-        record.samples.append((now, rss_mib(pid), open_fds(pid), cpu_seconds(pid), drops))
+        record.samples.append(
+            Sample(
+                now,
+                rss_mib(pid),
+                open_fds(pid),
+                cpu_seconds(pid),
+                time.process_time(),
+                udp_drops(server.data_port),
+                cpu_busy(),
+            )
+        )
         await asyncio.sleep(SAMPLE_EVERY)
 
 
@@ -339,6 +374,8 @@ class Row:
     rss_growth_mib: float
     fds: int
     server_cpu: float
+    #: What other processes (and the hypervisor) took of the machine's CPUs meanwhile (CPUs).
+    others_cpu: float
     #: Datagrams the kernel dropped at the server's data socket, its receive buffer full.
     udp_drops: int
     attacker_cpu: float
@@ -412,9 +449,16 @@ def measure(
     sent = _gaps(_sent_in(record, start, end), -1e18, 1e18)
     reads = _reads(record, start, end)
     incidents = [what for when, what in record.incidents if start <= when < after]
-    samples = [s for s in record.samples if start <= s[0] < after]
-    inside = [s for s in record.samples if start <= s[0] <= end]
-    cpu = (inside[-1][3] - inside[0][3]) / (inside[-1][0] - inside[0][0]) if len(inside) > 1 else 0
+    samples = [s for s in record.samples if start <= s.when < after]
+    inside = [s for s in record.samples if start <= s.when <= end]
+    first, last = (inside[0], inside[-1]) if inside else (None, None)
+    wall = last.when - first.when if first and last and len(inside) > 1 else 0.0
+
+    def used(what: str) -> float:  # CPUs (seconds a second) over the row
+        return (getattr(last, what) - getattr(first, what)) / wall if wall else 0.0
+
+    attacker = attacked.cpu / (attacked.ended - attacked.started) if attacked else 0.0
+    others = used("busy") - used("server_cpu") - used("bench_cpu") - attacker
     log = server.log()[len(log_before) :]
     return Row(
         name=name,
@@ -430,12 +474,13 @@ def measure(
         lost=sum(1 for i in incidents if "lost" in i),
         tracebacks=log.count("Traceback"),
         log_lines=log.count("\n"),
-        rss_mib=max((s[1] for s in samples), default=0.0),
-        rss_growth_mib=max((s[1] for s in samples), default=0.0) - record.samples[0][1],
-        fds=max((s[2] for s in samples), default=0),
-        server_cpu=cpu,
-        udp_drops=samples[-1][4] - samples[0][4] if samples else 0,
-        attacker_cpu=attacked.cpu / (attacked.ended - attacked.started) if attacked else 0.0,
+        rss_mib=max((s.rss_mib for s in samples), default=0.0),
+        rss_growth_mib=max((s.rss_mib for s in samples), default=0.0) - record.samples[0].rss_mib,
+        fds=max((s.fds for s in samples), default=0),
+        server_cpu=used("server_cpu"),
+        others_cpu=max(0.0, others),
+        udp_drops=samples[-1].drops - samples[0].drops if samples else 0,
+        attacker_cpu=attacker,
         recovery=recovery(record, end, after - end, alone) if alone is not None else None,
         recovery_period=after - end,
         counts=attacked.counts if attacked else {},
@@ -501,7 +546,7 @@ async def run(plan: Plan, server: Server, bench_cpu: int | None) -> list[Row]:
 HEAD = (
     f"{'row':<14}{'gap p99':>8}{'max':>7}{'sent99':>7}{'READ99':>7}{'max':>7}"
     f"{'STOP/BYE':>9}{'lost':>5}{'tb':>4}{'log':>6}{'RSS':>6}{'FDs':>6}"
-    f"{'srvCPU':>7}{'drops':>7}{'atkCPU':>7}{'back':>7}"
+    f"{'srvCPU':>7}{'others':>7}{'drops':>7}{'atkCPU':>7}{'back':>7}"
 )
 
 
@@ -519,7 +564,8 @@ def _line(row: Row) -> str:
         f"{row.name:<14}{_ms(row.gap_p99):>8}{_ms(row.gap_max):>7}{_ms(row.sent_p99):>7}"
         f"{_ms(row.read_p99):>7}{_ms(row.read_max):>7}{row.stop_bye:>9}{row.lost:>5}"
         f"{row.tracebacks:>4}{row.log_lines:>6}{row.rss_mib:>6.0f}{row.fds:>6}"
-        f"{row.server_cpu:>7.0%}{row.udp_drops:>7}{row.attacker_cpu:>7.0%}{back:>7}"
+        f"{row.server_cpu:>7.0%}{row.others_cpu:>7.2f}{row.udp_drops:>7}{row.attacker_cpu:>7.0%}"
+        f"{back:>7}"
     )
 
 
@@ -605,6 +651,9 @@ def main() -> None:
     )
     parser.add_argument("--json", type=Path, help="the rows, as JSON, to FILE")
     parser.add_argument("--smoke", action="store_true", help="3 s a row: checks the script")
+    parser.add_argument(
+        "--pin", action="store_true", help="the server on the first CPU, the rest on the last"
+    )
     args = parser.parse_args()
     if args.seconds is not None and not 1.0 <= args.seconds <= 3600.0:
         parser.error("--seconds: from 1 to 3600")
@@ -620,18 +669,21 @@ def main() -> None:
         recovery=3.0 if args.smoke else args.recovery,
         warm_up=1.0 if args.smoke else 3.0,
     )
-    server_cpu, bench_cpu = split_cpus()
+    server_cpu, bench_cpu = split_cpus() if args.pin else (None, None)
+    where = f"CPU {server_cpu}" if server_cpu is not None else "any CPU"
     sources = sorted({s for group in SOURCES.values() for s in group}, key=_address)
     with tempfile.TemporaryDirectory(prefix="hostile-") as folder:
         server = Server(Path(folder), args.nofile, server_cpu)
         try:
             print(
-                f"rcmlconf serve {RCML.name} (pid {server.pid}, CPU {server_cpu}, "
+                f"rcmlconf serve {RCML.name} (pid {server.pid}, {where}, "
                 f"RLIMIT_NOFILE {args.nofile or 'inherited'}, connection cap {server.cap}); "
                 f"legitimate clients on 127.0.0.1, attackers from {sources[0]} to {sources[-1]} "
-                "(per-address caps tell them apart, as on a real network), both on CPU "
-                f"{bench_cpu}, the attackers niced; rows of {plan.seconds:g} s (the mix "
-                f"{plan.mix_seconds:g} s), {plan.recovery:g} s recovery each\n"
+                "(per-address caps tell them apart, as on a real network), the attackers niced"
+                f"{'' if bench_cpu is None else f', both on CPU {bench_cpu}'}; rows of "
+                f"{plan.seconds:g} s (the mix "
+                f"{plan.mix_seconds:g} s), {plan.recovery:g} s recovery each; load average "
+                f"{load_average()} at the start\n"
             )
             print(HEAD)
             rows = asyncio.run(run(plan, server, bench_cpu))
