@@ -134,3 +134,36 @@ def test_a_robot_taking_a_late_packets_requests_fails_late_request_ignored(tmp_p
     late, state = (results[case] for case in cases)
     assert (late["verdict"], late["requirement"]) == ("fail", "R-RSP-19"), late
     assert state["verdict"] == "pass", state
+
+
+def test_a_robot_timing_the_session_from_welcome_fails_timeout_bye(tmp_path: Path) -> None:
+    """R-RSP-22, D-RSP-13: the reference made to end the session 10 s after it opened it, not
+    after 10 s of silence (the link's loss still timed from the last packet). The case's only
+    packet before its silence came right after WELCOME, where the two are one."""
+    copy = mutated(
+        tmp_path,
+        "rsp/session/timing.py",
+        (
+            '    __slots__ = ("last_heard", "lost", "period")\n',
+            '    __slots__ = ("last_heard", "lost", "opened", "period")\n',
+        ),
+        (
+            "        self.last_heard = now\n        self.lost = False\n",
+            "        self.last_heard = self.opened = now\n        self.lost = False\n",
+        ),
+        (
+            "        if now >= self.last_heard + SESSION_TIMEOUT:\n",
+            "        if now >= self.opened + SESSION_TIMEOUT:\n",
+        ),
+        (
+            "            return self.last_heard + SESSION_TIMEOUT\n",
+            "            return self.opened + SESSION_TIMEOUT\n",
+        ),
+        (
+            "self.last_heard + LOST_PERIODS * self.period, self.last_heard + SESSION_TIMEOUT)",
+            "self.last_heard + LOST_PERIODS * self.period, self.opened + SESSION_TIMEOUT)",
+        ),
+    )
+    case = "rsp/session/timeout-bye"
+    result = run(tmp_path, "--only", case, python=copy)[case]
+    assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-22"), result

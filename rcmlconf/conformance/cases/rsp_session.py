@@ -42,6 +42,10 @@ from rcmlconf.rsp.layout import NONCE_SIZE
 _ANSWERS = (PacketType.WELCOME, PacketType.REFUSED)
 #: The low bits of a 48-bit session ID, above which a random one is all 0 once in 65,536.
 _LOW_BITS = 32
+#: Seconds rsp/session/timeout-bye keeps the session alive before its silence, a DOWNLINK every
+#: _KEEPING seconds (well within the 25 periods of D-RSP-13 at any T a robot may raise to).
+KEPT = 1.0
+_KEEPING = 0.1
 #: The encryption bytes of the AEADs and the ICS features that declare them (D-RSP-21).
 _AEADS = {
     Encryption.AES_256_GCM: "rsp-aes-256-gcm",
@@ -440,10 +444,15 @@ async def silence_keeps_session(ctx: Context) -> None:
     role=Role.ROBOT,
     # The longest case: it starts with the others and ends about when they do (the suite's
     # wall time is set by the slowest case, not the sum).
-    timeout=SESSION_TIMEOUT + 3,
+    timeout=SESSION_TIMEOUT + KEPT + 3,
 )
 async def timeout_bye(ctx: Context) -> None:
     probe, raw = await raw_session(ctx)
+    # Kept alive a while first: the 10 s run from the last packet heard, not from WELCOME (a
+    # robot timing the session from its start would end it KEPT seconds early).
+    for _ in range(round(KEPT / _KEEPING)):
+        raw.downlink()
+        await probe.listen(_KEEPING)
     raw.downlink()
     silent = probe.now
     found = await probe.next(PacketType.BYE, wait=SESSION_TIMEOUT + 1.5)
