@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from rcmlconf.conformance.cases.rctp_client import answer_to, client_case
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.rctp.reader import LIMITS
 
 #: Requests that cannot be framed (D-RCTP-10), by case: what is wrong, the request ({s} the
@@ -66,6 +67,14 @@ _UNFRAMEABLE: dict[str, tuple[str, bytes, int, str]] = {
         431,
         "R-RCTP-16",
     ),
+    "request-header-section-limit": (
+        f"a header section past {LIMITS.header_section} bytes, each line within its limit",
+        b"BYE * RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\n"
+        + b"".join(b"X-Rcmlconf-%d: %s\r\n" % (i, b"x" * 3600) for i in range(5))
+        + b"\r\n",
+        431,
+        "R-RCTP-16",
+    ),
     "request-header-fields-limit": (
         f"more than {LIMITS.header_fields} header fields",
         b"BYE * RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\n"
@@ -118,6 +127,18 @@ _WRONG: dict[str, tuple[str, bytes, int, str]] = {
         400,
         "R-RCTP-11",
     ),
+    "cseq-out-of-range": (
+        "a CSeq above 2147483647, the largest",
+        b"BYE * RCTP/2.0\r\nCSeq: 2147483648\r\nSession: {s}\r\n\r\n",
+        400,
+        "R-RCTP-11",
+    ),
+    "session-twice": (
+        "Session twice, a field that may appear once",
+        b"BYE * RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\nSession: {s}\r\n\r\n",
+        400,
+        "R-RCTP-11",
+    ),
     "lower-case-method": (
         "the method in lower case, an unknown method",
         b"bye * RCTP/2.0\r\nCSeq: 1\r\nSession: {s}\r\n\r\n",
@@ -146,3 +167,56 @@ def _wrong(name: str, what: str, request: bytes, status: int, requirement: str) 
 
 for _name, (_what, _request, _status, _requirement) in _WRONG.items():
     _wrong(_name, _what, _request, _status, _requirement)
+
+
+#: How far under its limit request-at-limits keeps its header section: D-RCTP-9 counts the CRLFs
+#: between the section's lines, and a reader that counts the last line's too (the foreign
+#: client does) is off by that much only, a slip no peer feels; a limit a line short is not.
+SECTION_SHORT = 2
+
+
+@client_case(
+    "rctp/client/request-at-limits",
+    f"Requests at D-RCTP-9's limits are no requests past them: a STOP whose request line is"
+    f" {LIMITS.start_line} bytes is answered 455 (no access set up), a BYE of"
+    f" {LIMITS.header_fields} fields, one line of {LIMITS.header_line} bytes and a header section"
+    f" of {LIMITS.header_section - SECTION_SHORT} is answered 200",
+    ["R-RCTP-68", "R-RCTP-23"],
+)
+async def request_at_limits(ctx: Context) -> None:
+    probe, _ = await ctx.client_session()
+    # A path of names of 99 bytes (a name is at most 255, D-RCML-3) as long as the line allows.
+    room = LIMITS.start_line - len("STOP  RCTP/2.0")
+    target = ("/" + "a" * 99) * (room // 100) + "/" + "a" * (room % 100 - 1)
+    answer = await answer_to(ctx, probe, probe.request_bytes("STOP", target))
+    ctx.expect_status(  # an off-by-one limit answers 414
+        answer, 455, "R-RCTP-68", what=f"STOP with a request line of {LIMITS.start_line} bytes"
+    )
+    answer = await answer_to(ctx, probe, _at_header_limits(probe))
+    ctx.expect_status(  # an off-by-one limit answers 431
+        answer,
+        200,
+        "R-RCTP-23",
+        what=f"BYE with {LIMITS.header_fields} fields, a line of {LIMITS.header_line} bytes and"
+        f" a section of {LIMITS.header_section - SECTION_SHORT}",
+    )
+
+
+def _at_header_limits(probe: ControlProbe) -> bytes:
+    """A BYE at the header limits of D-RCTP-9: as many fields as allowed, the first filler line
+    as long as a line may be, and the section (its lines and the CRLFs between them) as long as
+    a section may be, less `SECTION_SHORT`."""
+    cseq = probe.cseq + 1
+    names = [f"X-Rcmlconf-{i:02d}" for i in range(LIMITS.header_fields - 2)]  # CSeq, Session
+    sizes = dict.fromkeys(names, 1)
+    full = LIMITS.header_section - SECTION_SHORT
+
+    def section() -> int:
+        data = probe.request_bytes("BYE", "*", [(n, "x" * sizes[n]) for n in names], cseq=cseq)
+        return len(data.split(b"\r\n", 1)[1].split(b"\r\n\r\n", 1)[0])
+
+    for name in names:  # each filler line grows to the line limit until the section is full
+        line = len(f"{name}: ")
+        sizes[name] += min(LIMITS.header_line - line - sizes[name], full - section())
+    probe.cseq = cseq
+    return probe.request_bytes("BYE", "*", [(n, "x" * sizes[n]) for n in names], cseq=cseq)

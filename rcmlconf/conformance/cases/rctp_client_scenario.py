@@ -99,8 +99,9 @@ def wrote(server: PlayedServer, node: DataNode) -> list[Seen]:
 
 @scenario_case(
     "rctp/client/cseq-numbering",
-    "Every request of the scenario carries CSeq, numbered 1, 2, 3, ... in the order sent",
-    ["R-RCTP-4", "R-RCTP-3"],
+    "Every request of the scenario carries CSeq, numbered 1, 2, 3, ... in the order sent, and"
+    " the version RCTP/2.0",
+    ["R-RCTP-4", "R-RCTP-3", "R-RCTP-2"],
 )
 async def cseq_numbering(ctx: Context) -> None:
     server = await whole_run(ctx)
@@ -119,6 +120,9 @@ async def cseq_numbering(ctx: Context) -> None:
             f"CSeq: {cseq}",
             "R-RCTP-4",
         )
+        # The reader takes any RCTP/x.y (a server answers another 505): each is checked here.
+        version = one.request.version
+        ctx.expect(version == "RCTP/2.0", f"RCTP/2.0 in request {number}", version, "R-RCTP-2")
 
 
 @scenario_case(
@@ -477,6 +481,18 @@ async def event_push_unknown_node(ctx: Context) -> None:
     push.written_back(ctx, push.before, "the values it had before: the refused push not taken")
 
 
+@scenario_case(
+    "rctp/client/event-push-one-node",
+    "A data-change WRITE that lists one node of its access (the one changed) is answered 200,"
+    " and that node's value alone is the client's newest",
+    ["R-RCTP-61", "R-RCTP-24"],
+)
+async def event_push_one_node(ctx: Context) -> None:
+    push = await _push(ctx, lambda pushed, codec: codec.encode(pushed), one_node=True)
+    ctx.expect_status(push.answer, 200, "R-RCTP-24", what="a push of one node of the access")
+    push.written_back(ctx, push.pushed, "the one pushed value with the others it had")
+
+
 @dataclass
 class _Push:
     """What step 5 gave with a data-change WRITE: the values the client had before it and those
@@ -498,10 +514,12 @@ async def _push(
     ctx: Context,
     body: Callable[[dict[str, Value], ValuesCodec[DataNode]], bytes],
     extra: str | None = None,
+    one_node: bool = False,
 ) -> _Push:
     """Step 5 with a data-change WRITE of the event access once it plays, its body made by
-    `body` from values at the high edge of each node (its `Nodes` naming `extra` too, if
-    given); the scenario is then run to its BYE."""
+    `body` from values at the high edge of each node it lists (every writable node, or with
+    `one_node` the middle one in canonical order; its `Nodes` naming `extra` too, if given); the
+    scenario is then run to its BYE."""
     access = event_access(ctx)
     server = await played(ctx)
     go = await server.reach("GO", access.path)
@@ -509,9 +527,13 @@ async def _push(
         raise Inconclusive(f"the client did not GO {access.path} (D-RCTP-31 step 5)")
     codec = ValuesCodec(access.writable(), access.path, "R-RCTP-28")
     before = {n.name: server.values[n.path] for n in codec.nodes}
-    pushed = {n.name: edge(n, high=True) for n in codec.nodes}
-    names = sorted([*codec.names, *([extra] if extra else [])])  # canonical order, D-RCML-4
-    answer = await server.push(access, names, body(pushed, codec))
+    listed = codec
+    if one_node:  # D-RCTP-27: a push lists the nodes changed, and only those
+        listed = ValuesCodec([codec.nodes[len(codec.nodes) // 2]], access.path, "R-RCTP-28")
+    pushed = {**before, **{n.name: edge(n, high=True) for n in listed.nodes}}
+    values = pushed if listed is codec else {name: pushed[name] for name in listed.names}
+    names = sorted([*listed.names, *([extra] if extra else [])])  # canonical order, D-RCML-4
+    answer = await server.push(access, names, body(values, listed))
     # Mid-scenario the client's own CSeq is well past the server's: an answer numbered by the
     # client's counter shows here (R-RCTP-3).
     cseq, sent = answer.headers.get("CSeq"), str(server.probe.cseq)

@@ -6,6 +6,7 @@ D-RCTP-20, D-RCTP-21)."""
 from __future__ import annotations
 
 import asyncio
+import random
 
 from rcmlconf.conformance.cases.rctp_client_scenario import scenario_case
 from rcmlconf.conformance.cases.rctp_client_streams import (
@@ -19,7 +20,7 @@ from rcmlconf.conformance.cases.rctp_streams import UNKNOWN_TYPE
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.played import PlayedServer
 from rcmlconf.conformance.probes.played_stream import STREAM_ID, PlayedStream
-from rcmlconf.conformance.probes.stream import StreamProbe
+from rcmlconf.conformance.probes.stream import Datagram, StreamProbe
 from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.rcml.model import AccessNode, DataNode
 from rcmlconf.rctp.bodies import ValuesCodec
@@ -40,6 +41,9 @@ from rcmlconf.wording import plural
 #: How long the client's DATA is watched after it answered a server BYE or STOP: ten write
 #: intervals of the harness's robot.
 WATCH = 0.5
+#: How far ahead of the newest the stale packet of stream-stale-not-taken is numbered: over
+#: half the numbers, so behind it (D-RCTP-21).
+FAR = 40000
 
 
 @scenario_case(
@@ -68,17 +72,23 @@ async def stream_echo(ctx: Context) -> None:
 
 @scenario_case(
     "rctp/client/stream-stale-not-taken",
-    "DATA in a packet that is not newer than one already taken (older, or the same number again)"
-    " is not taken: an older value never replaces a newer one",
+    "DATA in a packet that is not newer than one already taken (older, the same number again, or"
+    f" {FAR} ahead, which is {0x10000 - FAR} behind) is not taken: an older value never replaces"
+    " a newer one",
     ["R-RCTP-43"],
 )
 async def stream_stale_not_taken(ctx: Context) -> None:
-    server, stream, access, codec, newer = await _hushed(ctx)
-    marks = _marks(ctx, access, 2)
+    # D-RCTP-21 compares numbers as serial numbers (RFC 1982): a client comparing them as plain
+    # integers takes the packet FAR ahead, which it must not, when every number the played
+    # server sent is below it. A start (random, D-RCTP-19) low enough leaves room for that.
+    start = random.Random(ctx.impairment_seed("start")).randrange(1, 0x10000 - FAR - 1000)
+    server, stream, access, codec, newer = await _hushed(ctx, start)
+    marks = _marks(ctx, access, 3)
     sequence = stream.probe.last_sequence  # the newer packet's
     sent = [
         (sequence, {**newer, **marks[0]}, "the packet with its number again"),
         ((sequence - 1) & 0xFFFF, {**newer, **marks[1]}, "the older packet"),
+        ((sequence + FAR) & 0xFFFF, {**newer, **marks[2]}, f"the packet {FAR} ahead"),
     ]
     for number, values, _ in sent:
         stream.probe.send_packet([DataPayload(STREAM_ID, codec.encode(values))], sequence=number)
@@ -87,7 +97,7 @@ async def stream_stale_not_taken(ctx: Context) -> None:
 
 @scenario_case(
     "rctp/client/stream-out-of-range-not-taken",
-    "DATA holding a value outside its node's range is not taken",
+    "DATA holding a value outside its node's range is not taken, not even its other values",
     ["R-RCTP-58"],
 )
 async def stream_out_of_range(ctx: Context) -> None:
@@ -98,7 +108,12 @@ async def stream_out_of_range(ctx: Context) -> None:
     node = ranged[0]
     assert node.maximum is not None
     over = node.maximum * 2 + 1
-    beyond = {**newer, node.name: over}
+    # The other nodes' values differ from those taken: a client that applies the values within
+    # range and skips the one outside (not together, R-RCTP-58) shows them.
+    mark = _marks(ctx, access, 1)[0]
+    if node.name in mark:
+        ctx.cannot_check(f"values applied together: {node.name} is the only node to mark")
+    beyond = {**newer, **mark, node.name: over}
     for _ in range(3):
         stream.probe.send_packet([DataPayload(STREAM_ID, codec.encode(beyond))])
     outside = f"those with {node.name}={over:g}, outside {node.minimum} to {node.maximum}"
@@ -122,12 +137,7 @@ async def stream_foreign_packets_dropped(ctx: Context) -> None:
     kinds = ["version 3", "another tag", "another port"]
     sent, asked = [], []
     for kind, mark in zip(kinds, marks, strict=True):
-        values = {**newer, **mark}
-        beat = HeartbeatRequest(probe.next_request_id(), stream.robot_time())
-        payloads: list[Payload] = [
-            DataPayload(STREAM_ID, codec.encode(values)),
-            FlowPayload(0, beat),
-        ]
+        values, beat, payloads = _to_drop(stream, codec, {**newer, **mark})
         if kind == "version 3":
             data = bytearray(probe.packet_bytes(payloads))
             data[0] = 3
@@ -139,9 +149,53 @@ async def stream_foreign_packets_dropped(ctx: Context) -> None:
         sent.append((values, f"the packet of {kind}"))
         asked.append((beat.request_id, kind))
     await _judge_echo(ctx, server, stream, access, newer, sent)
+    _unanswered(ctx, stream.received + other.drain(), asked)
+
+
+@scenario_case(
+    "rctp/client/stream-broken-framing-dropped",
+    "Packets whose framing is broken (a payload count above their payloads, stray bytes after"
+    " them) are dropped whole: their DATA is never taken, their heartbeats never answered",
+    ["R-RCTP-42"],
+)
+async def stream_broken_framing_dropped(ctx: Context) -> None:
+    server, stream, access, codec, newer = await _hushed(ctx)
+    probe = stream.probe
+    sent, asked = [], []
+    for kind, mark in zip(_BROKEN, _marks(ctx, access, len(_BROKEN)), strict=True):
+        values, beat, payloads = _to_drop(stream, codec, {**newer, **mark})
+        # The DATA and the heartbeat come first: a client that walks the payloads and finds the
+        # framing broken only after them has already taken them.
+        probe.send(_BROKEN[kind](probe.packet_bytes(payloads)))
+        sent.append((values, f"the packet with {kind}"))
+        asked.append((beat.request_id, kind))
+    await _judge_echo(ctx, server, stream, access, newer, sent)
+    _unanswered(ctx, stream.received, asked)
+
+
+#: Ways to break a packet's framing (D-RCTP-19), by what is wrong.
+_BROKEN = {
+    "a payload count one above its payloads": lambda data: (
+        data[:1] + bytes([data[1] + 1]) + data[2:]
+    ),
+    "3 stray bytes after its payloads": lambda data: data + b"\x01\x01\x00",
+}
+
+
+def _to_drop(
+    stream: PlayedStream, codec: ValuesCodec[DataNode], values: dict[str, Value]
+) -> tuple[dict[str, Value], HeartbeatRequest, list[Payload]]:
+    """The payloads of a packet the client must drop (R-RCTP-42): DATA of `values`, then a
+    heartbeat; the values and the heartbeat, to show it was not taken nor answered."""
+    beat = HeartbeatRequest(stream.probe.next_request_id(), stream.robot_time())
+    return values, beat, [DataPayload(STREAM_ID, codec.encode(values)), FlowPayload(0, beat)]
+
+
+def _unanswered(ctx: Context, received: list[Datagram], asked: list[tuple[int, str]]) -> None:
+    """R-RCTP-42: none of the heartbeats `asked` (request id, the packet's kind) was answered."""
     answered = {
         p.flow.request_id
-        for one in stream.received + other.drain()
+        for one in received
         if one.packet is not None
         for p in one.packet.payloads
         if isinstance(p, FlowPayload) and p.flow.message is not Message.REQUEST
@@ -153,6 +207,23 @@ async def stream_foreign_packets_dropped(ctx: Context) -> None:
         f"an answer to the heartbeat of {', '.join(wrongly)}",
         "R-RCTP-42",
     )
+
+
+@scenario_case(
+    "rctp/client/stream-undecodable-not-taken",
+    "DATA whose body is one byte too long or one byte short is not taken",
+    ["R-RCTP-58"],
+)
+async def stream_undecodable_not_taken(ctx: Context) -> None:
+    server, stream, access, codec, newer = await _hushed(ctx)
+    long, short = ({**newer, **mark} for mark in _marks(ctx, access, 2))
+    sent = [
+        (codec.encode(long) + b"\x00", long, "the DATA a byte too long"),
+        (codec.encode(short)[:-1], short, "the DATA a byte short"),
+    ]
+    for body, _, _ in sent:
+        stream.probe.send_packet([DataPayload(STREAM_ID, body)])
+    await _judge_echo(ctx, server, stream, access, newer, [(v, what) for _, v, what in sent])
 
 
 @scenario_case(
@@ -192,6 +263,24 @@ async def stop_while_streaming(ctx: Context) -> None:
     await server.reach("BYE")  # D-RCTP-31: a STOP ends the stream's step; the run goes on
 
 
+@scenario_case(
+    "rctp/client/stop-while-paused",
+    "A server STOP of the stream while it is paused (ready, D-RCTP-14: a STOP of a set-up"
+    " access) is answered 200",
+    ["R-RCTP-24"],
+)
+async def stop_while_paused(ctx: Context) -> None:
+    server, _, access = await until_playing(ctx)
+    paused = await server.reach("PAUSE", access.path)
+    if paused is None or paused.status != 200:
+        raise Inconclusive(f"the client did not PAUSE {access.path} (D-RCTP-31 step 6)")
+    # Sent as the PAUSE's answer leaves: the client waits 0.25 s before its GO (step 6).
+    probe = server.probe
+    await probe.send(probe.request_bytes("STOP", format_target(access.path), [("Reason", "test")]))
+    ctx.expect_status(await server.answer(), 200, "R-RCTP-24", what=f"STOP {access.path}, paused")
+    await server.reach("BYE")
+
+
 async def _ended_while_streaming(
     ctx: Context, method: str, target: str | None, reason: str, requirement: str
 ) -> PlayedServer:
@@ -219,13 +308,13 @@ async def _ended_while_streaming(
 
 
 async def _hushed(
-    ctx: Context,
+    ctx: Context, start: int | None = None
 ) -> tuple[PlayedServer, PlayedStream, AccessNode, ValuesCodec[DataNode], dict[str, Value]]:
-    """The scenario up to its stream's GO, the played robot's own DATA stopped (the case's
-    packets are the only ones), and a good packet sent: the server, the stream, its access, the
-    codec of the robot's DATA, and the good packet's values (its number is the probe's
-    `last_sequence`)."""
-    server, stream, access = await until_playing(ctx)
+    """The scenario up to its stream's GO (the played server's packets numbered from `start`,
+    if given), the played robot's own DATA stopped (the case's packets are the only ones), and a
+    good packet sent: the server, the stream, its access, the codec of the robot's DATA, and the
+    good packet's values (its number is the probe's `last_sequence`)."""
+    server, stream, access = await until_playing(ctx, start=start)
     stream.sending = False
     codec = stream_codec(access, Direction.READ)
     newer = {n.name: visible(n) for n in codec.nodes}

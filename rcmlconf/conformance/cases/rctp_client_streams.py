@@ -31,6 +31,7 @@ from rcmlconf.rctp.datastream import (
     IntervalSetAck,
     Nack,
     NackReason,
+    TimeoutSet,
     UnknownRequest,
     stream_codec,
 )
@@ -60,13 +61,18 @@ def stream_access(ctx: Context) -> AccessNode:
 
 
 async def until_playing(
-    ctx: Context, holds: Mapping[str, float] | None = None
+    ctx: Context, holds: Mapping[str, float] | None = None, start: int | None = None
 ) -> tuple[PlayedServer, PlayedStream, AccessNode]:
     """The scenario run up to the GO of its stream (step 6), the played server holding its
-    answers to the methods of `holds` that long from the start."""
+    answers to the methods of `holds` that long from the start, and numbering its packets from
+    `start` if given (else from its random start)."""
     access = stream_access(ctx)
     server = await played(ctx)
     server.holds.update(holds or {})
+    if start is not None:
+        await server.reach("SETUP", access.path)
+        if server.stream is not None and not server.stream.received:  # nothing sent yet
+            server.stream.probe.sequence = start
     go = await server.reach("GO", access.path)
     if go is None or server.stream is None:
         raise Inconclusive(f"the client did not SETUP and GO {access.path} (D-RCTP-31 step 6)")
@@ -278,7 +284,8 @@ async def _slower(ctx: Context, stream: PlayedStream, access: AccessNode) -> tup
     "rctp/client/flow-answers",
     "The client answers FLOW requests: get interval with its write interval, a set below the"
     " RCML's with NACK 3, a repeated id with the answer already given (after the interval"
-    " changed), an unknown operation with NACK 1",
+    " changed), a read timeout below twice the read interval with NACK 3, an unknown operation"
+    " with NACK 1",
     ["R-RCTP-46", "R-RCTP-47", "R-RCTP-53", "R-RCTP-52"],
 )
 async def flow_answers(ctx: Context) -> None:
@@ -316,6 +323,17 @@ async def flow_answers(ctx: Context) -> None:
         f"the answer already given, {flow_text(first)} (not the interval now in force)",
         flow_text(again),
         "R-RCTP-46",
+    )
+    # D-RCTP-22: the client receives the read direction, so it owns its timeout too.
+    reads = micros(access.read_interval or 0.0)
+    short_timeout = TimeoutSet(probe.next_request_id(), Direction.READ, reads * 3 // 2)
+    refused = await stream.ask(short_timeout, STREAM_ID)
+    ctx.expect(
+        isinstance(refused, Nack) and refused.reason is NackReason.VALUE_REFUSED,
+        f"NACK 3 (value refused): a read timeout of {reads * 3 // 2} us, below twice the read"
+        f" interval of {reads} us",
+        flow_text(refused),
+        "R-RCTP-47",
     )
     unknown = UnknownRequest(probe.next_request_id(), UNKNOWN_OPERATION, b"\x01\x02\x03")
     nack = await stream.ask(unknown, STREAM_ID)

@@ -1,0 +1,104 @@
+"""The client cases the MUST-by-MUST audit added or tightened (bench/audit_rctp_client.md): each
+fails a reference client made to make the fault it is aimed at, naming the requirement that
+fault breaks (the reference and the independent client of tests/foreign/rctp_client pass them:
+tests/foreign/test_foreign.py). The faulty client is a copy of the package with one line changed
+(`mutated`), started by the installed harness for the case (`--client-command`) as a client
+author's CI starts theirs. Real processes on loopback."""
+
+from __future__ import annotations
+
+import json
+import shlex
+import sys
+from pathlib import Path
+
+import pytest
+from conformance.test_local_receiving import mutated
+from support.processes import free_pair, run_command
+
+#: (module under rcmlconf/, the line, the line as the fault reads, the case, the requirement it
+#: must fail naming).
+FAULTS = {
+    # The read timeout's owner takes any timeout (D-RCTP-22, R-RCTP-47's second half).
+    "any-timeout-set": (
+        "rctp/datastream/endpoint.py",
+        "        if request.timeout < 2 * stream.intervals[request.direction]:  # R-RCTP-47",
+        "        if False:  # R-RCTP-47",
+        "rctp/client/flow-answers",
+        "R-RCTP-47",
+    ),
+    # A decoder that stops at the last value and takes the body whatever follows.
+    "trailing-bytes-ignored": (
+        "rctp/bodies.py",
+        "        if not buf.eof():",
+        "        if False:",
+        "rctp/client/stream-undecodable-not-taken",
+        "R-RCTP-58",
+    ),
+    # A packet parser that takes the payloads it found, whatever follows them.
+    "stray-bytes-ignored": (
+        "rctp/datastream/packets.py",
+        "    if position != size:",
+        "    if False:",
+        "rctp/client/stream-broken-framing-dropped",
+        "R-RCTP-42",
+    ),
+    # Sequence numbers compared as plain integers, not serial numbers (D-RCTP-21, RFC 1982).
+    "plain-comparison": (
+        "rctp/datastream/order.py",
+        "        if self._seen[sequence]:",
+        "        if sequence > highest & _MASK:\n            return _NEWER\n"
+        "        if self._seen[sequence]:",
+        "rctp/client/stream-stale-not-taken",
+        "R-RCTP-43",
+    ),
+    # A request line's limit off by one: 4,096 bytes refused (414).
+    "start-line-off-by-one": (
+        "rctp/reader.py",
+        "        if len(lines[0]) > self.limits.start_line:",
+        "        if len(lines[0]) >= self.limits.start_line:",
+        "rctp/client/request-at-limits",
+        "R-RCTP-68",
+    ),
+    # Only CSeq checked for repetition among the fields that appear once.
+    "only-cseq-once": (
+        "rctp/connection.py",
+        "            if names.count(name.lower()) > 1:",
+        '            if name == "CSeq" and names.count(name.lower()) > 1:',
+        "rctp/client/session-twice",
+        "R-RCTP-11",
+    ),
+    # A STOP taken only while playing, not while paused (D-RCTP-14).
+    "stop-of-ready-refused": (
+        "rctp/states.py",
+        '    (_T.READY, "STOP"): _T.INIT,\n',
+        "",
+        "rctp/client/stop-while-paused",
+        "R-RCTP-24",
+    ),
+    # A push must list every node of its access (D-RCTP-27 lists those changed).
+    "push-of-all-nodes-only": (
+        "reference/client/session.py",
+        "        if not set(names) <= by_name.keys():",
+        "        if set(names) != by_name.keys():",
+        "rctp/client/event-push-one-node",
+        "R-RCTP-24",
+    ),
+}
+
+
+@pytest.mark.parametrize("fault", sorted(FAULTS))
+def test_the_case_fails_a_client_with_the_fault(fault: str, tmp_path: Path) -> None:
+    module, line, wrong, case, requirement = FAULTS[fault]
+    copy = mutated(tmp_path, module, (line, wrong))
+    # -P: the copy, not the package of the directory the harness runs in (D-RCTP-31's client).
+    client = ["env", f"PYTHONPATH={copy}", sys.executable, "-P", "-m", "rcmlconf", "client"]
+    report = tmp_path / "report.json"
+    run_command(
+        "run",
+        *("--role", "client", "--listen", str(free_pair())),
+        *("--client-command", shlex.join(client) + " {url} scenario"),
+        *("--only", case, "--json", str(report)),
+    )
+    (result,) = json.loads(report.read_text())["results"]
+    assert (result["verdict"], result["requirement"]) == ("fail", requirement), result
