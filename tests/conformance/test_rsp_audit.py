@@ -5,10 +5,17 @@ the unmutated reference passing the same cases is tests/conformance/test_referen
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import pytest
+import support.processes
 from conformance.test_local_receiving import mutated, run
+from support.processes import running
+
+#: The independent robot's model: every kind, and an onLoss=hold effector with a monitor (`mast`),
+#: which CUBO lacks; the reference robot serves it with a generic body.
+WEEDER = Path(__file__).parents[1] / "foreign" / "rsp_robot" / "robot.rmodel"
 
 #: SessionWire.build's header field and its sealing, as the reference has them.
 _ENCRYPTION_FIELD = "                self.encryption,\n                kind,\n"
@@ -167,3 +174,28 @@ def test_a_robot_timing_the_session_from_welcome_fails_timeout_bye(tmp_path: Pat
     case = "rsp/session/timeout-bye"
     result = run(tmp_path, "--only", case, python=copy)[case]
     assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-22"), result
+
+
+def test_a_robot_stopping_every_effector_on_loss_fails_link_loss_holds(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """R-RSP-36, D-RSP-20: the reference robot made to stop every effector while the link is
+    lost, onLoss ignored, serving the independent robot's model (CUBO has no monitored effector
+    that holds: the case is not applicable to it). rsp/motion/link-loss-stops, all there was,
+    checks only the onLoss=zero half."""
+    copy = mutated(
+        tmp_path,
+        "rsp/motion.py",
+        ("            if effector.device.on_loss is OnLoss.ZERO:", "            if True:"),
+    )
+    monkeypatch.setattr(support.processes, "COMMAND", [sys.executable, "-m", "rcmlconf"])
+    monkeypatch.setenv("PYTHONPATH", str(copy))
+    monkeypatch.chdir(copy)
+    cases = ["rsp/motion/link-loss-holds", "rsp/motion/link-loss-stops"]
+    with running(tmp_path, "robot", str(WEEDER), "--port", "0") as robot:
+        target = ["--rsp-target", f"127.0.0.1:{robot.ready['port']}", "--model", str(WEEDER)]
+        only = [option for case in cases for option in ("--only", case)]
+        results = run(tmp_path, *target, *only, python=copy)
+    holds, stops = (results[case] for case in cases)
+    assert (holds["verdict"], holds["requirement"]) == ("fail", "R-RSP-36"), holds
+    assert stops["verdict"] == "pass", stops

@@ -1,7 +1,7 @@
 """rsp/session and rsp/motion cases that time the robot against its period T (D-RSP-13): its
 UPLINKs at a T of more than a second, from HELLO and from PERIOD (R-RSP-42), and the stop of its
-onLoss=zero effectors 25 periods into a silence (D-RSP-20; R-RSP-34, R-RSP-36). The harness plays
-the local system.
+onLoss=zero effectors 25 periods into a silence, while the others hold (D-RSP-20; R-RSP-34,
+R-RSP-36). The harness plays the local system.
 
 Every other robot case runs at the model's T, tens of milliseconds; D-RSP-13 allows 5 ms to 10 s.
 A robot whose clock goes wrong only at a slow T (a beat multiplied or raised by T where it should
@@ -281,4 +281,35 @@ def _held(ctx: Context, driven: Driven, moved: tuple[Datagram, Mapping[str, Valu
         f" ({LOST_PERIODS * period * 1000:g} ms) after the last packet the robot heard (#{heard})",
         f"{', '.join(values_text(driven.effector.fields, values))} after {ms([held])}",
         "R-RSP-34",
+    )
+
+
+@case(
+    "rsp/motion/link-loss-holds",
+    f"An onLoss=hold effector keeps its value through a silence of more than {LOST_PERIODS}"
+    f"+{STOP_PERIODS} periods (only onLoss=zero ones stop)",
+    ["R-RSP-36"],
+    role=Role.ROBOT,
+)
+async def link_loss_holds(ctx: Context) -> None:
+    driven = await drive(ctx, lambda e: e.on_loss is OnLoss.HOLD)
+    probe, monitor = driven.probe, driven.monitor
+    period = driven.opened.period
+    await driven.settled()
+    start, since = probe.mark(), probe.now
+    probe.muted = True
+    # Past where an onLoss=zero effector is seen stopped (D-RSP-20, rsp/motion/link-loss-stops's
+    # bound, the harness's lag included), from the last datagram sent.
+    lost = (LOST_PERIODS + STOP_PERIODS) * period + 2 * probe.quiet
+    while probe.now < (end := probe.sent[-1][0] + lost):
+        await probe.listen(end - probe.now)
+    uplinks = probe.packets(PacketType.UPLINK, after=start)
+    reports = [d for d in uplinks if values_of(d, monitor) is not None]
+    if not reports or reports[-1].at < probe.sent[-1][0] + LOST_PERIODS * period:
+        raise Inconclusive(f"no report of {monitor.name} once the link was lost")
+    moved = await driven.moved(since)
+    ctx.expect(
+        moved is None,
+        f"{monitor.name} holding {driven.wanted} while the link is lost (onLoss hold, D-RSP-20)",
+        str(dict(moved)) if moved is not None else "",
     )
