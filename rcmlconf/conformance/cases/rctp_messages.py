@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from rcmlconf.conformance.cases.rctp_grammar import HEADER_SECTION, _filler, _refused_and_closed
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.registry import case
@@ -119,3 +120,19 @@ async def bad_request_line(ctx: Context) -> None:
     ctx.expect_status(await probe.response(), 400)
     closed = await probe.closes()
     ctx.expect(closed, "the connection closed", "it stayed open")
+
+
+@case(
+    "rctp/msg/header-section-unbounded",
+    "A header line that passes 16384 bytes without ending is answered 431 without waiting for its"
+    " end, and the connection closed",
+    ["R-RCTP-16"],
+)
+async def header_section_unbounded(ctx: Context) -> None:
+    # D-RCTP-9: a receiver stops reading at a limit. One that reads a head up to its empty line
+    # and only then measures it buffers without bound and never answers; past the section's
+    # limit the line has passed the header line's too, so either limit answers it.
+    probe = await ctx.control()
+    head = f"CONNECT {ctx.target.site_path} RCTP/2.0\r\nCSeq: 1\r\nX-Rcmlconf-Pad: ".encode()
+    data = head + _filler(HEADER_SECTION + 1).encode()
+    await _refused_and_closed(ctx, probe, data, 431, "R-RCTP-16")
