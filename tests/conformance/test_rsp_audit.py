@@ -199,3 +199,21 @@ def test_a_robot_stopping_every_effector_on_loss_fails_link_loss_holds(
     holds, stops = (results[case] for case in cases)
     assert (holds["verdict"], holds["requirement"]) == ("fail", "R-RSP-36"), holds
     assert stops["verdict"] == "pass", stops
+
+
+@pytest.mark.parametrize("case", ["rsp/reliable/memory-command-once", "rsp/local/event-old-id"])
+def test_a_receiver_taking_half_the_id_space_ahead_as_old_fails(tmp_path: Path, case: str) -> None:
+    """R-RSP-25, D-RSP-16: the reference's occurrences made new only when 1 to half the ID space
+    less one ahead (RFC 1982's strict reading, which D-RSP-16 settles the other way): its robot
+    does not take such a memory command, its local system such an event. The cases checked only
+    that a quarter of the space behind is old."""
+    copy = mutated(
+        tmp_path,
+        "rsp/reliable.py",
+        (
+            "(occurrence_id - last) % self._space <= self._half",
+            "(occurrence_id - last) % self._space < self._half",
+        ),
+    )
+    result = run(tmp_path, "--only", case, python=copy)[case]
+    assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-25"), result

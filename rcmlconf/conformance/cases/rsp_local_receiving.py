@@ -470,7 +470,7 @@ async def late_buffer_ignored(ctx: Context) -> None:
 
 @local_case(
     "rsp/local/event-old-id",
-    "An event whose ID is behind the last taken, by the model's ID length, is not taken again",
+    "An event whose ID is behind the last taken is not taken again; one half the ID space ahead is",
     ["R-RSP-25"],
 )
 async def event_old_id(ctx: Context) -> None:
@@ -507,6 +507,14 @@ async def event_old_id(ctx: Context) -> None:
     )
     if not await issued_for(1):
         raise Inconclusive(f"no {command.name} issued for {event.name} #1, new after #0")
+    # D-RSP-16's other edge: exactly half the space ahead is new (RFC 1982 leaves it undefined).
+    edge = (1 + space // 2) % space
+    ctx.expect(
+        bool(await issued_for(edge)),
+        f"{event.name} #{edge} new: half the ID space ahead of #1 (D-RSP-16), taken: one"
+        f" {command.name} command for it",
+        "no command for it",
+    )
 
 
 # -- R-RSP-26: at once -----------------------------------------------------------------------------

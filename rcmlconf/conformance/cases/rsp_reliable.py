@@ -234,7 +234,8 @@ async def two_reliable_at_once(ctx: Context) -> None:
 
 @case(
     "rsp/reliable/memory-command-once",
-    "A memory command repeated with its ID, or an old ID, is acknowledged again; takes no buffer",
+    "A memory command repeated with its ID, or an old ID, is acknowledged again and takes no"
+    " buffer; one half the ID space ahead is new",
     ["R-RSP-25", "R-RSP-26"],
     role=Role.ROBOT,
 )
@@ -265,6 +266,17 @@ async def memory_command_once(ctx: Context) -> None:
     )
     then = (await _take(ctx, probe, raw, memory, 2)).header.buffer
     ctx.expect(then == first_take - 1, f"{first_take - 1} free after #2", f"{then}", "R-RSP-25")
+    if then == 0:
+        return  # no buffer left for the edge below
+    # D-RSP-16's edge: exactly half the ID space ahead is new (RFC 1982 leaves it undefined).
+    edge = (2 + (1 << bits) // 2) % (1 << bits)
+    past = (await _take(ctx, probe, raw, memory, edge)).header.buffer
+    ctx.expect(
+        past == then - 1,
+        f"{then - 1} free after #{edge}: half the ID space ahead of #2 is new (D-RSP-16), taken",
+        f"{past} free",
+        "R-RSP-25",
+    )
 
 
 @case(
