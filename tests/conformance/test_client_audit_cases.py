@@ -84,6 +84,30 @@ FAULTS = {
         "rctp/client/event-push-one-node",
         "R-RCTP-24",
     ),
+    # A FLOW request whose fields do not fit its operation answered as an unknown operation.
+    "nack-1-for-malformed": (
+        "rctp/datastream/packets.py",
+        "        return NackReason.MALFORMED\n",
+        "        return NackReason.UNKNOWN_OPERATION\n",
+        "rctp/client/flow-answers",
+        "R-RCTP-53",
+    ),
+    # A target's segments not checked for XML Names (D-RCTP-7).
+    "target-names-unchecked": (
+        "rctp/targets.py",
+        "        if not is_name(name):",
+        "        if not name:",
+        "rctp/client/bad-target",
+        "R-RCTP-15",
+    ),
+    # Nodes checked for repeated names, not for their order (D-RCTP-17).
+    "nodes-order-unchecked": (
+        "rctp/fields.py",
+        "    if list(names) != sorted(set(names)):",
+        "    if len(names) != len(set(names)):",
+        "rctp/client/event-push-nodes-backwards",
+        "R-RCTP-30",
+    ),
 }
 
 

@@ -198,15 +198,18 @@ async def unknown_field(ctx: Context) -> None:
 
 @client_case(
     "rctp/client/bad-target",
-    "The client answers a server request whose target is neither *, / nor a node path with 400",
+    "The client answers a server request whose target is neither *, / nor a node path (no"
+    " leading /, a segment that is no XML Name) with 400",
     ["R-RCTP-15"],
 )
 async def bad_target(ctx: Context) -> None:
     probe, _ = await ctx.client_session()
-    # D-RCTP-7: a node path begins with `/`; a STOP is what a client would answer otherwise.
-    bare = event_path(ctx).lstrip("/")
-    answer = await answer_to(ctx, probe, probe.request_bytes("STOP", bare, [("Reason", "test")]))
-    ctx.expect_status(answer, 400, "R-RCTP-15")
+    # D-RCTP-7: a node path begins with `/`, and each segment decodes to an XML Name; a STOP is
+    # what a client would answer otherwise (455, R-RCTP-68).
+    for target in (event_path(ctx).lstrip("/"), "/9lives"):
+        request = probe.request_bytes("STOP", target, [("Reason", "test")])
+        answer = await answer_to(ctx, probe, request)
+        ctx.expect_status(answer, 400, "R-RCTP-15", what=f"STOP {target}")
 
 
 #: Answers to CONNECT that cannot be framed (D-RCTP-4, D-RCTP-10), by case.

@@ -493,6 +493,19 @@ async def event_push_one_node(ctx: Context) -> None:
     push.written_back(ctx, push.pushed, "the one pushed value with the others it had")
 
 
+@scenario_case(
+    "rctp/client/event-push-nodes-backwards",
+    "A data-change WRITE whose Nodes lists its nodes out of canonical order (its body in"
+    " canonical order) is refused with 400 and not taken",
+    ["R-RCTP-30", "R-RCTP-61"],
+)
+async def event_push_nodes_backwards(ctx: Context) -> None:
+    # A client that sorts the names it is given, as a decoder of canonical bodies does, takes it.
+    push = await _push(ctx, lambda pushed, codec: codec.encode(pushed), backwards=True)
+    ctx.expect_status(push.answer, 400, "R-RCTP-30", what="Nodes out of canonical order")
+    push.written_back(ctx, push.before, "the values it had before: the refused push not taken")
+
+
 @dataclass
 class _Push:
     """What step 5 gave with a data-change WRITE: the values the client had before it and those
@@ -515,11 +528,12 @@ async def _push(
     body: Callable[[dict[str, Value], ValuesCodec[DataNode]], bytes],
     extra: str | None = None,
     one_node: bool = False,
+    backwards: bool = False,
 ) -> _Push:
     """Step 5 with a data-change WRITE of the event access once it plays, its body made by
     `body` from values at the high edge of each node it lists (every writable node, or with
-    `one_node` the middle one in canonical order; its `Nodes` naming `extra` too, if given); the
-    scenario is then run to its BYE."""
+    `one_node` the middle one in canonical order; its `Nodes` naming `extra` too, if given, and
+    listing them `backwards` if told); the scenario is then run to its BYE."""
     access = event_access(ctx)
     server = await played(ctx)
     go = await server.reach("GO", access.path)
@@ -533,6 +547,8 @@ async def _push(
     pushed = {**before, **{n.name: edge(n, high=True) for n in listed.nodes}}
     values = pushed if listed is codec else {name: pushed[name] for name in listed.names}
     names = sorted([*listed.names, *([extra] if extra else [])])  # canonical order, D-RCML-4
+    if backwards:
+        names.reverse()
     answer = await server.push(access, names, body(values, listed))
     # Mid-scenario the client's own CSeq is well past the server's: an answer numbered by the
     # client's counter shows here (R-RCTP-3).

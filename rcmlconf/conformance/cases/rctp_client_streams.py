@@ -33,6 +33,7 @@ from rcmlconf.rctp.datastream import (
     NackReason,
     TimeoutSet,
     UnknownRequest,
+    encode_flow,
     stream_codec,
 )
 from rcmlconf.rctp.datastream.clock import unix_from_ntp
@@ -99,8 +100,9 @@ def written(
 @scenario_case(
     "rctp/client/stream-packets",
     "The client's data-stream packets: version 2, the session's tag, payloads that fill the"
-    " datagram, DATA of exactly its writable values, numbered one more each time",
-    ["R-RCTP-39", "R-RCTP-40", "R-RCTP-41"],
+    " datagram, DATA of exactly its writable values, FLOW bodies of their layout, numbered one"
+    " more each time",
+    ["R-RCTP-39", "R-RCTP-40", "R-RCTP-41", "R-RCTP-52"],
 )
 async def stream_packets(ctx: Context) -> None:
     server, stream, access = await until_playing(ctx)
@@ -109,6 +111,13 @@ async def stream_packets(ctx: Context) -> None:
     for one in stream.received:
         if one.packet is None:
             ctx.expect(False, "packets of D-RCTP-19's layout", f"{one.error}", "R-RCTP-39")
+    for broken in stream.malformed[:1]:  # its heartbeats and FLOW answers too
+        ctx.expect(
+            False,
+            "FLOW bodies of D-RCTP-22's layout",
+            f"{broken.reason}: {broken.body.hex(' ')}",
+            "R-RCTP-52",
+        )
     if len(stream.data()) < ENOUGH_DATA:
         raise Inconclusive(f"the client sent {plural(len(stream.data()), 'DATA payload')}")
     _random_start(ctx, stream)
@@ -284,8 +293,8 @@ async def _slower(ctx: Context, stream: PlayedStream, access: AccessNode) -> tup
     "rctp/client/flow-answers",
     "The client answers FLOW requests: get interval with its write interval, a set below the"
     " RCML's with NACK 3, a repeated id with the answer already given (after the interval"
-    " changed), a read timeout below twice the read interval with NACK 3, an unknown operation"
-    " with NACK 1",
+    " changed), a read timeout below twice the read interval with NACK 3, a get interval with a"
+    " byte too many with NACK 5, an unknown operation with NACK 1",
     ["R-RCTP-46", "R-RCTP-47", "R-RCTP-53", "R-RCTP-52"],
 )
 async def flow_answers(ctx: Context) -> None:
@@ -334,6 +343,17 @@ async def flow_answers(ctx: Context) -> None:
         f" interval of {reads} us",
         flow_text(refused),
         "R-RCTP-47",
+    )
+    # D-RCTP-22: a get request's fields are its direction, one byte; one more does not fit.
+    extra = probe.next_request_id()
+    malformed = await stream.ask_broken(
+        encode_flow(IntervalGet(extra, Direction.WRITE)) + b"\x00", extra, STREAM_ID
+    )
+    ctx.expect(
+        isinstance(malformed, Nack) and malformed.reason is NackReason.MALFORMED,
+        "NACK 5 (malformed): a get interval with a byte after its direction",
+        flow_text(malformed),
+        "R-RCTP-53",
     )
     unknown = UnknownRequest(probe.next_request_id(), UNKNOWN_OPERATION, b"\x01\x02\x03")
     nack = await stream.ask(unknown, STREAM_ID)

@@ -315,9 +315,10 @@ class PlayedServer:
     # -- the server's own requests ------------------------------------------------------------
 
     async def push(self, access: AccessNode, names: Sequence[str], body: bytes) -> Response:
-        """A data-change WRITE of `access` (D-RCTP-27) listing `names`, with `body`, and the
-        client's answer; its own requests meanwhile are served."""
-        fields = [("Nodes", format_nodes(names))]
+        """A data-change WRITE of `access` (D-RCTP-27) listing `names` in their order (a case may
+        break D-RCTP-17's canonical order), with `body`, and the client's answer; its own
+        requests meanwhile are served."""
+        fields = [("Nodes", ", ".join(format_nodes([name]) for name in names))]
         await self.probe.send(
             self.probe.request_bytes("WRITE", format_target(access.path), fields, body)
         )

@@ -170,9 +170,19 @@ class PlayedStream:
     async def ask(self, request: FlowMessage, stream: int = 0) -> FlowMessage:
         """Send a FLOW request of the played server's and return the client's ACK or NACK;
         none within the probe's wait fails R-RCTP-46."""
+        return await self._ask(FlowPayload(stream, request), request.request_id)
+
+    async def ask_broken(self, body: bytes, request_id: int, stream: int = 0) -> FlowMessage:
+        """`ask` with a FLOW body of the case's own, broken on purpose, whose request id is
+        `request_id`."""
+        return await self._ask(MalformedFlowPayload(stream, body, "sent broken", 0), request_id)
+
+    async def _ask(
+        self, payload: FlowPayload | MalformedFlowPayload, request_id: int
+    ) -> FlowMessage:
         waiter: asyncio.Future[FlowMessage] = asyncio.get_running_loop().create_future()
-        self._asked[request.request_id] = waiter
-        self.probe.send_packet([FlowPayload(stream, request)])
+        self._asked[request_id] = waiter
+        self.probe.send_packet([payload])
         try:
             return await asyncio.wait_for(waiter, self.probe.wait)
         except TimeoutError:
@@ -180,16 +190,16 @@ class PlayedStream:
                 broken = self.malformed[-1]
                 raise Failed(
                     "R-RCTP-52",
-                    f"an ACK or NACK of request {request.request_id} in D-RCTP-22's layout",
+                    f"an ACK or NACK of request {request_id} in D-RCTP-22's layout",
                     f"a FLOW body that breaks it: {broken.reason} ({broken.body.hex(' ')})",
                 ) from None
             raise Failed(
                 "R-RCTP-46",
-                f"an ACK or NACK of request {request.request_id}",
+                f"an ACK or NACK of request {request_id}",
                 f"nothing within {self.probe.wait:g} s",
             ) from None
         finally:
-            self._asked.pop(request.request_id, None)
+            self._asked.pop(request_id, None)
 
     def _answer(self, flow: FlowMessage, arrived: float) -> FlowMessage:
         """D-RCTP-22's answer of the owner of the read interval and the write timeout."""
