@@ -217,3 +217,23 @@ def test_a_receiver_taking_half_the_id_space_ahead_as_old_fails(tmp_path: Path, 
     )
     result = run(tmp_path, "--only", case, python=copy)[case]
     assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-25"), result
+
+
+def test_a_local_system_taking_packets_from_any_address_fails_other_address_dropped(
+    tmp_path: Path,
+) -> None:
+    """R-RSP-18, D-RSP-12: the reference local system made to read its socket unconnected, so
+    that a datagram from any address reaches its session (recvfrom without a look at the source,
+    a common slip); no local case sent from another address."""
+    copy = mutated(
+        tmp_path,
+        "reference/rsp/simulacrum.py",
+        (
+            "lambda: _Protocol(self), remote_addr=self.robot)",
+            'lambda: _Protocol(self), local_addr=("127.0.0.1", 0))',
+        ),
+        ("transport.sendto(data)\n", "transport.sendto(data, self.robot)\n"),
+    )
+    case = "rsp/local/other-address-dropped"
+    result = run(tmp_path, "--only", case, python=copy)[case]
+    assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-18"), result

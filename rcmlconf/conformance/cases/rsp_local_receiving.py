@@ -24,6 +24,7 @@ sent after the BYE is noted in the transcript of the case that waited.
 
 from __future__ import annotations
 
+import asyncio
 import math
 from collections.abc import Callable
 
@@ -118,6 +119,7 @@ async def malformed_then_taken(
     *,
     session_id: int | None = None,
     alter: Callable[[bytes], bytes] | None = None,
+    via: Callable[[bytes], object] | None = None,
     requirement: str = "R-RSP-18",
 ) -> None:
     """An UPLINK of `items`, `memory` #0 among them, made one the local system must drop
@@ -127,7 +129,7 @@ async def malformed_then_taken(
         probe,
         memory,
         lambda: probe.forged(
-            PacketType.UPLINK, MapBody(items), what, session_id=session_id, alter=alter
+            PacketType.UPLINK, MapBody(items), what, session_id=session_id, alter=alter, via=via
         ),
         what,
         lambda: probe.uplink(items),
@@ -193,6 +195,30 @@ async def other_session_dropped(ctx: Context) -> None:
         (occurrence(memory, 0),),
         f"an UPLINK naming session {other:#x}, not {probe.session_id:#x}",
         session_id=other,
+    )
+
+
+@local_case(
+    "rsp/local/other-address-dropped",
+    "An UPLINK of the session from another port is dropped; from the robot's, it is taken",
+    ["R-RSP-18", "R-RSP-26"],
+)
+async def other_address_dropped(ctx: Context) -> None:
+    memory = first(_model(ctx), DeviceKind.MEMORY_EVENT)
+    probe = await session(ctx)
+    host, robot_port = probe.listener.address
+    loop = asyncio.get_running_loop()
+    # D-RSP-12: a session's packets come from the one address; this socket is another port of it.
+    other, _ = await loop.create_datagram_endpoint(asyncio.DatagramProtocol, local_addr=(host, 0))
+    ctx.on_close(other.close)
+    port = other.get_extra_info("sockname")[1]
+    await malformed_then_taken(
+        ctx,
+        probe,
+        memory,
+        (occurrence(memory, 0),),
+        f"an UPLINK of the session from port {port}, not the robot's {robot_port}",
+        via=lambda data: other.sendto(data, probe.peer),
     )
 
 

@@ -662,11 +662,13 @@ class LocalProbe(DatagramLog):
         *,
         session_id: int | None = None,
         alter: Callable[[bytes], bytes] | None = None,
+        via: Callable[[bytes], object] | None = None,
     ) -> bytes:
         """The session's next packet from the robot made one the local system must drop unread
         (R-RSP-18): naming `session_id`, its body's bytes changed by `alter` (before sealing, in
-        an encrypted session: it authenticates, and is malformed all the same). Sent, `what` in
-        the transcript; the bytes sent."""
+        an encrypted session: it authenticates, and is malformed all the same), or sent by `via`
+        (from another address) rather than the probe. Sent, `what` in the transcript; the bytes
+        sent."""
         wire = self._wire(kind)
         index = wire.sent
         data = wire.build(kind, body, self.now, self.free, self.psk)
@@ -680,7 +682,12 @@ class LocalProbe(DatagramLog):
             rest = alter(rest)
         if sealer is not None:
             rest = sealer.seal(head, rest, index)
-        self.send(head + rest, f"{what}: {self._line(head + rest)}")
+        line = f"{what}: {self._line(head + rest)}"
+        if via is None:
+            self.send(head + rest, line)
+        else:
+            self.transcript.note(f"-> {line}")
+            via(head + rest)
         return head + rest
 
     def _wire(self, kind: PacketType) -> SessionWire:
