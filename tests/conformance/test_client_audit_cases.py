@@ -108,6 +108,23 @@ FAULTS = {
         "rctp/client/event-push-nodes-backwards",
         "R-RCTP-30",
     ),
+    # An answer when nothing is waiting for one skipped, not taken for the end of the connection.
+    "answer-to-nothing-skipped": (
+        "rctp/connection.py",
+        "        if not self._sent:\n",
+        "        if not self._sent:\n            return None\n        if False:\n",
+        "rctp/client/answer-to-nothing",
+        "R-RCTP-12",
+    ),
+    # A reader that drops what follows an answer in the same segment.
+    "rest-after-answer-dropped": (
+        "rctp/reader.py",
+        "        if not body:\n            return message\n",
+        "        if not body:\n            if isinstance(message, Response):\n"
+        "                self._buffer.clear()\n            return message\n",
+        "rctp/client/answer-and-request-together",
+        "R-RCTP-13",
+    ),
 }
 
 

@@ -17,17 +17,19 @@ from rcmlconf.conformance.flaws import Flaw, flawed
 from rcmlconf.conformance.probes.clients import case_path
 from rcmlconf.conformance.probes.played import (
     SCENARIO_TIME,
+    Own,
     PlayedServer,
     Seen,
     path_of,
     played,
 )
 from rcmlconf.conformance.registry import CaseFunction, Served
-from rcmlconf.conformance.verdicts import Inconclusive
+from rcmlconf.conformance.verdicts import Failed, Inconclusive
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, Permission
 from rcmlconf.rctp.bodies import ValuesCodec
 from rcmlconf.rctp.fields import format_nodes
 from rcmlconf.rctp.messages import Request, Response
+from rcmlconf.rctp.targets import format_target
 from rcmlconf.values import Kind, Scalar, Value
 from rcmlconf.values.binary import encode_value
 from rcmlconf.values.shown import value_text
@@ -179,6 +181,58 @@ async def targets_and_bye(ctx: Context) -> None:
         after,
         "R-RCTP-60" if after.startswith("it sent") else "R-RCTP-23",
     )
+
+
+@scenario_case(
+    "rctp/client/answer-to-nothing",
+    "The client closes the connection on an answer when none of its requests is unanswered (its"
+    " GO of the event access answered again, in step 5's quiet second)",
+    ["R-RCTP-12"],
+)
+async def answer_to_nothing(ctx: Context) -> None:
+    server, access, go = await _until_event_go(ctx)
+    # D-RCTP-10: an answer to no outstanding request cannot be answered; the receiver closes
+    # (within 1 s, D-RCTP-31). The client asks nothing for a second after its GO (step 5).
+    await server.probe.send(server.probe.response_bytes(go.request))
+    after = await server.probe.outcome(ctx.wait)
+    ctx.expect(
+        after == "closed",
+        f"the connection closed: a second answer to GO {access.path} answers nothing",
+        after,
+        "R-RCTP-12",
+    )
+
+
+@scenario_case(
+    "rctp/client/answer-and-request-together",
+    "The answer to the client's GO of the event access and a data-change WRITE of it in one"
+    " segment are both read: the WRITE is answered 200",
+    ["R-RCTP-13"],
+)
+async def answer_and_request_together(ctx: Context) -> None:
+    def together(server: PlayedServer, access: AccessNode) -> Own:
+        codec = ValuesCodec(access.writable(), access.path, "R-RCTP-28")
+        pushed = codec.encode({n.name: edge(n, high=True) for n in codec.nodes})
+        nodes = [("Nodes", format_nodes(codec.names))]
+
+        def own(request: Request) -> bytes | None:
+            if request.method != "GO" or path_of(request) != access.path:
+                return None
+            # A client that reads one message a read, and drops the rest, loses the WRITE.
+            write = server.probe.request_bytes("WRITE", format_target(access.path), nodes, pushed)
+            return server.probe.response_bytes(request) + write
+
+        return own
+
+    server, _, _ = await _until_event_go(ctx, together)
+    try:
+        answer = await server.answer()
+    except Failed as failed:  # an answer that never comes: the WRITE was not read
+        raise Failed(
+            "R-RCTP-13", "an answer to the WRITE in the GO answer's segment", failed.actual
+        ) from None
+    ctx.expect_status(answer, 200, "R-RCTP-13", what="the WRITE after the GO's answer")
+    await server.reach("BYE")
 
 
 @scenario_case(
@@ -534,11 +588,7 @@ async def _push(
     `body` from values at the high edge of each node it lists (every writable node, or with
     `one_node` the middle one in canonical order; its `Nodes` naming `extra` too, if given, and
     listing them `backwards` if told); the scenario is then run to its BYE."""
-    access = event_access(ctx)
-    server = await played(ctx)
-    go = await server.reach("GO", access.path)
-    if go is None:
-        raise Inconclusive(f"the client did not GO {access.path} (D-RCTP-31 step 5)")
+    server, access, _ = await _until_event_go(ctx)
     codec = ValuesCodec(access.writable(), access.path, "R-RCTP-28")
     before = {n.name: server.values[n.path] for n in codec.nodes}
     listed = codec
@@ -559,3 +609,19 @@ async def _push(
         raise Inconclusive(f"the client did not WRITE {access.path} after its PAUSE (step 5)")
     await server.reach("BYE")
     return _Push(before, pushed, answer, after, codec)
+
+
+async def _until_event_go(
+    ctx: Context, own: Callable[[PlayedServer, AccessNode], Own] | None = None
+) -> tuple[PlayedServer, AccessNode, Seen]:
+    """The scenario up to the GO of the event access of step 5, answered (by the answers `own`
+    makes of the played server and the access, until then, if given): the played server, the
+    access and the GO."""
+    access = event_access(ctx)
+    server = await played(ctx)
+    server.own = own(server, access) if own is not None else None
+    go = await server.reach("GO", access.path)
+    server.own = None
+    if go is None:
+        raise Inconclusive(f"the client did not GO {access.path} (D-RCTP-31 step 5)")
+    return server, access, go
