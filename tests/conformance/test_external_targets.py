@@ -30,7 +30,10 @@ def test_one_external_robot_serves_the_robot_cases_in_turn(tmp_path: Path) -> No
         )
     results = json.loads(report.read_text())["results"]
     assert len(results) >= 20  # in turn, they take longer than any one case's 5 s timeout
-    assert {r["verdict"] for r in results} == {"pass"}, done.stdout
+    # CUBO has no monitored effector that holds on link loss (D-RSP-8): that case does not apply.
+    verdicts = {r["case"]: r["verdict"] for r in results}
+    assert verdicts.pop("rsp/motion/link-loss-holds") == "not applicable", done.stdout
+    assert set(verdicts.values()) == {"pass"}, done.stdout
     assert done.returncode == 0
 
 
