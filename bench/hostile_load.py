@@ -27,10 +27,12 @@ do not touch), the READ prober's round trip (p99), STOP, BYE or a closed connect
 to a legitimate session, streams lost (no DATA for 0.5 s), tracebacks and lines in the server's
 standard error, its RSS and open file descriptors (the most seen, /proc), its CPU, what other
 processes took of the machine's CPUs meanwhile (`others`, in CPUs: the noise of a shared machine),
-datagrams the kernel dropped at its data port, the attackers' CPU, and the recovery: how long after
-the attack ended the figures, in 0.5 s bins, were back to the alone row's for good (gap p99 within
-1.5 times its p99 plus 1 ms, READ within twice its p99 plus 1 ms). Then the issue's goals beside the
-figures, and the anchor: the alone row of the same run, since the machine is shared and noisy.
+the longest the server waited for a CPU within 0.25 s, ready to run (`waited`, ms, the kernel's
+schedstat: a gap about as long is the machine's doing, not the server's), datagrams the kernel
+dropped at its data port, the attackers' CPU, and the recovery: how long after the attack ended the
+figures, in 0.5 s bins, were back to the alone row's for good (gap p99 within 1.5 times its p99 plus
+1 ms, READ within twice its p99 plus 1 ms). Then the issue's goals beside the figures, and the
+anchor: the alone row of the same run, since the machine is shared and noisy.
 
     python bench/hostile_load.py                     # 20 s a row, the mix 60 s, 10 s recovery
     python bench/hostile_load.py --only pipelining --seconds 10
@@ -174,6 +176,15 @@ def cpu_busy() -> float:
     return 0.0
 
 
+def run_delay(pid: int) -> float:
+    """Seconds the main thread of `pid` has waited on a run queue, ready but not running (the
+    kernel's schedstat); 0 where unknown."""
+    try:
+        return int(Path(f"/proc/{pid}/schedstat").read_text().split()[1]) / 1e9
+    except (OSError, ValueError, IndexError):
+        return 0.0
+
+
 def open_fds(pid: int) -> int:
     try:
         return len(os.listdir(f"/proc/{pid}/fd"))
@@ -195,6 +206,8 @@ class Sample(NamedTuple):
     drops: int
     #: Seconds the machine's CPUs were busy, or stolen by the hypervisor, whoever ran.
     busy: float
+    #: Seconds the server's loop (its main thread) was ready to run but waited for a CPU.
+    waited: float
 
 
 @dataclass
@@ -304,6 +317,7 @@ async def sample(server: Server, record: Record, running: list[bool]) -> None:
                 time.process_time(),
                 udp_drops(server.data_port),
                 cpu_busy(),
+                run_delay(pid),
             )
         )
         await asyncio.sleep(SAMPLE_EVERY)
@@ -376,6 +390,9 @@ class Row:
     server_cpu: float
     #: What other processes (and the hypervisor) took of the machine's CPUs meanwhile (CPUs).
     others_cpu: float
+    #: The longest the server waited for a CPU within one sample (0.25 s), ready to run (ms): a
+    #: gap about as long is the machine's doing, not the server's.
+    waited_ms: float
     #: Datagrams the kernel dropped at the server's data socket, its receive buffer full.
     udp_drops: int
     attacker_cpu: float
@@ -479,6 +496,7 @@ def measure(
         fds=max((s.fds for s in samples), default=0),
         server_cpu=used("server_cpu"),
         others_cpu=max(0.0, others),
+        waited_ms=max((b.waited - a.waited for a, b in pairwise(inside)), default=0.0) * 1e3,
         udp_drops=samples[-1].drops - samples[0].drops if samples else 0,
         attacker_cpu=attacker,
         recovery=recovery(record, end, after - end, alone) if alone is not None else None,
@@ -546,7 +564,7 @@ async def run(plan: Plan, server: Server, bench_cpu: int | None) -> list[Row]:
 HEAD = (
     f"{'row':<14}{'gap p99':>8}{'max':>7}{'sent99':>7}{'READ99':>7}{'max':>7}"
     f"{'STOP/BYE':>9}{'lost':>5}{'tb':>4}{'log':>6}{'RSS':>6}{'FDs':>6}"
-    f"{'srvCPU':>7}{'others':>7}{'drops':>7}{'atkCPU':>7}{'back':>7}"
+    f"{'srvCPU':>7}{'others':>7}{'waited':>7}{'drops':>7}{'atkCPU':>7}{'back':>7}"
 )
 
 
@@ -564,7 +582,7 @@ def _line(row: Row) -> str:
         f"{row.name:<14}{_ms(row.gap_p99):>8}{_ms(row.gap_max):>7}{_ms(row.sent_p99):>7}"
         f"{_ms(row.read_p99):>7}{_ms(row.read_max):>7}{row.stop_bye:>9}{row.lost:>5}"
         f"{row.tracebacks:>4}{row.log_lines:>6}{row.rss_mib:>6.0f}{row.fds:>6}"
-        f"{row.server_cpu:>7.0%}{row.others_cpu:>7.2f}{row.udp_drops:>7}{row.attacker_cpu:>7.0%}"
+        f"{row.server_cpu:>7.0%}{row.others_cpu:>7.2f}{_ms(row.waited_ms):>7}{row.udp_drops:>7}{row.attacker_cpu:>7.0%}"
         f"{back:>7}"
     )
 
