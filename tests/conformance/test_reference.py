@@ -26,6 +26,9 @@ NOT_APPLICABLE = {
     # CUBO's speaker has no monitor (D-RSP-23): what it plays cannot be seen.
     "rsp/audio/in-order",
     "rsp/audio/late-dropped",
+    # CUBO's only monitors are its wheels', which stop on link loss: none that holds (D-RSP-8;
+    # tests/conformance/test_rsp_audit.py runs it on the independent robot's model).
+    "rsp/motion/link-loss-holds",
     # The rover has no writable bool, string, bytes or array node, and no event access that it
     # can write whose RCML puts its nodes out of canonical order; CUBO's DOWNLINKs carry no bool,
     # string or array, and it has no floating-point effector with a monitor (test_value_cases
