@@ -7,9 +7,11 @@ from __future__ import annotations
 import asyncio
 import itertools
 
+from rcmlconf.conformance.cases.rctp_streams import _heartbeat, _readable, stream_request
 from rcmlconf.conformance.context import Context, expect_answer
 from rcmlconf.conformance.picks import STRANGER, read_target
 from rcmlconf.conformance.probes.control import ControlProbe, Fields, describe
+from rcmlconf.conformance.probes.stream import open_stream
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.verdicts import Failed, Inconclusive
 from rcmlconf.errors import ValueTextError
@@ -237,6 +239,37 @@ async def keepalive(ctx: Context) -> None:
         outcome,
         "R-RCTP-21",
     )
+
+
+@case(
+    "rctp/session/stream-keeps-alive",
+    "A session whose client sends only data-stream packets (heartbeats of a playing stream) past"
+    " its timeout is kept: no BYE",
+    ["R-RCTP-21"],
+    timeout=10.0,
+    waits_session=True,
+)
+async def stream_keeps_alive(ctx: Context) -> None:
+    probe, timeout, _ = await _timed_session(ctx)
+    stream = await open_stream(ctx, probe)
+    set_up = await stream.setup(probe, _readable(ctx))
+    await stream_request(ctx, probe, "GO", set_up)
+    # D-RCTP-11: any data-stream packet from the client keeps the session alive, as a request
+    # does; a server that times sessions by their requests alone BYEs a client that streams.
+    every = timeout / 3
+    loop = asyncio.get_running_loop()
+    # Past the timeout since GO, the last request, by what the case's time leaves (at least the
+    # 5 s a session case has beyond --session-wait, less what it took to get here).
+    until = loop.time() + timeout + min(timeout / 2, 2.0, ctx.left - 1.0)
+    while (left := until - loop.time()) > 0:
+        stream.send_flow(_heartbeat(stream.next_request_id()))
+        outcome = await probe.outcome(min(every, left))
+        ctx.expect(
+            outcome == "silent",
+            f"no BYE while a heartbeat comes every {every:g} s and no request",
+            outcome,
+            "R-RCTP-21",
+        )
 
 
 @case(
