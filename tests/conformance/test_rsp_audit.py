@@ -24,6 +24,24 @@ _SEALING = "        if self._sealer is None:\n            return data\n"
 _COUNTER = '_COUNTER = __import__("itertools").count(1)\n'
 
 
+def _caught(
+    tmp_path: Path,
+    copy: Path,
+    case: str,
+    requirement: str,
+    *options: str,
+    passing: str | None = None,
+) -> None:
+    """`case`, run from the mutated `copy` (with `options`), fails naming `requirement`; `passing`,
+    a case that let the fault through before, still passes."""
+    cases = [case] if passing is None else [case, passing]
+    results = run(tmp_path, *options, *(o for c in cases for o in ("--only", c)), python=copy)
+    found = results[case]
+    assert (found["verdict"], found["requirement"]) == ("fail", requirement), found
+    if passing is not None:
+        assert results[passing]["verdict"] == "pass", results[passing]
+
+
 def _unsealed(sends: str) -> tuple[tuple[str, str], ...]:
     """The side sending in `sends` (Direction's member) seals nothing after HELLO and WELCOME: its
     packets say encryption 0 and go in the clear, as an implementation that keys its session but
@@ -48,8 +66,7 @@ def test_a_side_that_does_not_seal_its_session_fails(tmp_path: Path, case: str, 
     packet saying encryption 0 in the clear, so a robot (UPLINK) or a local system (DOWNLINK)
     that sealed nothing passed every check of its sealed session but this one."""
     copy = mutated(tmp_path, "rsp/session/wire.py", *_unsealed(sends))
-    result = run(tmp_path, "--only", case, python=copy)[case]
-    assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-13"), result
+    _caught(tmp_path, copy, case, "R-RSP-13")
 
 
 @pytest.mark.parametrize("case", ["rsp/header/replayed", "rsp/security/replayed-sealed"])
@@ -67,8 +84,7 @@ def test_a_robot_remembering_only_its_newest_number_fails_the_replay_cases(
             "return (_MODULO - ahead) % _MODULO > window or ahead == 0",
         ),
     )
-    result = run(tmp_path, "--only", case, python=copy)[case]
-    assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-18"), result
+    _caught(tmp_path, copy, case, "R-RSP-18")
 
 
 def test_a_robot_counting_its_session_ids_fails_fresh_session_ids(tmp_path: Path) -> None:
@@ -83,9 +99,7 @@ def test_a_robot_counting_its_session_ids_fails_fresh_session_ids(tmp_path: Path
         ),
         ("_SESSION_BITS = 48\n", f"_SESSION_BITS = 48\n{_COUNTER}"),
     )
-    case = "rsp/session/fresh-session-ids"
-    result = run(tmp_path, "--only", case, python=copy)[case]
-    assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-20"), result
+    _caught(tmp_path, copy, "rsp/session/fresh-session-ids", "R-RSP-20")
 
 
 def test_a_local_system_sending_its_periods_at_once_fails_idle_keep_alive(tmp_path: Path) -> None:
@@ -101,9 +115,7 @@ def test_a_local_system_sending_its_periods_at_once_fails_idle_keep_alive(tmp_pa
             "                self._send_period(now)\n",
         ),
     )
-    case = "rsp/local/idle-keep-alive"
-    result = run(tmp_path, "--only", case, python=copy)[case]
-    assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-43"), result
+    _caught(tmp_path, copy, "rsp/local/idle-keep-alive", "R-RSP-43")
 
 
 def test_a_local_system_starting_its_timeout_at_2_t_fails_memory_command_resent(
@@ -115,9 +127,7 @@ def test_a_local_system_starting_its_timeout_at_2_t_fails_memory_command_resent(
     copy = mutated(
         tmp_path, "rsp/reliable.py", ("INITIAL_RTO_PERIODS = 10\n", "INITIAL_RTO_PERIODS = 2\n")
     )
-    case = "rsp/local/memory-command-resent"
-    result = run(tmp_path, "--only", case, python=copy)[case]
-    assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-28"), result
+    _caught(tmp_path, copy, "rsp/local/memory-command-resent", "R-RSP-28")
 
 
 def test_a_robot_taking_a_late_packets_requests_fails_late_request_ignored(tmp_path: Path) -> None:
@@ -136,11 +146,13 @@ def test_a_robot_taking_a_late_packets_requests_fails_late_request_ignored(tmp_p
             "        if newer:\n",
         ),
     )
-    cases = ["rsp/payload/late-request-ignored", "rsp/payload/late-state-ignored"]
-    results = run(tmp_path, *(option for case in cases for option in ("--only", case)), python=copy)
-    late, state = (results[case] for case in cases)
-    assert (late["verdict"], late["requirement"]) == ("fail", "R-RSP-19"), late
-    assert state["verdict"] == "pass", state
+    _caught(
+        tmp_path,
+        copy,
+        "rsp/payload/late-request-ignored",
+        "R-RSP-19",
+        passing="rsp/payload/late-state-ignored",
+    )
 
 
 def test_a_robot_timing_the_session_from_welcome_fails_timeout_bye(tmp_path: Path) -> None:
@@ -171,9 +183,7 @@ def test_a_robot_timing_the_session_from_welcome_fails_timeout_bye(tmp_path: Pat
             "self.last_heard + LOST_PERIODS * self.period, self.opened + SESSION_TIMEOUT)",
         ),
     )
-    case = "rsp/session/timeout-bye"
-    result = run(tmp_path, "--only", case, python=copy)[case]
-    assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-22"), result
+    _caught(tmp_path, copy, "rsp/session/timeout-bye", "R-RSP-22")
 
 
 def test_a_robot_stopping_every_effector_on_loss_fails_link_loss_holds(
@@ -191,14 +201,16 @@ def test_a_robot_stopping_every_effector_on_loss_fails_link_loss_holds(
     monkeypatch.setattr(support.processes, "COMMAND", [sys.executable, "-m", "rcmlconf"])
     monkeypatch.setenv("PYTHONPATH", str(copy))
     monkeypatch.chdir(copy)
-    cases = ["rsp/motion/link-loss-holds", "rsp/motion/link-loss-stops"]
     with running(tmp_path, "robot", str(WEEDER), "--port", "0") as robot:
-        target = ["--rsp-target", f"127.0.0.1:{robot.ready['port']}", "--model", str(WEEDER)]
-        only = [option for case in cases for option in ("--only", case)]
-        results = run(tmp_path, *target, *only, python=copy)
-    holds, stops = (results[case] for case in cases)
-    assert (holds["verdict"], holds["requirement"]) == ("fail", "R-RSP-36"), holds
-    assert stops["verdict"] == "pass", stops
+        target = ("--rsp-target", f"127.0.0.1:{robot.ready['port']}", "--model", str(WEEDER))
+        _caught(
+            tmp_path,
+            copy,
+            "rsp/motion/link-loss-holds",
+            "R-RSP-36",
+            *target,
+            passing="rsp/motion/link-loss-stops",
+        )
 
 
 @pytest.mark.parametrize("case", ["rsp/reliable/memory-command-once", "rsp/local/event-old-id"])
@@ -215,8 +227,7 @@ def test_a_receiver_taking_half_the_id_space_ahead_as_old_fails(tmp_path: Path, 
             "(occurrence_id - last) % self._space < self._half",
         ),
     )
-    result = run(tmp_path, "--only", case, python=copy)[case]
-    assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-25"), result
+    _caught(tmp_path, copy, case, "R-RSP-25")
 
 
 def test_a_local_system_taking_packets_from_any_address_fails_other_address_dropped(
@@ -234,6 +245,37 @@ def test_a_local_system_taking_packets_from_any_address_fails_other_address_drop
         ),
         ("transport.sendto(data)\n", "transport.sendto(data, self.robot)\n"),
     )
-    case = "rsp/local/other-address-dropped"
-    result = run(tmp_path, "--only", case, python=copy)[case]
-    assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-18"), result
+    _caught(tmp_path, copy, "rsp/local/other-address-dropped", "R-RSP-18")
+
+
+def test_a_local_system_keeping_the_largest_number_fails_robot_sequence_wraps(
+    tmp_path: Path,
+) -> None:
+    """R-RSP-15, D-RSP-15: the reference local system made to say, as last received, the largest
+    number it read (`max`, no serial arithmetic): right until the robot's numbers wrap, which no
+    local case made them do."""
+    copy = mutated(
+        tmp_path,
+        "rsp/session/wire.py",
+        (
+            "        return _new(Packet, (header, body)), self.tracker.see(header.sequence)\n",
+            "        if self._sends is Direction.DOWNLINK:\n"
+            "            _MAX[id(self)] = max(_MAX.get(id(self), 0), header.sequence)\n"
+            "        return _new(Packet, (header, body)), self.tracker.see(header.sequence)\n",
+        ),
+        (
+            "                self.tracker.highest or 0,\n",
+            "                _MAX.get(id(self), self.tracker.highest or 0),\n",
+        ),
+        (
+            "from rcmlconf.wording import indefinite\n",
+            "from rcmlconf.wording import indefinite\n\n_MAX: dict[int, int] = {}\n",
+        ),
+    )
+    _caught(
+        tmp_path,
+        copy,
+        "rsp/local/robot-sequence-wraps",
+        "R-RSP-15",
+        passing="rsp/local/downlink-header",
+    )

@@ -176,6 +176,42 @@ def heard_after(probe: LocalProbe, sent: bytes, at: float) -> Callable[[Datagram
     return lambda d: newer(d.header.last_received, sequence) or d.at >= at + 2 * probe.period
 
 
+# -- R-RSP-15: the newest, by serial arithmetic ----------------------------------------------------
+
+
+@local_case(
+    "rsp/local/robot-sequence-wraps",
+    "The local system's last received follows the robot's numbers across 65,535 to 0",
+    ["R-RSP-15"],
+)
+async def robot_sequence_wraps(ctx: Context) -> None:
+    reliable = (DeviceKind.COMMAND, DeviceKind.MEMORY_COMMAND)
+    # Nothing acknowledged and no keep-alive: the robot's numbers move only as the case says.
+    withheld = [d for d in _model(ctx).devices if d.kind in reliable]
+    probe = await session(ctx, withheld=withheld, beating=False)
+    wire = probe.wire
+    assert wire is not None
+    # Each 20,000 or fewer ahead of the one before: newer (D-RSP-15), the last past 65,535.
+    for index in (20000, 40000, 60000, 65535, 65537):
+        wire.sent = index
+        number = sequence_of(intact(probe, probe.uplink, f"UPLINK #{index % 65536}"))
+
+        def says(found: Datagram, number: int = number) -> bool:
+            return found.header.last_received == number
+
+        found = await probe.next(
+            PacketType.DOWNLINK, wait=max(probe.quiet, 4 * probe.period), where=says
+        )
+        ctx.expect(
+            found is not None,
+            f"a DOWNLINK saying last received {number}: the newest, by serial arithmetic"
+            " (D-RSP-15)",
+            f"last received {probe.packets(PacketType.DOWNLINK)[-1].header.last_received}"
+            if probe.packets(PacketType.DOWNLINK)
+            else "no DOWNLINK",
+        )
+
+
 # -- R-RSP-18: dropped unread --------------------------------------------------------------------
 
 
