@@ -75,6 +75,24 @@ FAULTS = {
         [KEPT],
         "R-RCTP-21",
     ),
+    # A server that compares the whole Session field with the session's ID.
+    "session-field-compared-whole": (
+        "rctp/connection.py",
+        "            named = parse_session(given).id",
+        "            named = given",
+        ROVER,
+        ["rctp/session/session-with-timeout"],
+        "R-RCTP-19",
+    ),
+    # A receiver that takes a header line it cannot parse for a field it does not know.
+    "bad-header-line-skipped": (
+        "rctp/reader.py",
+        "            if not colon or _TOKEN.fullmatch(name) is None:",
+        "            if False:",
+        ROVER,
+        ["rctp/msg/bad-header-line"],
+        "R-RCTP-8",
+    ),
 }
 
 

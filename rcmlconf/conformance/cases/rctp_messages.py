@@ -3,7 +3,12 @@
 
 from __future__ import annotations
 
-from rcmlconf.conformance.cases.rctp_grammar import HEADER_SECTION, _filler, _refused_and_closed
+from rcmlconf.conformance.cases.rctp_grammar import (
+    HEADER_SECTION,
+    _broken_connect,
+    _filler,
+    _refused_and_closed,
+)
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.registry import case
@@ -136,3 +141,16 @@ async def header_section_unbounded(ctx: Context) -> None:
     head = f"CONNECT {ctx.target.site_path} RCTP/2.0\r\nCSeq: 1\r\nX-Rcmlconf-Pad: ".encode()
     data = head + _filler(HEADER_SECTION + 1).encode()
     await _refused_and_closed(ctx, probe, data, 431, "R-RCTP-16")
+
+
+@case(
+    "rctp/msg/bad-header-line",
+    "A header line without a colon, or whose name is not a token, is answered 400 and the"
+    " connection closed",
+    ["R-RCTP-8"],
+)
+async def bad_header_line(ctx: Context) -> None:
+    # D-RCTP-10: a header that does not parse cannot be framed; skipping it as a field one does
+    # not know (R-RCTP-14) would take the rest of the request for valid.
+    lines = (b"User-Agent rcmlconf", b"User Agent: rcmlconf", b": rcmlconf", b"User(Agent): x")
+    await _broken_connect(ctx, *(b" RCTP/2.0\r\nCSeq: 1\r\n%s\r\n\r\n" % line for line in lines))

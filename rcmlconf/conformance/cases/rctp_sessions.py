@@ -88,6 +88,24 @@ async def wrong_session(ctx: Context) -> None:
 
 
 @case(
+    "rctp/session/session-with-timeout",
+    "A request whose Session carries the timeout parameter names the session by its ID: answered"
+    " as without it",
+    ["R-RCTP-19"],
+)
+async def session_with_timeout(ctx: Context) -> None:
+    # §2.1: Session = session-id [ ";" OWS "timeout" "=" 1*5DIGIT ], in any message; a client
+    # may send back what CONNECT's answer gave. (`timeout` in another letter case, D-RCTP-30,
+    # is not sent: the independent server compares it as written; see bench/audit_rctp_server.md.)
+    probe = await ctx.session()
+    normal = read_target(ctx)
+    for parameter in (";timeout=60", "; timeout=60"):
+        field = f"{probe.session}{parameter}"
+        answer = await probe.request("READ", normal, [("Session", field)])
+        expect_answer(ctx, answer, 200, f"READ {normal} with Session: {field}")
+
+
+@case(
     "rctp/session/missing-session",
     "A request without Session after CONNECT is answered 454 and the connection goes on",
     ["R-RCTP-19"],
