@@ -55,8 +55,10 @@ class ServerLimits:
     #: request this long after its first byte, is closed (seconds).
     slow_timeout: float = 10.0
     #: Bytes of one connection's input taken per turn of the loop: a pipelined burst is answered
-    #: in slices, and the other sessions and their streams are served in between.
-    slice_bytes: int = 8192
+    #: in slices, and the other sessions and their streams are served in between. A slice is
+    #: done whole, so it is kept within `turn_budget`: 4 KiB of READs, about 55 of them, take
+    #: about 3 ms (8 KiB took 5 to 10, beyond the budget: bench/hostile_load.py).
+    slice_bytes: int = 4096
     #: A request under way that holds more than `large_bytes` of input (a body D-RCTP-9 allows
     #: up to 4 MiB) is a large one: `large_requests` connections at most hold one at once, the
     #: others are not read meanwhile (TCP holds their peers) and go on in turn. Memory then
