@@ -7,6 +7,7 @@ the clock estimate it writes in step 7 (R-RCTP-39 to R-RCTP-50, R-RCTP-58; specs
 from __future__ import annotations
 
 import asyncio
+import itertools
 import math
 from collections.abc import Mapping
 
@@ -187,6 +188,8 @@ async def stream_pace(ctx: Context) -> None:
     for start in go_at:
         end = min((t for t in stops if t > start), default=math.inf)
         spans.append((start, end))
+    if len(go_at) > 1:  # before the checks a held harness excuses
+        _paused_in_own_clock(ctx, stream)
     slack = interval + 0.1 * ctx.scale  # one in flight when the PAUSE left, and the loop's lag
     stray = [t for t in times if not any(s - 0.01 <= t <= e + slack for s, e in spans)]
     ctx.expect(
@@ -251,6 +254,22 @@ async def stream_go_not_ok(ctx: Context) -> None:
         " so it never played",
         f"{plural(len(times), 'DATA payload')}, the first at {min(times, default=0):+.2f} s"
         " from the first GO's answer",
+        "R-RCTP-44",
+    )
+
+
+def _paused_in_own_clock(ctx: Context, stream: PlayedStream) -> None:
+    """The pause, read off the client's own clock: its DATA's timestamps (D-RCTP-19) do not
+    depend on when the harness read the packets, so a held harness cannot excuse a client that
+    sends through its pause. The GO that ends it is answered `HOLD` late: a client that stops
+    while paused shows a gap that long in them (half of it, for a clock that runs slow)."""
+    stamps = [unix_from_ntp(one.packet.timestamp) for one, _ in stream.data() if one.packet]
+    longest = max((b - a for a, b in itertools.pairwise(stamps)), default=0.0)
+    ctx.expect(
+        longest >= HOLD / 2,
+        f"a gap of {HOLD / 2:g} s or more in the timestamps of its DATA: none while paused (the"
+        f" GO after the PAUSE answered {HOLD:g} s late)",
+        f"the longest gap {longest:.3f} s",
         "R-RCTP-44",
     )
 
