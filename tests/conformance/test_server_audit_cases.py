@@ -93,6 +93,16 @@ FAULTS = {
         ["rctp/msg/bad-header-line"],
         "R-RCTP-8",
     ),
+    # A server that checks the Nodes of a READ and takes a WRITE's as listed.
+    "write-nodes-as-listed": (
+        "reference/server/session.py",
+        "            names = parse_nodes(text)",
+        "            names = parse_nodes(text) if needed is Permission.READ else"
+        ' [n.strip() for n in text.split(",")]',
+        ROVER,
+        ["rctp/node/write-event-nodes-order", "rctp/node/write-event-nodes-repeated"],
+        "R-RCTP-30",
+    ),
 }
 
 
