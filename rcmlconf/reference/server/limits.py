@@ -62,9 +62,9 @@ class ServerLimits:
     #: A request under way that holds more than `large_bytes` of input (a body D-RCTP-9 allows
     #: up to 4 MiB) is a large one: `large_requests` connections at most hold one at once, the
     #: others are not read meanwhile (TCP holds their peers) and go on in turn. Memory then
-    #: grows with these few, not with the connections.
+    #: grows with these few, about 7.5 MiB each, not with the connections.
     large_bytes: int = 64 * 1024
-    large_requests: int = 4
+    large_requests: int = 2
     #: Seconds of the connections' work a turn of the loop; the rest waits for the next turns,
     #: peer by peer (`turns`).
     turn_budget: float = 0.004
