@@ -11,9 +11,11 @@ connection's write buffer is full, the server stops reading from it until the bu
 can one peer hold the others up (D-RCTP-32, `limits`): connections are accepted a few a turn of
 the loop, and one beyond the caps (RCTP's and the files' counted together) is closed as soon as it
 is accepted; a burst of pipelined requests is handed to its session a slice per turn of the loop
-(reading the connection paused meanwhile); the data socket is read several datagrams a wake-up,
-so that a flood of them does not crowd the sessions' out; and an accept that fails for want of
-file descriptors is one line in the log now and then, not a traceback each time.
+(reading the connection paused meanwhile); the connections' work takes a budget of each turn, and
+what is left waits, peer address by peer address in turn (`turns`); a connection with a large
+request under way waits, unread, for one of a few places; the data socket is read several
+datagrams a wake-up, so that a flood of them does not crowd the sessions' out; and an accept that
+fails for want of file descriptors is one line in the log now and then, not a traceback each time.
 """
 
 from __future__ import annotations
