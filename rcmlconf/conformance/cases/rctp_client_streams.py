@@ -188,8 +188,10 @@ async def stream_pace(ctx: Context) -> None:
     for start in go_at:
         end = min((t for t in stops if t > start), default=math.inf)
         spans.append((start, end))
-    if len(go_at) > 1:  # before the checks a held harness excuses
-        _paused_in_own_clock(ctx, stream)
+    stamps = [unix_from_ntp(one.packet.timestamp) for one, _ in stream.data() if one.packet]
+    _pace_in_own_clock(ctx, stamps, interval, partly)  # before the checks a held harness excuses
+    if len(go_at) > 1:
+        _paused_in_own_clock(ctx, stamps)
     slack = interval + 0.1 * ctx.scale  # one in flight when the PAUSE left, and the loop's lag
     stray = [t for t in times if not any(s - 0.01 <= t <= e + slack for s, e in spans)]
     ctx.expect(
@@ -258,12 +260,33 @@ async def stream_go_not_ok(ctx: Context) -> None:
     )
 
 
-def _paused_in_own_clock(ctx: Context, stream: PlayedStream) -> None:
+def _pace_in_own_clock(ctx: Context, stamps: list[float], interval: float, partly: str) -> None:
+    """D-RCTP-33's most DATA over a play, read off the client's own clock (its DATA's
+    timestamps, D-RCTP-19, which do not depend on when a held harness read them): the plays are
+    the runs of timestamps between gaps of `HOLD` / 2 (the pause, `_paused_in_own_clock`)."""
+    runs: list[list[float]] = []
+    for stamp in stamps:
+        if not runs or stamp - runs[-1][-1] >= HOLD / 2:
+            runs.append([])
+        runs[-1].append(stamp)
+    for run in runs:
+        spanned = (run[-1] - run[0]) / interval
+        if spanned < 9:
+            continue
+        ctx.expect(
+            len(run) <= 1.5 * spanned + 2,
+            f"at most {1.5 * spanned + 2:.0f} DATA payloads in {run[-1] - run[0]:.2f} s of its"
+            f" own clock at {interval * 1000:g} ms{partly}",
+            f"{len(run)}",
+            "R-RCTP-44",
+        )
+
+
+def _paused_in_own_clock(ctx: Context, stamps: list[float]) -> None:
     """The pause, read off the client's own clock: its DATA's timestamps (D-RCTP-19) do not
     depend on when the harness read the packets, so a held harness cannot excuse a client that
     sends through its pause. The GO that ends it is answered `HOLD` late: a client that stops
     while paused shows a gap that long in them (half of it, for a clock that runs slow)."""
-    stamps = [unix_from_ntp(one.packet.timestamp) for one, _ in stream.data() if one.packet]
     longest = max((b - a for a, b in itertools.pairwise(stamps)), default=0.0)
     ctx.expect(
         longest >= HOLD / 2,
