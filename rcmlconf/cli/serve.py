@@ -20,6 +20,7 @@ from rcmlconf.rctp.url import DEFAULT_PORT, FILES_PORT_OFFSET, http_base
 from rcmlconf.reference.drivers import AUTO, DRIVERS, DriverError, choose_driver
 from rcmlconf.reference.faults import faults_named, names
 from rcmlconf.reference.server.adapter import ReferenceServer, ServerSettings
+from rcmlconf.reference.server.collector import settle
 from rcmlconf.validate.validator import load_robot
 from rcmlconf.wording import plural
 
@@ -161,6 +162,7 @@ async def _serve(server: ReferenceServer, output: Output, ready_file: Path | Non
         output.problem("serve", _cannot_listen(server.settings, exc))
         return 2
     url = server.url
+    settle()  # the process serves: fewer collector pauses under load (D-RCTP-32)
     _banner(server, output, url)
     # Signals are caught before the ready file says so: a script may send one at once.
     with Interrupts() as interrupts:
