@@ -210,6 +210,10 @@ class _Control(asyncio.Protocol):
         self._backlog.clear()
         if self.timer is not None:
             self.timer.set(None)
+            # The timer's callback is this connection's method: without the timer, the connection
+            # and its session are freed when the last reference goes, not at the collector's next
+            # pass (a 4 MiB request's buffers with them, D-RCTP-32).
+            self.timer = None
         self.server.beats.set(self, None)
         self.server.controls.pop(session, None)
 
