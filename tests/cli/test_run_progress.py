@@ -8,19 +8,20 @@ import pty
 import re
 import subprocess
 
+from support.case_counts import MSG_CASES
 from support.processes import BOUND, COMMAND, run_command
 
 QUICK = ("run", "--only", "rctp/msg/*", "--fault", "no-cseq-echo")
-PROGRESS = re.compile(r"\d+/34 cases, \d+ fail(, \d+ error)? \(\d+ s\)")
+PROGRESS = re.compile(rf"\d+/{MSG_CASES} cases, \d+ fail(, \d+ error)? \(\d+ s\)")
 
 
 def test_a_log_gets_a_line_every_25_cases_with_the_failures_so_far() -> None:
     done = run_command(*QUICK)
     assert done.returncode == 1, done.stderr
-    lines = [line for line in done.stderr.splitlines() if "/34 cases" in line]
+    lines = [line for line in done.stderr.splitlines() if f"/{MSG_CASES} cases" in line]
     assert all(PROGRESS.fullmatch(line) for line in lines), lines
     # Every 5 s without a line makes one more, so a slow machine may show others too.
-    assert any(line.startswith("25/34 cases, ") for line in lines), lines
+    assert any(line.startswith(f"25/{MSG_CASES} cases, ") for line in lines), lines
     assert not any("cases, " in line for line in done.stdout.splitlines())
 
 
@@ -44,5 +45,5 @@ def test_a_terminal_gets_the_bar_not_the_lines() -> None:
     finally:
         os.close(leader)
     text = shown.decode(errors="replace")
-    assert "34 results" in text  # the summary came through the terminal
+    assert f"{MSG_CASES} results" in text  # the summary came through the terminal
     assert "cases, " not in text
