@@ -293,6 +293,12 @@ class LocalListener:
         deadline = self.now + wait
         while self._next_live() is None:
             remaining = deadline - self.now
+            if summoned is not None and summoned.done() and self.side_by_side and remaining > 0:
+                # Its HELLO went to a case beside this one (any case takes any new session):
+                # another local system for this one.
+                summoned = asyncio.ensure_future(self._summon((host, port)))  # type: ignore[misc]
+                self._tasks.add(summoned)
+                summoned.add_done_callback(self._tasks.discard)
             if remaining <= 0 or (summoned is not None and summoned.done()):
                 self._given_up = not self._ever_heard
                 if summoned is not None and summoned.done():
