@@ -293,10 +293,12 @@ class LocalListener:
         deadline = self.now + wait
         while self._next_live() is None:
             remaining = deadline - self.now
+            summon = self._summon
             if summoned is not None and summoned.done() and self.side_by_side and remaining > 0:
                 # Its HELLO went to a case beside this one (any case takes any new session):
                 # another local system for this one.
-                summoned = asyncio.ensure_future(self._summon((host, port)))  # type: ignore[misc]
+                assert summon is not None  # side_by_side: the harness summons them
+                summoned = asyncio.ensure_future(summon((host, port)))
                 self._tasks.add(summoned)
                 summoned.add_done_callback(self._tasks.discard)
             if remaining <= 0 or (summoned is not None and summoned.done()):
