@@ -192,6 +192,7 @@ async def stream_pace(ctx: Context) -> None:
     _pace_in_own_clock(ctx, stamps, interval, partly)  # before the checks a held harness excuses
     if len(go_at) > 1:
         _paused_in_own_clock(ctx, stamps)
+    _stopped_in_own_clock(ctx, _runs(stamps), spans)
     slack = interval + 0.1 * ctx.scale  # one in flight when the PAUSE left, and the loop's lag
     stray = [t for t in times if not any(s - 0.01 <= t <= e + slack for s, e in spans)]
     ctx.expect(
@@ -262,14 +263,9 @@ async def stream_go_not_ok(ctx: Context) -> None:
 
 def _pace_in_own_clock(ctx: Context, stamps: list[float], interval: float, partly: str) -> None:
     """D-RCTP-33's most DATA over a play, read off the client's own clock (its DATA's
-    timestamps, D-RCTP-19, which do not depend on when a held harness read them): the plays are
-    the runs of timestamps between gaps of `HOLD` / 2 (the pause, `_paused_in_own_clock`)."""
-    runs: list[list[float]] = []
-    for stamp in stamps:
-        if not runs or stamp - runs[-1][-1] >= HOLD / 2:
-            runs.append([])
-        runs[-1].append(stamp)
-    for run in runs:
+    timestamps, D-RCTP-19, which do not depend on when a held harness read them), play by play
+    (`_runs`)."""
+    for run in _runs(stamps):
         spanned = (run[-1] - run[0]) / interval
         if spanned < 9:
             continue
@@ -280,6 +276,40 @@ def _pace_in_own_clock(ctx: Context, stamps: list[float], interval: float, partl
             f"{len(run)}",
             "R-RCTP-44",
         )
+
+
+def _runs(stamps: list[float]) -> list[list[float]]:
+    """The plays in the client's own clock: the runs of its DATA's timestamps between gaps of
+    `HOLD` / 2 (the pause, `_paused_in_own_clock`)."""
+    runs: list[list[float]] = []
+    for stamp in stamps:
+        if not runs or stamp - runs[-1][-1] >= HOLD / 2:
+            runs.append([])
+        runs[-1].append(stamp)
+    return runs
+
+
+def _stopped_in_own_clock(
+    ctx: Context, runs: list[list[float]], spans: list[tuple[float, float]]
+) -> None:
+    """No DATA after STOP, read off the client's own clock: the last play's DATA were sent after
+    the client had GO's answer and before it sent STOP, so in its own timestamps (D-RCTP-19) they
+    span no more than the harness saw from sending that answer to reading the STOP, by a clock
+    within D-RCTP-33's 10 %. The RELEASE after the STOP is answered `HOLD` late: a client that
+    sends on until it ends the session shows a last play that much longer, however late the
+    harness read its packets (a held harness only lengthens what it allows)."""
+    if len(runs) != len(spans) or spans[-1][1] == math.inf:
+        return  # the plays do not pair up: the pause's own check says why
+    start, end = spans[-1]
+    allowed = 1.1 * (end - start) + 0.05
+    spanned = runs[-1][-1] - runs[-1][0]
+    ctx.expect(
+        spanned <= allowed,
+        f"its last play's DATA within {allowed:.2f} s of its own clock: from the GO's answer to"
+        " its STOP, none after it",
+        f"{spanned:.2f} s",
+        "R-RCTP-44",
+    )
 
 
 def _paused_in_own_clock(ctx: Context, stamps: list[float]) -> None:

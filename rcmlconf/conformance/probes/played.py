@@ -45,7 +45,7 @@ class Seen:
     """One request of the client's, as the played server got it."""
 
     request: Request
-    #: The loop's time when it came.
+    #: The loop's time when it was answered (a held answer's, after the hold).
     at: float
     #: What it was answered (0: the case answered it itself).
     status: int
