@@ -448,7 +448,7 @@ class Connection:
         if not m.has_length:
             raise Refuse(411, "a WRITE needs Content-Length")
         ctype = m.one("content-type")
-        if (m.body or ctype is not None) and (ctype is None or ctype.lower() != VALUES):
+        if (m.body or ctype is not None) and (ctype is None or wire.ascii_lower(ctype) != VALUES):
             raise Refuse(415, f"the body is not {VALUES}")
         check_range = node.kind != "data" or "range-unchecked-normal" not in self.faults
         try:

@@ -42,11 +42,19 @@ REASONS = {
 _TOKEN = re.compile(rb"[!#$%&'*+\-.^_`|~0-9A-Za-z]+")
 _TARGET_CHARS = re.compile(rb"[\x21-\x7e\x80-\xff]+")  # its syntax is checked later
 _VALUE_BAD = re.compile(rb"[\x00-\x08\x0a-\x1f\x7f]")
-_OTHER_VERSION = re.compile(r"RCTP/[0-9]+\.[0-9]+")
+# D-RCTP-30: "RCTP/2.0" is case-sensitive, but `rctp/2.0` parses as another version (505)
+_OTHER_VERSION = re.compile(r"RCTP/[0-9]+\.[0-9]+", re.ASCII | re.IGNORECASE)
 _STATUS = re.compile(rb"RCTP/2\.0 ([0-9]{3}) [\t\x20-\x7e\x80-\xff]*")
 _PCHARS = re.compile(r"(?:[A-Za-z0-9\-._~!$&'()*+,;=:@]|%[0-9A-Fa-f]{2})+")
 _DIGITS = re.compile(r"[0-9]+")
 SESSION_ID = re.compile(r"[A-Za-z0-9$\-_.+]{8,64}")
+_SESSION_TIMEOUT = re.compile(r"[ \t]*timeout=[0-9]{1,5}", re.ASCII | re.IGNORECASE)
+_ASCII_LOWER = str.maketrans("ABCDEFGHIJKLMNOPQRSTUVWXYZ", "abcdefghijklmnopqrstuvwxyz")
+
+
+def ascii_lower(text: str) -> str:
+    """D-RCTP-30: the grammar's tokens are compared without regard to ASCII letter case only."""
+    return text.translate(_ASCII_LOWER)
 
 
 class FrameError(Exception):
@@ -240,9 +248,12 @@ def decode_name(segment: str) -> str | None:
 
 
 def parse_session(text: str) -> str | None:
-    """The session-id of a Session field (a timeout parameter may follow)."""
+    """The session-id of a Session field (a timeout parameter may follow).
+
+    D-RCTP-30: `timeout` is read in any letter case (`TimeOut=60`, `; TIMEOUT=60`);
+    the session-id itself is compared exactly by the caller."""
     sid, _, rest = text.partition(";")
-    if rest and not re.fullmatch(r"[ \t]*timeout=[0-9]{1,5}", rest):
+    if rest and not _SESSION_TIMEOUT.fullmatch(rest):
         return None
     return sid if SESSION_ID.fullmatch(sid) else None
 
@@ -250,12 +261,12 @@ def parse_session(text: str) -> str | None:
 def parse_transport(text: str) -> dict[str, str] | None:
     """A Transport field as its parameters; None when it breaks the grammar of §2.1."""
     parts = text.split(";")
-    if parts[0].strip().lower() != "udp":
+    if ascii_lower(parts[0].strip(" \t")) != "udp":
         return None
     params: dict[str, str] = {}
     for part in parts[1:]:
-        key, eq, value = part.strip().partition("=")
-        key, value = key.lower(), value.lower()
+        key, eq, value = part.strip(" \t").partition("=")
+        key, value = ascii_lower(key), ascii_lower(value)  # D-RCTP-30: names and modes
         if not eq or key in params:
             return None
         if key in ("client_port", "server_port"):
