@@ -101,7 +101,9 @@ class _Walk:
                     accesses.append(access)
             elif child.tag != "session":
                 widgets.append(self._widget(child, scope))
-        return Window(tuple(sessions), tuple(accesses), tuple(widgets), attrs.text("title"))
+        return Window(
+            tuple(sessions), tuple(accesses), tuple(widgets), attrs.text("title"), _texts(element)
+        )
 
     def _sessions(self, elements: list[XmlElement]) -> tuple[_Scope, list[Session]]:
         spec = ELEMENTS["session"]
@@ -266,12 +268,11 @@ class _Walk:
             if data is not None and not self._link(element, widget, attrs, data):
                 data = None
             self._values(element, widget, attrs, item_elements, items, data)
-        texts = {k: v for k, v in element.attrs.items() if NAMESPACE_SEPARATOR not in k}
         return WidgetElement(
             element.tag,
             path,
             attrs.text("session"),
-            texts,
+            _texts(element),
             tuple(i for i in items if i is not None),
         )
 
@@ -444,6 +445,11 @@ class _Walk:
                 "target",
             )
         return target
+
+
+def _texts(element: XmlElement) -> dict[str, str]:
+    """An element's attributes as written, but those of other namespaces."""
+    return {k: v for k, v in element.attrs.items() if NAMESPACE_SEPARATOR not in k}
 
 
 def _kind(node: GroupNode | AccessNode | DataNode) -> str:

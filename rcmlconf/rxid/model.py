@@ -41,6 +41,8 @@ class Window:
     accesses: tuple[AccessSetting, ...] = ()
     widgets: tuple[WidgetElement, ...] = ()
     title: str | None = None
+    #: The window's attributes as written: geometry and background, for a browser (D-RXID-9).
+    attributes: Mapping[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, slots=True)

@@ -14,17 +14,12 @@ from urllib.parse import unquote, urlsplit
 
 from rcmlconf.diagnostics import Diagnostic, Severity
 from rcmlconf.errors import RcmlconfError
-from rcmlconf.markup.document import (
-    MAX_DOCUMENT_BYTES,
-    NAMESPACE_SEPARATOR,
-    ParseFailure,
-    display_name,
-    parse_document,
-)
+from rcmlconf.markup.document import NAMESPACE_SEPARATOR, display_name, parse_document
+from rcmlconf.markup.failure import MAX_DOCUMENT_BYTES, ParseFailure
 from rcmlconf.markup.structure import Checker, TooManyFindings, check_prolog
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rsp.model import RobotModel
-from rcmlconf.rxid.sessions import Broken, SessionTarget, Unresolved
+from rcmlconf.rxid.sessions import Broken, Resolver, SessionTarget, Unresolved
 from rcmlconf.validate.languages import LANGUAGES, Language
 from rcmlconf.wording import plural, shorten
 
@@ -74,8 +69,12 @@ class Validator:
         self,
         session_map: Mapping[str, Path] | None = None,
         max_findings: int = DEFAULT_MAX_FINDINGS,
+        resolve: Resolver | None = None,
     ) -> None:
-        """`max_findings` stops checking a document at that many findings (0: never)."""
+        """`max_findings` stops checking a document at that many findings (0: never);
+        `resolve`, when given, replaces D-RXID-3's rules for what an RXID session leads to: a
+        browser downloads the RCML files (paper Fig. 5), `validate` never does."""
+        self._resolve = resolve
         #: `--map`: an href, or an href prefix ending in '/', to a local file or directory.
         self._map = dict(session_map or {})
         self._max_findings = max_findings
@@ -165,7 +164,8 @@ class Validator:
                 f"a <{language.root}> document in a {suffix or 'extensionless'} file",
                 hint=f"name it *{language.extension}",
             )
-        return language.load(checker, base_dir, lambda href: self._session(href, base_dir))
+        resolve = self._resolve or (lambda href: self._session(href, base_dir))
+        return language.load(checker, base_dir, resolve)
 
     # -- D-RXID-3: sessions are followed only where that is safe ------------------------------
 

@@ -1,0 +1,94 @@
+"""The example panels as the page is sent them, and the links each robot's session makes."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from support.robots import ROBOTS
+
+from rcmlconf.browse.links import NORMAL_READ_EVERY, robot_links
+from rcmlconf.browse.panel import Panel, build_panel
+from rcmlconf.browse.sources import load_sources
+
+
+def panel_of(name: str) -> Panel:
+    sources = load_sources(str(ROBOTS / name / f"{name}.rxid"), 5.0)
+    return build_panel(sources.rxid, {h: r.model for h, r in sources.robots.items()})
+
+
+def widgets_of(panel: Panel) -> dict[str, Any]:
+    described = panel.describe()
+    (window,) = described["windows"]  # type: ignore[misc]
+    return {w["id"] or w["caption"] or w.get("path") or w["kind"]: w for w in window["widgets"]}
+
+
+def test_the_camera_s_window_and_widgets() -> None:
+    described = panel_of("camera").describe()
+    (window,) = described["windows"]  # type: ignore[misc]
+    assert (window["title"], window["width"], window["height"]) == (
+        "Pan / tilt / zoom camera",
+        360,
+        260,
+    )
+    widgets = widgets_of(panel_of("camera"))
+    assert (
+        widgets["pan"].items()
+        >= {
+            "kind": "scroll",
+            "robot": "camera.rcml",
+            "path": "/stream/control/pan",
+            "reads": True,
+            "writes": True,
+            "min": -180.0,
+            "max": 180.0,
+            "step": 1.0,
+            "orientation": "horizontal",
+        }.items()
+    )
+    assert widgets["tilt"]["orientation"] == "vertical"
+    assert widgets["zoom"]["step"] == 5.0
+    moving = widgets["Moving"]
+    assert (moving["reads"], moving["writes"], moving["on"], moving["off"]) == (
+        True,
+        False,
+        "true",
+        "false",
+    )
+    # callto: is no URL a page can load: the page shows a labelled placeholder.
+    video = next(w for w in widgets.values() if w["kind"] == "netmeeting")
+    assert (video["href"], video["src"]) == ("callto://127.0.0.1/camera", None)
+    take = widgets["Take control"]
+    assert (take["action"], take["target"]) == ("acquire", "/stream")
+    assert take["robots"] == ["camera.rcml"]
+
+
+def test_the_rover_s_widgets_on_event_and_stream_nodes() -> None:
+    widgets = widgets_of(panel_of("rover"))
+    menu = next(w for w in widgets.values() if w["kind"] == "popUpMenu")
+    assert [i["value"] for i in menu["items"]] == ["0", "1", "2"]
+    battery = widgets["/sensors/events/battery"]
+    assert (battery["reads"], battery["writes"], battery["min"], battery["max"]) == (
+        True,
+        False,
+        0.0,
+        100.0,
+    )
+    # A float slider without step moves in hundredths of its range.
+    assert widgets["left"]["step"] == 0.05
+    disconnect = widgets["Disconnect"]
+    assert (disconnect["target"], disconnect["robots"]) == (None, ["rover.rcml"])
+
+
+def test_links_set_up_what_the_panel_uses() -> None:
+    (camera,) = robot_links(panel_of("camera")).values()
+    control, lens = camera.accesses["/stream/control"], camera.accesses["/status/lens"]
+    assert (control.starts, control.mode(True), control.mode(False)) == (True, "both", "read")
+    assert (lens.starts, lens.streams, lens.writes) == (True, False, False)
+    assert camera.polled == ()
+
+    (rover,) = robot_links(panel_of("rover")).values()
+    odometry = rover.accesses["/sensors/odometry"]
+    assert (odometry.pace, odometry.mode(True)) == (0.1, "read")  # the RXID's readInterval
+    settings = rover.accesses["/drive/settings"]
+    assert (settings.reads, settings.writes, settings.starts) == (True, True, True)
+    assert NORMAL_READ_EVERY > 0
