@@ -10,7 +10,7 @@ import click
 
 from rcmlconf.cli.console import Output, printable
 from rcmlconf.cli.stdin import standard_input
-from rcmlconf.markup.document import MAX_DOCUMENT_BYTES
+from rcmlconf.markup.failure import MAX_DOCUMENT_BYTES
 from rcmlconf.validate.annotations import annotation
 from rcmlconf.validate.languages import EXTENSIONS
 from rcmlconf.validate.report import summary_line, to_json

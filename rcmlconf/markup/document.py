@@ -14,12 +14,9 @@ import xml.parsers.expat as expat
 from dataclasses import dataclass
 
 from rcmlconf.markup.encoding import decode_document, python_codec
+from rcmlconf.markup.failure import MAX_DEPTH, MAX_DOCUMENT_BYTES, ParseFailure
 from rcmlconf.markup.locate import SourceMap
 from rcmlconf.markup.prolog import Doctype, screen_prolog, text_position
-
-#: D-XML-5.
-MAX_DOCUMENT_BYTES = 16 * 1024 * 1024
-MAX_DEPTH = 256
 
 #: Namespaced names read `uri}local`; '}' never occurs in a name without a namespace.
 NAMESPACE_SEPARATOR = "}"
@@ -51,17 +48,6 @@ def display_name(name: str) -> str:
     """A name as people write it: `{uri}local` (Clark notation) for one in a namespace."""
     uri, separator, local = name.rpartition(NAMESPACE_SEPARATOR)
     return f"{{{uri}}}{local}" if separator else name
-
-
-@dataclass(frozen=True, slots=True)
-class ParseFailure:
-    """Why a document could not be read at all: one located finding."""
-
-    rule: str
-    line: int
-    column: int
-    message: str
-    hint: str | None = None
 
 
 @dataclass(frozen=True, slots=True)

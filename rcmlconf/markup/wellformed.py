@@ -10,7 +10,7 @@ from collections.abc import Callable
 
 from lxml import etree
 
-from rcmlconf.markup.document import MAX_DEPTH, ParseFailure
+from rcmlconf.markup.failure import MAX_DEPTH, ParseFailure
 
 #: A hint from (libxml2 message, the document's line holding the error, 1-based column).
 Hint = Callable[[str, str, int], str | None]

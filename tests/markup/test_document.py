@@ -7,13 +7,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 from support.xml_vectors import XML_VECTORS, xml_vectors
 
-from rcmlconf.markup.document import (
-    MAX_DOCUMENT_BYTES,
-    ParseFailure,
-    XmlDocument,
-    XmlElement,
-    parse_document,
-)
+from rcmlconf.markup.document import XmlDocument, XmlElement, parse_document
+from rcmlconf.markup.failure import MAX_DOCUMENT_BYTES, ParseFailure
 from rcmlconf.validate import Validator
 
 

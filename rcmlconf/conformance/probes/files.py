@@ -16,7 +16,7 @@ import h11
 from rcmlconf import __version__
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Failed
-from rcmlconf.markup.document import MAX_DOCUMENT_BYTES
+from rcmlconf.markup.failure import MAX_DOCUMENT_BYTES
 
 #: The longest head an answer may have (h11 buffers no more of it).
 MAX_HEAD = 65536

@@ -18,7 +18,7 @@ from pathlib import Path
 from urllib.parse import urljoin, urlsplit
 
 from rcmlconf.errors import RcmlconfError
-from rcmlconf.markup.document import MAX_DOCUMENT_BYTES
+from rcmlconf.markup.failure import MAX_DOCUMENT_BYTES
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rctp.url import RctpUrl
 from rcmlconf.validate.validator import InvalidRobot, Validator, load_robot

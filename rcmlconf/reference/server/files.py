@@ -20,7 +20,7 @@ from urllib.parse import quote, unquote, urlsplit
 import h11
 
 from rcmlconf import __version__
-from rcmlconf.markup.document import MAX_DOCUMENT_BYTES
+from rcmlconf.markup.failure import MAX_DOCUMENT_BYTES
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.reference.server.limits import (
     DEFAULT_LIMITS,
