@@ -125,6 +125,16 @@ FAULTS = {
         "rctp/client/answer-and-request-together",
         "R-RCTP-13",
     ),
+    # A packet read no further once a FLOW body that is no request proves broken.
+    "broken-answer-ends-packet": (
+        "rctp/datastream/endpoint.py",
+        "            _RECEIVE[type(payload)](self, packet, index, arrival, now)\n",
+        "            if isinstance(payload, MalformedFlowPayload) and payload.answer is None:\n"
+        "                break\n"
+        "            _RECEIVE[type(payload)](self, packet, index, arrival, now)\n",
+        "rctp/client/stream-broken-flow-beside-data",
+        "R-RCTP-53",
+    ),
 }
 
 

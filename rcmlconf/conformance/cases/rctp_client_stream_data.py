@@ -1,12 +1,14 @@
 """rctp/client, what the client under test does with the played robot's DATA (D-RCTP-31 step 6):
 it takes well-formed DATA and echoes it, and never takes DATA that is stale, out of range or in a
 packet that is not the session's (R-RCTP-40, R-RCTP-42, R-RCTP-43, R-RCTP-58; specs/rctp-2.0.md
-D-RCTP-20, D-RCTP-21)."""
+D-RCTP-20, D-RCTP-21); broken FLOW bodies beside DATA it ignores, and takes the DATA (R-RCTP-53,
+D-RCTP-22)."""
 
 from __future__ import annotations
 
 import asyncio
 import random
+from collections.abc import Callable
 
 from rcmlconf.conformance.cases.rctp_client_scenario import scenario_case
 from rcmlconf.conformance.cases.rctp_client_streams import (
@@ -20,7 +22,7 @@ from rcmlconf.conformance.cases.rctp_streams import UNKNOWN_TYPE
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.played import PlayedServer
 from rcmlconf.conformance.probes.played_stream import STREAM_ID, PlayedStream
-from rcmlconf.conformance.probes.stream import Datagram, StreamProbe
+from rcmlconf.conformance.probes.stream import StreamProbe
 from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.rcml.model import AccessNode, DataNode
 from rcmlconf.rctp.bodies import ValuesCodec
@@ -28,12 +30,18 @@ from rcmlconf.rctp.datastream import (
     DataPayload,
     Direction,
     FlowPayload,
+    HeartbeatAck,
     HeartbeatRequest,
     Message,
+    Nack,
+    NackReason,
+    Operation,
     Payload,
     UnknownPayload,
+    encode_flow,
     stream_codec,
 )
+from rcmlconf.rctp.datastream.packets import MalformedFlowPayload
 from rcmlconf.rctp.targets import format_target
 from rcmlconf.values import Kind, Value
 from rcmlconf.wording import plural
@@ -127,29 +135,23 @@ async def stream_out_of_range(ctx: Context) -> None:
     ["R-RCTP-42"],
 )
 async def stream_foreign_packets_dropped(ctx: Context) -> None:
-    server, stream, access, codec, newer = await _hushed(ctx)
-    probe = stream.probe
+    hushed = await _hushed(ctx)
+    probe = hushed[1].probe
     set_up = probe.set_up
     assert set_up is not None
-    marks = _marks(ctx, access, 3)
     other = await StreamProbe.open(probe.local[0], ctx.transcript, probe.wait)
     ctx.on_close(other.close)
-    kinds = ["version 3", "another tag", "another port"]
-    sent, asked = [], []
-    for kind, mark in zip(kinds, marks, strict=True):
-        values, beat, payloads = _to_drop(stream, codec, {**newer, **mark})
-        if kind == "version 3":
-            data = bytearray(probe.packet_bytes(payloads))
-            data[0] = 3
-            probe.send(bytes(data))
-        elif kind == "another tag":
-            probe.send_packet(payloads, tag=set_up.tag ^ 0x5A5A5A5A)
-        else:
-            other.send_packet(payloads, tag=set_up.tag, to=set_up.server)
-        sent.append((values, f"the packet of {kind}"))
-        asked.append((beat.request_id, kind))
-    await _judge_echo(ctx, server, stream, access, newer, sent)
-    _unanswered(ctx, stream.received + other.drain(), asked)
+
+    await _dropped(
+        ctx,
+        hushed,
+        {
+            "of version 3": lambda p: probe.send(b"\x03" + probe.packet_bytes(p)[1:]),
+            "of another tag": lambda p: probe.send_packet(p, tag=set_up.tag ^ 0x5A5A5A5A),
+            "of another port": lambda p: other.send_packet(p, tag=set_up.tag, to=set_up.server),
+        },
+        other,
+    )
 
 
 @scenario_case(
@@ -159,40 +161,49 @@ async def stream_foreign_packets_dropped(ctx: Context) -> None:
     ["R-RCTP-42"],
 )
 async def stream_broken_framing_dropped(ctx: Context) -> None:
-    server, stream, access, codec, newer = await _hushed(ctx)
-    probe = stream.probe
+    hushed = await _hushed(ctx)
+    probe = hushed[1].probe
+    # The DATA and the heartbeat come first: a client that walks the payloads and finds the
+    # framing broken only after them has already taken them.
+    await _dropped(
+        ctx,
+        hushed,
+        {
+            "with a payload count one above its payloads": lambda p: probe.send(
+                _count_one_up(probe.packet_bytes(p))
+            ),
+            "with 3 stray bytes after its payloads": lambda p: probe.send(
+                probe.packet_bytes(p) + b"\x01\x01\x00"
+            ),
+        },
+    )
+
+
+def _count_one_up(data: bytes) -> bytes:
+    """The packet with its payload count one above its payloads (D-RCTP-19)."""
+    return data[:1] + bytes([data[1] + 1]) + data[2:]
+
+
+#: Sends a packet of the payloads given, in a way the client must drop it (R-RCTP-42).
+Sender = Callable[[list[Payload]], object]
+
+
+async def _dropped(
+    ctx: Context, hushed: Hushed, senders: dict[str, Sender], other: StreamProbe | None = None
+) -> None:
+    """After `_hushed`: for each way of `senders` (what is wrong with the packet, its sender), a
+    packet of DATA of values of its own and a heartbeat, which the client must neither take nor
+    answer (R-RCTP-42); `other`, a second probe of the case's, whose answers count too."""
+    server, stream, access, codec, newer = hushed
     sent, asked = [], []
-    for kind, mark in zip(_BROKEN, _marks(ctx, access, len(_BROKEN)), strict=True):
-        values, beat, payloads = _to_drop(stream, codec, {**newer, **mark})
-        # The DATA and the heartbeat come first: a client that walks the payloads and finds the
-        # framing broken only after them has already taken them.
-        probe.send(_BROKEN[kind](probe.packet_bytes(payloads)))
-        sent.append((values, f"the packet with {kind}"))
+    for (kind, send), mark in zip(senders.items(), _marks(ctx, access, len(senders)), strict=True):
+        values = {**newer, **mark}
+        beat = HeartbeatRequest(stream.probe.next_request_id(), stream.robot_time())
+        send([DataPayload(STREAM_ID, codec.encode(values)), FlowPayload(0, beat)])
+        sent.append((values, f"the packet {kind}"))
         asked.append((beat.request_id, kind))
     await _judge_echo(ctx, server, stream, access, newer, sent)
-    _unanswered(ctx, stream.received, asked)
-
-
-#: Ways to break a packet's framing (D-RCTP-19), by what is wrong.
-_BROKEN = {
-    "a payload count one above its payloads": lambda data: (
-        data[:1] + bytes([data[1] + 1]) + data[2:]
-    ),
-    "3 stray bytes after its payloads": lambda data: data + b"\x01\x01\x00",
-}
-
-
-def _to_drop(
-    stream: PlayedStream, codec: ValuesCodec[DataNode], values: dict[str, Value]
-) -> tuple[dict[str, Value], HeartbeatRequest, list[Payload]]:
-    """The payloads of a packet the client must drop (R-RCTP-42): DATA of `values`, then a
-    heartbeat; the values and the heartbeat, to show it was not taken nor answered."""
-    beat = HeartbeatRequest(stream.probe.next_request_id(), stream.robot_time())
-    return values, beat, [DataPayload(STREAM_ID, codec.encode(values)), FlowPayload(0, beat)]
-
-
-def _unanswered(ctx: Context, received: list[Datagram], asked: list[tuple[int, str]]) -> None:
-    """R-RCTP-42: none of the heartbeats `asked` (request id, the packet's kind) was answered."""
+    received = stream.received + (other.drain() if other is not None else [])
     answered = {
         p.flow.request_id
         for one in received
@@ -204,7 +215,7 @@ def _unanswered(ctx: Context, received: list[Datagram], asked: list[tuple[int, s
     ctx.expect(
         not wrongly,
         "no answer to the heartbeats of those packets",
-        f"an answer to the heartbeat of {', '.join(wrongly)}",
+        f"an answer to the heartbeat of the packet {', '.join(wrongly)}",
         "R-RCTP-42",
     )
 
@@ -233,15 +244,52 @@ async def stream_undecodable_not_taken(ctx: Context) -> None:
     ["R-RCTP-51"],
 )
 async def stream_unknown_payload_skipped(ctx: Context) -> None:
-    server, stream, access, codec, newer = await _hushed(ctx)
+    hushed = await _hushed(ctx)
+    _, _, access, codec, newer = hushed
     decoy, after = ({**newer, **mark} for mark in _marks(ctx, access, 2))
     # The unknown body looks like a DATA body of other values: read as one, it was not skipped;
     # the DATA after it holds values of its own, which show it was taken.
     unknown = UnknownPayload(UNKNOWN_TYPE, STREAM_ID, codec.encode(decoy))
-    stream.probe.send_packet([unknown, DataPayload(STREAM_ID, codec.encode(after))])
-    await _judge_echo(
-        ctx, server, stream, access, after, [(decoy, "the unknown payload's body, read as DATA")]
+    await _data_after(
+        ctx, hushed, [unknown], after, (decoy, "the unknown payload's body, read as DATA")
     )
+
+
+@scenario_case(
+    "rctp/client/stream-broken-flow-beside-data",
+    "FLOW bodies that are broken and no request (an ACK and a NACK a byte short, a body shorter"
+    " than its preamble) are ignored: the DATA after them in their packet is taken",
+    ["R-RCTP-53"],
+)
+async def stream_broken_flow_beside_data(ctx: Context) -> None:
+    hushed = await _hushed(ctx)
+    _, stream, access, _, newer = hushed
+    after = {**newer, **_marks(ctx, access, 1)[0]}
+    # D-RCTP-22: in a packet whose framing holds, a broken ACK or NACK, or a body shorter than
+    # its preamble, is ignored and the packet's other payloads are handled. They come first: a
+    # client that gives up on a packet at its first broken body never reaches the DATA.
+    now = stream.robot_time()
+    ack = HeartbeatAck(stream.probe.next_request_id(), now, now, now)
+    nack = Nack(stream.probe.next_request_id(), Operation.GET_INTERVAL, NackReason.UNKNOWN_STREAM)
+    bodies = [encode_flow(ack)[:-1], encode_flow(nack)[:-1], b"\x01\x02"]
+    broken: list[Payload] = [MalformedFlowPayload(0, body, "sent broken", 0) for body in bodies]
+    dropped = "the packet before: the one with the broken FLOW bodies not taken"
+    await _data_after(ctx, hushed, broken, after, (newer, dropped))
+
+
+async def _data_after(
+    ctx: Context,
+    hushed: Hushed,
+    first: list[Payload],
+    after: dict[str, Value],
+    other: tuple[dict[str, Value], str],
+) -> None:
+    """After `_hushed`: a packet of the payloads `first`, then DATA of `after`, which the client
+    must take, whatever it makes of `first` (`other`: values the client shows when it did not,
+    and what they are)."""
+    server, stream, access, codec, _ = hushed
+    stream.probe.send_packet([*first, DataPayload(STREAM_ID, codec.encode(after))])
+    await _judge_echo(ctx, server, stream, access, after, [other])
 
 
 @scenario_case(
@@ -307,9 +355,12 @@ async def _ended_while_streaming(
     return server
 
 
-async def _hushed(
-    ctx: Context, start: int | None = None
-) -> tuple[PlayedServer, PlayedStream, AccessNode, ValuesCodec[DataNode], dict[str, Value]]:
+#: What `_hushed` gives: the played server, its stream, the stream's access, the codec of the
+#: robot's DATA and the values of the good packet it sent.
+Hushed = tuple[PlayedServer, PlayedStream, AccessNode, ValuesCodec[DataNode], dict[str, Value]]
+
+
+async def _hushed(ctx: Context, start: int | None = None) -> Hushed:
     """The scenario up to its stream's GO (the played server's packets numbered from `start`,
     if given), the played robot's own DATA stopped (the case's packets are the only ones), and a
     good packet sent: the server, the stream, its access, the codec of the robot's DATA, and the
