@@ -125,6 +125,15 @@ FAULTS = {
         "rctp/client/answer-and-request-together",
         "R-RCTP-13",
     ),
+    # A FLOW request about any stream id answered for the stream set up (D-RCTP-22: NACK 2).
+    "any-stream-answered": (
+        "rctp/datastream/endpoint.py",
+        "        stream = self.streams.get(stream_id)\n        if stream is None or",
+        "        stream = self.streams.get(stream_id) or next(iter(self.streams.values()), None)\n"
+        "        if stream is None or",
+        "rctp/client/flow-answers",
+        "R-RCTP-46",
+    ),
     # A packet read no further once a FLOW body that is no request proves broken.
     "broken-answer-ends-packet": (
         "rctp/datastream/endpoint.py",

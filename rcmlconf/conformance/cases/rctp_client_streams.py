@@ -32,6 +32,7 @@ from rcmlconf.rctp.datastream import (
     IntervalSetAck,
     Nack,
     NackReason,
+    Operation,
     TimeoutSet,
     UnknownRequest,
     encode_flow,
@@ -366,7 +367,8 @@ async def _slower(ctx: Context, stream: PlayedStream, access: AccessNode) -> tup
     "The client answers FLOW requests: get interval with its write interval, a set below the"
     " RCML's with NACK 3, a repeated id with the answer already given (after the interval"
     " changed), a read timeout below twice the read interval with NACK 3, a get interval with a"
-    " byte too many with NACK 5, an unknown operation with NACK 1",
+    " byte too many with NACK 5, an unknown operation with NACK 1, a stream not set up with"
+    " NACK 2",
     ["R-RCTP-46", "R-RCTP-47", "R-RCTP-53", "R-RCTP-52"],
 )
 async def flow_answers(ctx: Context) -> None:
@@ -434,6 +436,19 @@ async def flow_answers(ctx: Context) -> None:
         f"NACK 1 (unknown operation) to operation {UNKNOWN_OPERATION}",
         flow_text(nack),
         "R-RCTP-53",
+    )
+    # D-RCTP-22: a client that answers for its one stream whatever the id asks about answers
+    # a stream the session never set up with that stream's interval.
+    nowhere = STREAM_ID + 1
+    elsewhere = await stream.ask(IntervalGet(probe.next_request_id(), Direction.WRITE), nowhere)
+    ctx.expect(
+        isinstance(elsewhere, Nack)
+        and elsewhere.reason is NackReason.UNKNOWN_STREAM
+        and elsewhere.operation == Operation.GET_INTERVAL,
+        f"NACK 2 (unknown stream) of operation {Operation.GET_INTERVAL}: stream {nowhere} was"
+        " never set up",
+        flow_text(elsewhere),
+        "R-RCTP-46",
     )
     await server.reach("BYE")
 
