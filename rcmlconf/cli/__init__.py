@@ -18,6 +18,11 @@ from rcmlconf import __version__
 
 #: name -> (module, function, one-line help)
 COMMANDS = {
+    "browse": (
+        "rcmlconf.cli.browse",
+        "browse",
+        "Show an RXID panel in a web browser, linked to its robots (the RCML browser).",
+    ),
     "cases": (
         "rcmlconf.cli.cases",
         "cases",

@@ -9,20 +9,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from support.browser import chromium
 from support.processes import run_command
 
-CHROMIUM = Path("/usr/bin/chromium")
-#: No sandbox (CI runs as root), nothing fetched or updated behind the test's back.
-ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
 #: The case sequence-skips fails (the reference server skips every other packet number).
 FAILING = "rctp/stream/consecutive-sequence"
 
@@ -38,14 +27,8 @@ def report(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Any]:
-    if not CHROMIUM.exists():
-        pytest.skip("Debian's chromium is not installed (.ci/run installs it)")
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as playwright:
-        launched = playwright.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
+    with chromium() as launched:
         yield launched
-        launched.close()
 
 
 def test_the_page_is_one_file_that_names_nothing_to_fetch(report: Path) -> None:
