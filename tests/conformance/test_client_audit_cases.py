@@ -125,6 +125,22 @@ FAULTS = {
         "rctp/client/answer-and-request-together",
         "R-RCTP-13",
     ),
+    # The answer to its own BYE awaited 30 s, not 5 (R-RCTP-23); the core's deadline too (ALSO).
+    "bye-answer-awaited-long": (
+        "reference/client/scenario.py",
+        "                await client.close(min(timeout, BYE_WAIT))",
+        "                await client.close(30.0)",
+        "rctp/client/bye-unanswered-closes",
+        "R-RCTP-23",
+    ),
+    # The connection closed as soon as its own BYE is sent, not once answered or after 5 s.
+    "bye-answer-not-awaited": (
+        "reference/client/scenario.py",
+        "                await client.close(min(timeout, BYE_WAIT))",
+        "                await client.close(0.1)",
+        "rctp/client/bye-unanswered-closes",
+        "R-RCTP-23",
+    ),
     # A FLOW request about any stream id answered for the stream set up (D-RCTP-22: NACK 2).
     "any-stream-answered": (
         "rctp/datastream/endpoint.py",
@@ -145,12 +161,26 @@ FAULTS = {
         "R-RCTP-53",
     ),
 }
+#: The line of another module some faults change too: (module, the line, as the fault reads).
+ALSO = {
+    # The reference client's core closes a connection 5 s after an unanswered BYE by itself.
+    "bye-answer-awaited-long": (
+        "rctp/connection.py",
+        "            self._bye_deadline = now + BYE_WAIT\n",
+        "            self._bye_deadline = now + 30.0\n",
+    ),
+}
 
 
 @pytest.mark.parametrize("fault", sorted(FAULTS))
 def test_the_case_fails_a_client_with_the_fault(fault: str, tmp_path: Path) -> None:
     module, line, wrong, case, requirement = FAULTS[fault]
     copy = mutated(tmp_path, module, (line, wrong))
+    if fault in ALSO:
+        also, line, wrong = ALSO[fault]
+        source = copy / "rcmlconf" / also
+        assert source.read_text().count(line) == 1, f"{also} no longer has {line!r} once"
+        source.write_text(source.read_text().replace(line, wrong))
     # -P: the copy, not the package of the directory the harness runs in (D-RCTP-31's client).
     client = ["env", f"PYTHONPATH={copy}", sys.executable, "-P", "-m", "rcmlconf", "client"]
     report = tmp_path / "report.json"

@@ -41,6 +41,8 @@ ENOUGH_REQUESTS = 10
 #: 5's 1 s, in which the scenario asks nothing, is then as long as the timeout itself, so a client
 #: that refreshes before its session could lapse does it there.
 REFRESH_TIMEOUT = 1
+#: R-RCTP-23: how long the sender of a BYE waits for its answer before it closes.
+BYE_WAIT = 5.0
 _FLOAT32_MAX = struct.unpack(">f", b"\x7f\x7f\xff\xff")[0]
 
 
@@ -179,6 +181,46 @@ async def targets_and_bye(ctx: Context) -> None:
         after == "closed",
         "the connection closed after the BYE was answered, nothing sent",
         after,
+        "R-RCTP-60" if after.startswith("it sent") else "R-RCTP-23",
+    )
+
+
+@scenario_case(
+    "rctp/client/bye-unanswered-closes",
+    f"The client's BYE left unanswered: it closes the connection {BYE_WAIT:g} s later (D-RCTP-33:"
+    " between 4.5 s and 6.5 s after the BYE), sending nothing more",
+    ["R-RCTP-23"],
+)
+async def bye_unanswered_closes(ctx: Context) -> None:
+    server = await played(ctx)
+
+    # The SETUPs refused leave steps 5 and 6 out (D-RCTP-31: no GO after a failed SETUP), so
+    # that the BYE comes within a second or so and the case has the time to wait for the close.
+    def own(request: Request) -> bytes | None:
+        if request.method == "SETUP":
+            return server.probe.response_bytes(request, 503, "Service Unavailable")
+        return b"" if request.method == "BYE" else None
+
+    server.own = own
+    bye = await server.reach("BYE")
+    if bye is None:
+        raise Inconclusive("the client sent no BYE (D-RCTP-31 step 8)")
+    after = await server.probe.outcome(BYE_WAIT + 1.5 * ctx.scale)
+    waited = server.loop.time() - bye.at
+    within = after == "closed" and waited >= BYE_WAIT - 0.5
+    # Read off the harness's clock: a loop held when the BYE came makes the wait look short, one
+    # held at its end long. Only a hold as long as the bound's least slack, half a second, can
+    # explain a miss (the holds `expect(timing=True)` excuses are those of tighter checks).
+    held = ctx.loop_watch.held(ctx.started) if ctx.loop_watch is not None else 0.0
+    if not within and not after.startswith("it sent") and held >= 0.5 * ctx.scale:
+        raise Inconclusive(
+            f"the connection {after} after {waited:.2f} s, but the harness's event loop was held"
+            f" {held:.2f} s during the case"
+        )
+    ctx.expect(
+        within,
+        f"the connection closed {BYE_WAIT:g} s after the unanswered BYE, nothing sent",
+        f"{after} after {waited:.2f} s",
         "R-RCTP-60" if after.startswith("it sent") else "R-RCTP-23",
     )
 

@@ -36,7 +36,8 @@ SESSION_TIMEOUT = 60
 #: D-RCTP-31's run takes about 5 s on the harness's robot (1 s of events, 2.25 s of stream).
 SCENARIO_TIME = 15.0
 Fields = list[tuple[str, str]]
-#: A case's own answer to a request: the bytes to send, or None for the played server's.
+#: A case's own answer to a request: the bytes to send (none: it is left unanswered), or None for
+#: the played server's.
 Own = Callable[[Request], bytes | None]
 
 
@@ -169,7 +170,10 @@ class PlayedServer:
     async def _take(self, request: Request) -> Seen:
         own = self.own(request) if self.own is not None else None
         if own is not None:
-            await self.probe.send(own)
+            if own:
+                await self.probe.send(own)
+            else:
+                self.probe.transcript.note(f"{self.probe.name} (left unanswered)")
             seen = Seen(request, self.loop.time(), 0)
         else:
             if hold := self.holds.get(request.method):
