@@ -23,3 +23,41 @@ def unmeasured_rto(period: float, retransmissions: int) -> float:
     for _ in range(retransmissions):
         rto = min(2 * rto, MAX_RTO)
     return rto
+
+
+# D-RSP-26: how closely a side's clock and timers hold, as a harness on loopback judges them. Each
+# slack (what a bound allows past the time the spec names) is multiplied by --timeout-scale.
+
+#: A sender's clock runs within this fraction of the harness's.
+CLOCK_DRIFT = 0.05
+#: Seconds between a packet made and stamped and its arrival read, on a loaded machine.
+STAMP_LAG = 0.05
+#: Milliseconds a span between two stamps of one sender may fall short of a time it waited: each
+#: stamp is a whole millisecond.
+STAMP_ROUNDING = 2
+#: Periods the median keep-alive gap may be off 5 T.
+KEEPALIVE_SLACK = 0.5
+#: Seconds past D-RSP-20's 27 periods within which a stop is seen.
+STOP_LAG = 0.5
+#: Seconds before and after the 10 s of the session timeout within which its BYE comes (where T
+#: is a second or less).
+TIMEOUT_EARLY, TIMEOUT_LATE = 0.5, 1.0
+
+
+def stamp_allowance(span: float, scale: float) -> float:
+    """Milliseconds a span of `span` seconds between two of a sender's timestamps may differ from
+    the harness's clock (D-RSP-26)."""
+    return (CLOCK_DRIFT * span + STAMP_LAG * scale) * 1000
+
+
+def resent_within(rto: float, period: float, scale: float) -> float:
+    """Seconds after the send before within which a retransmission due after `rto` is seen: the
+    timeout and a quarter for the timer, a period for the next packet and three for the wire and
+    the scheduling (D-RSP-26)."""
+    return rto + (0.25 * rto + 4 * period) * scale
+
+
+def timeout_window(period: float, scale: float) -> tuple[float, float]:
+    """Seconds after the last packet a side heard within which its session timeout's BYE comes
+    (D-RSP-26): up to 10 s and T where T is over a second."""
+    return SESSION_TIMEOUT - TIMEOUT_EARLY, SESSION_TIMEOUT + max(TIMEOUT_LATE, period) * scale

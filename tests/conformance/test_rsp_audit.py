@@ -118,14 +118,19 @@ def test_a_local_system_sending_its_periods_at_once_fails_idle_keep_alive(tmp_pa
     _caught(tmp_path, copy, "rsp/local/idle-keep-alive", "R-RSP-43")
 
 
-def test_a_local_system_starting_its_timeout_at_2_t_fails_memory_command_resent(
-    tmp_path: Path,
+@pytest.mark.parametrize("periods", [2, 100])
+def test_a_local_system_starting_its_timeout_wrong_fails_memory_command_resent(
+    tmp_path: Path, periods: int
 ) -> None:
     """R-RSP-28, D-RSP-17: the reference's timeout made 2 T before a round trip is measured, not
     10 T: its memory command goes again 40, 80, 160 ms apart at 20 ms, which the case's bounds
-    (at least 2 T, each about double the one before) let through."""
+    (at least 2 T, each about double the one before) let through. Or 100 T, the 2 s ceiling at
+    20 ms: sent again 2 s apart, which three sends within 4.5 s let through (D-RSP-26 now bounds
+    each retransmission: 1.25 RTO + 4 T)."""
     copy = mutated(
-        tmp_path, "rsp/reliable.py", ("INITIAL_RTO_PERIODS = 10\n", "INITIAL_RTO_PERIODS = 2\n")
+        tmp_path,
+        "rsp/reliable.py",
+        ("INITIAL_RTO_PERIODS = 10\n", f"INITIAL_RTO_PERIODS = {periods}\n"),
     )
     _caught(tmp_path, copy, "rsp/local/memory-command-resent", "R-RSP-28")
 

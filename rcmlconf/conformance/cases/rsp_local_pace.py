@@ -10,7 +10,7 @@ from __future__ import annotations
 import itertools
 import math
 
-from rcmlconf.conformance.cases.rsp_local import local_case, occurrence, session
+from rcmlconf.conformance.cases.rsp_local import local_case, occurrence, played_model, session
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.locals import SCENARIO_LIFETIME, LocalProbe
 from rcmlconf.conformance.probes.pace import paced
@@ -19,7 +19,7 @@ from rcmlconf.conformance.rsp_numbers import KEEPALIVE_PERIODS, LOST_PERIODS, SE
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import PacketType, Period
 from rcmlconf.rsp.codec.bodies import MAX_PERIOD_MS
-from rcmlconf.rsp.model import DeviceKind, RobotModel
+from rcmlconf.rsp.model import DeviceKind
 
 #: Periods rsp/local/lost-link-goes-on watches past the loss of the link.
 WATCH = 10
@@ -27,12 +27,6 @@ WATCH = 10
 #: milliseconds, and a doubled T of hundreds of them shows a new T computed a hair off (a factor,
 #: a rounding) that one of 40 ms would round away.
 SLOW_PERIOD = 0.3
-
-
-def _model(ctx: Context) -> RobotModel:
-    if ctx.target.rsp_model is None:
-        raise NotApplicable("the robot model the harness plays is not known (give --model)")
-    return ctx.target.rsp_model
 
 
 @local_case(
@@ -64,7 +58,7 @@ async def welcome_opens(ctx: Context) -> None:
     timeout=7.0,
 )
 async def lost_link_goes_on(ctx: Context) -> None:
-    model = _model(ctx)
+    model = played_model(ctx)
     # Nothing acknowledged and no keep-alive: after WELCOME the robot says nothing at all.
     reliable = of_kind(model, DeviceKind.COMMAND, DeviceKind.MEMORY_COMMAND)
     probe = await session(ctx, withheld=reliable, beating=False)
@@ -104,7 +98,7 @@ def _last_word(probe: LocalProbe) -> float:
     timeout=6.0,
 )
 async def period_doubles(ctx: Context) -> None:
-    model = _model(ctx)
+    model = played_model(ctx)
     memory = first(model, DeviceKind.MEMORY_EVENT)
     probe = await session(ctx, slower=math.ceil(SLOW_PERIOD * ctx.scale / model.period))
     in_force = round(probe.period * 1000)

@@ -34,6 +34,7 @@ from rcmlconf.conformance.cases.rsp_local import (
     local_case,
     numbered,
     occurrence,
+    played_model,
     session,
 )
 from rcmlconf.conformance.context import Context
@@ -53,12 +54,6 @@ _OCCURRENCES = (DeviceKind.EVENT, DeviceKind.MEMORY_EVENT)
 ACK_AT_ONCE_PERIOD = 0.3
 #: A late UPLINK's place behind the newest: the window's edge (D-RSP-15: 64 read, 65 dropped).
 INSIDE, OUTSIDE = 64, 65
-
-
-def _model(ctx: Context) -> RobotModel:
-    if ctx.target.rsp_model is None:
-        raise NotApplicable("the robot model the harness plays is not known (give --model)")
-    return ctx.target.rsp_model
 
 
 def silence(probe: LocalProbe) -> float:
@@ -187,7 +182,7 @@ def heard_after(probe: LocalProbe, sent: bytes, at: float) -> Callable[[Datagram
 async def robot_sequence_wraps(ctx: Context) -> None:
     reliable = (DeviceKind.COMMAND, DeviceKind.MEMORY_COMMAND)
     # Nothing acknowledged and no keep-alive: the robot's numbers move only as the case says.
-    withheld = [d for d in _model(ctx).devices if d.kind in reliable]
+    withheld = [d for d in played_model(ctx).devices if d.kind in reliable]
     probe = await session(ctx, withheld=withheld, beating=False)
     wire = probe.wire
     assert wire is not None
@@ -221,7 +216,7 @@ async def robot_sequence_wraps(ctx: Context) -> None:
     ["R-RSP-18", "R-RSP-26"],
 )
 async def other_session_dropped(ctx: Context) -> None:
-    memory = first(_model(ctx), DeviceKind.MEMORY_EVENT)
+    memory = first(played_model(ctx), DeviceKind.MEMORY_EVENT)
     probe = await session(ctx)
     other = probe.session_id ^ 1 or 2
     await malformed_then_taken(
@@ -240,7 +235,7 @@ async def other_session_dropped(ctx: Context) -> None:
     ["R-RSP-18", "R-RSP-26"],
 )
 async def other_address_dropped(ctx: Context) -> None:
-    memory = first(_model(ctx), DeviceKind.MEMORY_EVENT)
+    memory = first(played_model(ctx), DeviceKind.MEMORY_EVENT)
     probe = await session(ctx)
     host, robot_port = probe.listener.address
     loop = asyncio.get_running_loop()
@@ -264,7 +259,7 @@ async def other_address_dropped(ctx: Context) -> None:
     ["R-RSP-18", "R-RSP-16", "R-RSP-27"],
 )
 async def trailing_bytes_dropped(ctx: Context) -> None:
-    model = _model(ctx)
+    model = played_model(ctx)
     memory = first(model, DeviceKind.MEMORY_EVENT)
     command = first(model, DeviceKind.COMMAND)
     probe = await session(ctx, withheld=[command])
@@ -301,7 +296,7 @@ async def trailing_bytes_dropped(ctx: Context) -> None:
     ["R-RSP-18", "R-RSP-27"],
 )
 async def downlink_dropped(ctx: Context) -> None:
-    command = first(_model(ctx), DeviceKind.COMMAND)
+    command = first(played_model(ctx), DeviceKind.COMMAND)
     probe = await session(ctx, withheld=[command])
     ident = await _in_flight(probe, command)
     # D-RSP-11: a type the local system is not sent is malformed, though a DOWNLINK of the
@@ -393,7 +388,7 @@ async def _downlinks_after(probe: LocalProbe, sent: bytes) -> list[Datagram]:
     ["R-RSP-18", "R-RCML-30", "R-RSP-26"],
 )
 async def bad_bool_dropped(ctx: Context) -> None:
-    model = _model(ctx)
+    model = played_model(ctx)
     memory = first(model, DeviceKind.MEMORY_EVENT)
     device, flag = _with_bool(model)
     probe = await session(ctx)
@@ -442,7 +437,7 @@ def _reporting(memory: Device, device: Device, flag: Field, on: bool) -> tuple[I
     ["R-RSP-18", "R-RSP-26"],
 )
 async def replay_dropped(ctx: Context) -> None:
-    memory = first(_model(ctx), DeviceKind.MEMORY_EVENT)
+    memory = first(played_model(ctx), DeviceKind.MEMORY_EVENT)
     probe = await session(ctx)
     item = occurrence(memory, 0)
     sent: list[bytes] = []
@@ -467,7 +462,7 @@ async def replay_dropped(ctx: Context) -> None:
     ["R-RSP-18", "R-RSP-26"],
 )
 async def outside_window_dropped(ctx: Context) -> None:
-    memory = first(_model(ctx), DeviceKind.MEMORY_EVENT)
+    memory = first(played_model(ctx), DeviceKind.MEMORY_EVENT)
     probe = await session(ctx)
     item = occurrence(memory, 0)
     jump(probe, 100)
@@ -491,7 +486,7 @@ async def outside_window_dropped(ctx: Context) -> None:
     ["R-RSP-19"],
 )
 async def late_buffer_ignored(ctx: Context) -> None:
-    model = _model(ctx)
+    model = played_model(ctx)
     memory = first(model, DeviceKind.MEMORY_COMMAND)
     probe = await session(ctx, free=0, withheld=[memory])
     period = probe.period
@@ -536,7 +531,7 @@ async def late_buffer_ignored(ctx: Context) -> None:
     ["R-RSP-25"],
 )
 async def event_old_id(ctx: Context) -> None:
-    model = _model(ctx)
+    model = played_model(ctx)
     command = first(model, DeviceKind.COMMAND)
     event = first(model, DeviceKind.EVENT)
     # D-RSP-5, D-RSP-16: IDs are 8 times idLength bits; one is new when ahead of the last taken by 1
@@ -589,7 +584,7 @@ async def event_old_id(ctx: Context) -> None:
     timeout=6.0,
 )
 async def ack_at_once(ctx: Context) -> None:
-    model = _model(ctx)
+    model = played_model(ctx)
     memory = first(model, DeviceKind.MEMORY_EVENT)
     # A slow T, right after a beat of the local system: an ACK held for its next beat comes
     # most of a period late, one sent at once in a few milliseconds.

@@ -32,7 +32,7 @@ from rcmlconf.conformance.probes.rsp import (
     values_of,
 )
 from rcmlconf.conformance.registry import Role, case
-from rcmlconf.conformance.rsp_numbers import LOST_PERIODS
+from rcmlconf.conformance.rsp_numbers import LOST_PERIODS, STAMP_ROUNDING, STOP_LAG
 from rcmlconf.conformance.verdicts import Failed, Inconclusive
 from rcmlconf.rsp.codec import PacketType
 from rcmlconf.rsp.model import OnLoss
@@ -45,8 +45,6 @@ SLOW_MS = 1200
 BEATS = 3
 #: `spaced`'s shortest and longest gaps, in periods.
 EARLIEST, LATEST = 0.6, 1.6
-#: Milliseconds a robot's timestamp may be off by (it counts whole milliseconds, R-RSP-14).
-STAMP_SLACK = 2
 #: D-RSP-20: a stop is seen at most this many periods after the link is lost (the control period
 #: to come round, then the UPLINK).
 STOP_PERIODS = 2
@@ -102,7 +100,7 @@ def _beating(ctx: Context, found: list[Datagram], period: float, note: str) -> N
         for earlier, later in itertools.pairwise(found)
     ]
     ctx.expect(
-        all(gap >= EARLIEST * period * 1000 - STAMP_SLACK for gap in stamped),
+        all(gap >= EARLIEST * period * 1000 - STAMP_ROUNDING for gap in stamped),
         f"UPLINKs {period * 1000:g} ms apart by the robot's own clock{note}",
         f"timestamps (R-RSP-14) {', '.join(map(str, stamped))} ms apart",
         "R-RSP-42",
@@ -225,10 +223,9 @@ async def link_loss_stops(ctx: Context) -> None:
     await driven.settled()
     start = probe.mark()
     probe.muted = True
-    # D-RSP-20: seen stopped 25 to 27 periods after the last packet the robot heard, and twice the
-    # probe's quiet time for the wire and the scheduling of the harness and the robot on a loaded
-    # machine: a stop later than that is the robot's, whatever the load (not a timing check).
-    lag = 2 * probe.quiet
+    # D-RSP-26: seen stopped within D-RSP-20's 27 periods of the last packet we sent, and half a
+    # second for the wire and the scheduling of the harness and the robot on a loaded machine.
+    lag = STOP_LAG * ctx.scale
     bound = (LOST_PERIODS + STOP_PERIODS) * period + lag
 
     def stopped(found: Datagram) -> bool:
@@ -253,9 +250,10 @@ async def link_loss_stops(ctx: Context) -> None:
         found is not None and found.at <= last + bound,
         f"{monitor.name} at {values_text([field], {field.name: zero})[0]} within"
         f" {LOST_PERIODS}+{STOP_PERIODS} periods of the last DOWNLINK (D-RSP-20), and"
-        f" {lag * 1000:.0f} ms for the harness: {bound * 1000:.0f} ms",
+        f" {lag * 1000:.0f} ms for the harness (D-RSP-26): {bound * 1000:.0f} ms",
         f"still {driven.latest()}" if found is None else f"after {(found.at - last) * 1000:.0f} ms",
         "R-RSP-36",
+        timing=True,  # read off the harness's clock
     )
 
 
@@ -298,9 +296,9 @@ async def link_loss_holds(ctx: Context) -> None:
     await driven.settled()
     start, since = probe.mark(), probe.now
     probe.muted = True
-    # Past where an onLoss=zero effector is seen stopped (D-RSP-20, rsp/motion/link-loss-stops's
-    # bound, the harness's lag included), from the last datagram sent.
-    lost = (LOST_PERIODS + STOP_PERIODS) * period + 2 * probe.quiet
+    # Past where an onLoss=zero effector is seen stopped (D-RSP-26, rsp/motion/link-loss-stops's
+    # bound), from the last datagram sent.
+    lost = (LOST_PERIODS + STOP_PERIODS) * period + STOP_LAG * ctx.scale
     while probe.now < (end := probe.sent[-1][0] + lost):
         await probe.listen(end - probe.now)
     uplinks = probe.packets(PacketType.UPLINK, after=start)
