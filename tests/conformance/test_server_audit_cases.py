@@ -103,6 +103,34 @@ FAULTS = {
         ["rctp/node/write-event-nodes-order", "rctp/node/write-event-nodes-repeated"],
         "R-RCTP-30",
     ),
+    # A reader that takes a bare LF for CRLF in an answer to the server's own request.
+    "bare-lf-answer-taken": (
+        "rctp/reader.py",
+        "        self._buffer += data\n",
+        '        self._buffer += re.sub(rb"(?<!\\r)\\n", b"\\r\\n", data)'
+        ' if data.startswith(b"RCTP/") else data\n',
+        ROVER,
+        ["rctp/msg/response-unframeable"],
+        "R-RCTP-12",
+    ),
+    # A reader that takes a status code by its class digit (`2x0` for a 200): ALSO has the rest.
+    "status-read-by-its-class": (
+        "rctp/reader.py",
+        '_STATUS = re.compile(rb"[0-9]{3}")',
+        '_STATUS = re.compile(rb"[0-9][0-9A-Za-z]{2}")',
+        ROVER,
+        ["rctp/msg/response-unframeable"],
+        "R-RCTP-12",
+    ),
+}
+#: More (line, line as the fault reads) some faults change in their module.
+ALSO = {
+    "status-read-by-its-class": [
+        (
+            "            return Response(int(parts[1]), parts[2]",
+            "            return Response(int(parts[1][:1]) * 100, parts[2]",
+        )
+    ],
 }
 
 
@@ -154,7 +182,7 @@ def test_each_case_passes_the_reference_and_fails_its_fault(tmp_path: Path, faul
     with served(tmp_path, rcml) as address:
         right = judged(tmp_path, address, rcml, cases)
     assert {case: verdict for case, (verdict, _) in right.items()} == dict.fromkeys(cases, "pass")
-    copy = mutated(tmp_path, module, (line, faulty))
+    copy = mutated(tmp_path, module, (line, faulty), *ALSO.get(fault, []))
     with served(tmp_path, rcml, copy) as address:
         wrong = judged(tmp_path, address, rcml, cases)
     assert wrong == dict.fromkeys(cases, ("fail", requirement)), wrong
