@@ -49,7 +49,9 @@ class AccessUse:
     def mode(self, may_write: bool) -> str | None:
         """A stream's SETUP mode (D-RCTP-18): the directions the panel uses, writing only when
         `may_write` (the session holds the privilege); None when it would use none."""
-        reads = self.reads or (self.auto_start and bool(self.access.readable()))
+        # Any use of an access with readable nodes reads them: the panel shows the robot, and
+        # a node the user has not moved is written back as the robot has it (`robot`).
+        reads = bool(self.access.readable()) and (self.reads or self.writes or self.auto_start)
         writes = self.writes and may_write
         if reads and writes:
             return "both"

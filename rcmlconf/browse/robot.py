@@ -94,6 +94,8 @@ class RobotSession:
         self.playing: set[str] = set()
         #: Stream access path -> node name -> the user's value, written every interval.
         self.written: dict[str, dict[str, Value]] = {}
+        #: Streams set up to write whose values go out every interval (`_start_writing`).
+        self.writing: set[str] = set()
         self._jobs: dict[object, _Job] = {}
         self._job_ready = asyncio.Event()
         #: Paced accesses (`_show`): when the page was last told, what waits, and the timer.
@@ -143,6 +145,7 @@ class RobotSession:
         self.modes.clear()
         self.playing.clear()
         self.written.clear()
+        self.writing.clear()
         self._jobs.clear()
         for handle in self._later.values():
             handle.cancel()
@@ -194,6 +197,7 @@ class RobotSession:
         if mode is not None:
             await client.setup(use.path, mode)
             self.modes[use.path] = mode
+            self._start_writing(client, use.path)
             await client.go(use.path)
             self.playing.add(use.path)
 
@@ -221,6 +225,7 @@ class RobotSession:
                 return client.closed.reason if client.closed else "the session ended"
             if isinstance(event, StreamValues):
                 self._show(event.path, event.values, paced=True)
+                self._start_writing(client, event.path)
             elif isinstance(event, ServerRequest):
                 self._server_request(event)
             elif isinstance(event, StreamLost):
@@ -231,6 +236,7 @@ class RobotSession:
             self._show(event.path, event.values, paced=False)  # D-RCTP-27
         elif event.method == "STOP":
             self.modes.pop(event.path, None)
+            self.writing.discard(event.path)
             self.playing.discard(event.path)
             self.outbox.note(
                 "stream", robot=self.robot, path=event.path, state="stopped", detail=event.reason
@@ -327,11 +333,22 @@ class RobotSession:
             text = f"{WORDS[470]}: {access.path} is not set up for writing"
             self.outbox.note("refusal", widget=widget.key, text=text)
             return
-        first = access.path not in self.written
         self.written.setdefault(access.path, {})[node.name] = value
-        if first:
-            client.write_values(access.path, lambda: self._stream_values(client, access))
+        self._start_writing(client, access.path)
         self.outbox.note("accepted", widget=widget.key)
+
+    def _start_writing(self, client: Client, path: str) -> None:
+        """A stream set up to write sends every interval from the start, or the server STOPs it
+        at its write timeout (D-RCTP-23); a node the user has not moved is written as the robot
+        has it, so the robot's values come first: after the first DATA when the stream reads."""
+        access = self.links.model.node(path)
+        if path in self.writing or self.modes.get(path) not in ("write", "both"):
+            return
+        assert isinstance(access, AccessNode)  # modes holds stream accesses only
+        if access.readable() and path not in client.session.received:
+            return  # `_show` comes back with the first values
+        self.writing.add(path)
+        client.write_values(path, lambda: self._stream_values(client, access))
 
     def _stream_values(self, client: Client, access: AccessNode) -> dict[str, Value]:
         """D-RCTP-20: every writable node, each interval: the user's value, else the robot's
@@ -390,6 +407,7 @@ class RobotSession:
         await client.setup(target, mode)
         if streams:
             self.modes[target] = mode
+            self._start_writing(client, target)
 
     async def _go(self, client: Client, target: str) -> None:
         await client.go(target)
@@ -408,6 +426,7 @@ class RobotSession:
         self.modes.pop(target, None)
         self.playing.discard(target)
         self.written.pop(target, None)
+        self.writing.discard(target)
 
     async def _remode(self, client: Client, path: str) -> None:
         """A stream set up again with the mode the privilege allows now: PAUSE, SETUP, GO."""
@@ -420,10 +439,8 @@ class RobotSession:
             await client.pause(path)
         await client.setup(path, mode)
         self.modes[path] = mode
-        if path in self.written and mode in ("write", "both"):
-            node = self.links.model.node(path)
-            assert isinstance(node, AccessNode)
-            client.write_values(path, lambda: self._stream_values(client, node))
+        self.writing.discard(path)
+        self._start_writing(client, path)
         if playing:
             await client.go(path)
 
