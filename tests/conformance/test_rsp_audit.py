@@ -284,3 +284,23 @@ def test_a_local_system_keeping_the_largest_number_fails_robot_sequence_wraps(
         "R-RSP-15",
         passing="rsp/local/downlink-header",
     )
+
+
+@pytest.mark.parametrize(
+    ("case", "line"),
+    [
+        (
+            "rsp/session/repeated-hello",
+            "data = wire.build(PacketType.WELCOME, welcome, now, self.free_buffers, self._psk)",
+        ),
+        ("rsp/session/busy", "            self.free_buffers,\n        )\n"),
+    ],
+)
+def test_a_robot_giving_no_free_buffers_outside_its_session_packets_fails(
+    tmp_path: Path, case: str, line: str
+) -> None:
+    """R-RSP-31, D-RSP-12: the reference made to give 0 free buffers in its WELCOME (and so in
+    the WELCOME it gives again, the same bytes), or in REFUSED; the cases read the free count
+    only from UPLINKs and ACKs."""
+    copy = mutated(tmp_path, "rsp/session/robot.py", (line, line.replace("self.free_buffers", "0")))
+    _caught(tmp_path, copy, case, "R-RSP-31")

@@ -262,8 +262,9 @@ async def undefined_encryption(ctx: Context) -> None:
 
 @case(
     "rsp/session/busy",
-    "While a session runs, another local system's HELLO is refused (3) and the session goes on",
-    ["R-RSP-20"],
+    "While a session runs, another local system's HELLO is refused (3), with the free buffers the"
+    " UPLINKs give, and the session goes on",
+    ["R-RSP-20", "R-RSP-31"],
     role=Role.ROBOT,
 )
 async def busy(ctx: Context) -> None:
@@ -287,12 +288,16 @@ async def busy(ctx: Context) -> None:
         "none" if uplink is None else f"session {uplink.header.session_id:#x}",
         "R-RSP-20",
     )
+    if answer.type is PacketType.REFUSED:  # D-RSP-12: its free buffers as ever
+        await probe.listen(3 * raw.period)
+        _same_free(ctx, [answer], probe.packets(PacketType.UPLINK), "REFUSED")
 
 
 @case(
     "rsp/session/repeated-hello",
-    "A HELLO repeated with the same nonce gets the same WELCOME and opens no second session",
-    ["R-RSP-41", "R-RSP-20"],
+    "A HELLO repeated with the same nonce gets the same WELCOME and opens no second session; both"
+    " WELCOMEs give the free buffers the UPLINKs give",
+    ["R-RSP-41", "R-RSP-20", "R-RSP-31"],
     role=Role.ROBOT,
 )
 async def repeated_hello(ctx: Context) -> None:
@@ -309,11 +314,14 @@ async def repeated_hello(ctx: Context) -> None:
         and again.body.robot_nonce == first.body.robot_nonce
         and again.body.period_ms == first.body.period_ms
         and again.body.client_nonce == raw.nonce
+        and again.header.buffer == first.header.buffer
     )
     ctx.expect(
         same,
-        f"session {first.header.session_id:#x}, robot nonce {first.body.robot_nonce.hex()}",
-        f"session {again.header.session_id:#x}, robot nonce {again.body.robot_nonce.hex()}",
+        f"session {first.header.session_id:#x}, robot nonce {first.body.robot_nonce.hex()},"
+        f" {first.body.period_ms} ms, {first.header.buffer} free buffers (D-RSP-12)",
+        f"session {again.header.session_id:#x}, robot nonce {again.body.robot_nonce.hex()},"
+        f" {again.body.period_ms} ms, {again.header.buffer} free buffers",
     )
     sensor = reported(probe.model, 1)[0]
     uplink = await taken(probe, raw, flags(probe.model, sensor))
@@ -321,6 +329,28 @@ async def repeated_hello(ctx: Context) -> None:
         uplink is not None and sensor.name in uplink.devices(probe.model),
         f"the session going on, reporting {sensor.name}",
         "no such UPLINK" if uplink is None else str(sorted(uplink.devices(probe.model))),
+    )
+    await probe.listen(3 * raw.period)
+    _same_free(ctx, [first, again], probe.packets(PacketType.UPLINK), "WELCOME")
+
+
+def _same_free(ctx: Context, given: list[Datagram], uplinks: list[Datagram], what: str) -> None:
+    """R-RSP-31: the free buffers in every packet, so those `given` (`what`) say what the UPLINKs
+    say, in a session that sends no memory command. A count that moves among the UPLINKs (memory
+    commands of an earlier session still executing) leaves the check undone."""
+    free = {d.header.buffer for d in uplinks}
+    if len(free) != 1:
+        ctx.cannot_check(
+            f"{what}'s free buffers against the UPLINKs': "
+            + ("no UPLINK came" if not free else f"their count moved ({sorted(free)})")
+        )
+        return
+    (count,) = free
+    ctx.expect(
+        all(d.header.buffer == count for d in given),
+        f"{count} free buffers in {what}, as in every UPLINK (no memory command sent)",
+        ", ".join(f"{d.header.buffer} in {d.type.name} #{d.header.sequence}" for d in given),
+        "R-RSP-31",
     )
 
 
