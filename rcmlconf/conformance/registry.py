@@ -66,6 +66,9 @@ class Case:
     #: case may serve another RCML to test step 1); served from the start of the run, since a
     #: client may fetch it before the case's clock starts.
     served: Served | None = None
+    #: Runs with no other case of the run in flight, after them: what it checks counts every
+    #: connection and session of the harness's address (D-RCTP-32's floors, R-RCTP-67).
+    exclusive: bool = False
 
     @property
     def area(self) -> str:
@@ -88,6 +91,7 @@ def case(
     serial: bool = False,
     waits_session: bool = False,
     served: Served | None = None,
+    exclusive: bool = False,
 ) -> Callable[[CaseFunction], CaseFunction]:
     """Register the decorated coroutine function as a case."""
 
@@ -111,6 +115,7 @@ def case(
             run,
             waits_session,
             served,
+            exclusive,
         )
         return run
 

@@ -1,5 +1,6 @@
 """Running cases: each bounded by its timeout (scaled), concurrently where they share no state
-(`Case.serial` ones run alone, after the rest), every exception turned into a verdict."""
+(`Case.serial` ones one after another, in a lane of their role beside the rest; `Case.exclusive`
+ones last, with nothing else in flight), every exception turned into a verdict."""
 
 from __future__ import annotations
 
@@ -235,7 +236,7 @@ async def run_cases(
     # connection), not with the rest: one lane a role, beside the concurrent cases.
     lanes: dict[Role, list[Case]] = {}
     for case in cases:
-        if alone(case, target):
+        if alone(case, target) and not case.exclusive:
             lanes.setdefault(case.role, []).append(case)
     if target.locals is not None:
         target.locals.runs = sum(c.role is Role.LOCAL for c in cases) * options.repeat
@@ -245,13 +246,22 @@ async def run_cases(
         target.clients.plan([c.id for c in clients] * options.repeat, served)
     watch.start()
     try:
+        exclusive = [c for c in cases if c.exclusive]
         for run in range(1, options.repeat + 1):
+            if run > 1 and exclusive:
+                # D-RCTP-33: what the exclusive cases held may count against the server's caps
+                # for a second after they closed it.
+                await asyncio.sleep(options.timeout_scale)
             # The longest first: a case that must wait out a protocol timer should not also
             # wait for a free slot (the suite takes as long as its slowest case at best).
-            free = (c for c in cases if not alone(c, target))
+            free = (c for c in cases if not alone(c, target) and not c.exclusive)
             longest_first = sorted(free, key=lambda c: -c.timeout)
             concurrent = [one(c, run) for c in longest_first]
             await asyncio.gather(*concurrent, *(lane(serial, run) for serial in lanes.values()))
+            # Then alone: the other cases' connections would count against what they count
+            # (the caps of D-RCTP-32).
+            for case in exclusive:
+                await one(case, run)
     finally:
         watch.stop()
     order = {c.id: i for i, c in enumerate(cases)}

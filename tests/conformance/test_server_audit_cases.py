@@ -24,6 +24,7 @@ from support.robots import ROVER
 UNREADABLE = Path(__file__).parent / "robots" / "unreadable.rcml"
 READS = ["rctp/node/read-unreadable", "rctp/node/read-event-unreadable"]
 KEPT = "rctp/session/stream-keeps-alive"
+FLOORS = "rctp/session/peer-floors"
 #: The served session timeout, short enough for KEPT to wait out (the embedded reference's too).
 SESSION_TIMEOUT = "2"
 #: (module under rcmlconf/, the line, the line as the fault reads, the robot served, the cases,
@@ -121,6 +122,24 @@ FAULTS = {
         ROVER,
         ["rctp/msg/response-unframeable"],
         "R-RCTP-12",
+    ),
+    # A server that serves 8 sessions of one address, below R-RCTP-67's floor of 32.
+    "sessions-capped-at-8": (
+        "reference/server/limits.py",
+        "    sessions_per_peer: int = 64\n",
+        "    sessions_per_peer: int = 8\n",
+        ROVER,
+        [FLOORS],
+        "R-RCTP-67",
+    ),
+    # A server that refuses a CONNECT beyond its cap of sessions with 500, not 503.
+    "session-cap-answered-500": (
+        "reference/server/session.py",
+        '                raise Refused(503, f"{cap} sessions',
+        '                raise Refused(500, f"{cap} sessions',
+        ROVER,
+        [FLOORS],
+        "R-RCTP-67",
     ),
 }
 #: More (line, line as the fault reads) some faults change in their module.

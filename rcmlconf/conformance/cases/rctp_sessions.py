@@ -1,6 +1,6 @@
 """rctp/session: CONNECT and the session it opens, the Session field, BYE, the session timeout,
-what the end of a session releases, and how slow a client may be (specs/rctp-2.0.md D-RCTP-11,
-D-RCTP-13, D-RCTP-32, R-RCTP-17 to R-RCTP-23, R-RCTP-36, R-RCTP-67)."""
+and what the end of a session releases (specs/rctp-2.0.md D-RCTP-11, D-RCTP-13, R-RCTP-17 to
+R-RCTP-23, R-RCTP-36); what a server serves one address is rctp_limits'."""
 
 from __future__ import annotations
 
@@ -22,9 +22,6 @@ from rcmlconf.rctp.targets import format_target
 
 #: R-RCTP-23: how long the sender of BYE waits for its answer.
 BYE_WAIT = 5.0
-#: How slow rctp/session/slow-client-kept is, against R-RCTP-67's floor of 10 s (not scaled:
-#: the floor is the server's promise, not a time the server takes).
-SLOW_FOR = 8.0
 
 
 @case(
@@ -287,39 +284,6 @@ async def stream_keeps_alive(ctx: Context) -> None:
             f"no BYE while a heartbeat comes every {every:g} s and no request",
             outcome,
             "R-RCTP-21",
-        )
-
-
-@case(
-    "rctp/session/slow-client-kept",
-    f"A connection whose CONNECT comes {SLOW_FOR:g} s after it opened, and one whose CONNECT"
-    f" takes {SLOW_FOR:g} s to arrive, are both answered: D-RCTP-32 closes slow ones at 10 s",
-    ["R-RCTP-67"],
-    timeout=SLOW_FOR + 5.0,
-)
-async def slow_client_kept(ctx: Context) -> None:
-    ctx.cannot_check(
-        "the floors of 64 connections and 32 sessions of one address, and 503 beyond a cap:"
-        " the other cases of the run share the harness's address"
-    )
-    quiet, slow = await ctx.control(), await ctx.control()
-    # Without a session yet, so that no session timeout is in play: the slow CONNECT's first
-    # bytes now and the rest in SLOW_FOR seconds, the quiet one's all then.
-    request = slow.request_bytes("CONNECT", ctx.target.site_path)
-    await slow.send(request[:9])
-    await asyncio.sleep(SLOW_FOR)
-    await slow.send(request[9:])
-    await quiet.send(quiet.request_bytes("CONNECT", ctx.target.site_path))
-    for probe, what in (
-        (quiet, f"CONNECT sent {SLOW_FOR:g} s after the connection opened"),
-        (slow, f"a CONNECT whose head took {SLOW_FOR:g} s, from the connection's opening"),
-    ):
-        found = await probe.message()
-        ctx.expect(
-            isinstance(found, Response) and found.status == 200,
-            f"the answer 200 to {what}",
-            describe(found),
-            "R-RCTP-67",
         )
 
 

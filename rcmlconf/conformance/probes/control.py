@@ -19,6 +19,8 @@ from rcmlconf.rctp.targets import parse_target
 #: R-RCTP-1: a reply the core's parser rejects without naming a rule breaks the grammar.
 GRAMMAR = "R-RCTP-1"
 Fields = Sequence[tuple[str, str]]
+#: What `response` found when the peer closed the connection instead of answering.
+CLOSED = "the connection closed without one"
 
 
 class ControlProbe:
@@ -204,7 +206,7 @@ class ControlProbe:
         for _ in range(64):
             found = await self.message(wait)
             if found is None:
-                raise Failed(closed, "an answer", "the connection closed without one")
+                raise Failed(closed, "an answer", CLOSED)
             if isinstance(found, Response):
                 return found
             await self.answer(found, *self.own_requests)
