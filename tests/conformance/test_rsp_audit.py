@@ -304,3 +304,39 @@ def test_a_robot_giving_no_free_buffers_outside_its_session_packets_fails(
     only from UPLINKs and ACKs."""
     copy = mutated(tmp_path, "rsp/session/robot.py", (line, line.replace("self.free_buffers", "0")))
     _caught(tmp_path, copy, case, "R-RSP-31")
+
+
+def test_a_robot_acknowledging_memory_commands_with_its_next_uplink_fails(tmp_path: Path) -> None:
+    """R-RSP-26, D-RSP-17: the reference made to hold its ACKs of memory commands for its next
+    UPLINK (a buffer manager on the beat); only commands' ACKs were timed."""
+    copy = mutated(
+        tmp_path,
+        "rsp/session/robot.py",
+        (
+            "        if acks:\n            self._send(session, PacketType.ACK, MapBody(tuple(acks)), now)\n",
+            "        held = [a for a in acks if devices[a.device].kind is _K.MEMORY_COMMAND]\n"
+            "        _HELD.extend(held)\n"
+            "        acks = [a for a in acks if a not in held]\n"
+            "        if acks:\n            self._send(session, PacketType.ACK, MapBody(tuple(acks)), now)\n",
+        ),
+        (
+            "        self._memory_events.sent(due, now)\n",
+            "        self._memory_events.sent(due, now)\n"
+            "        if _HELD:\n"
+            "            last = {a.device: a for a in _HELD}\n"
+            "            acks = [last[d] for d in sorted(last)]\n"
+            "            self._send(session, PacketType.ACK, MapBody(tuple(acks)), now)\n"
+            "            _HELD.clear()\n",
+        ),
+        (
+            "_DOWNLINK, _UPLINK = PacketType.DOWNLINK, PacketType.UPLINK\n",
+            "_DOWNLINK, _UPLINK = PacketType.DOWNLINK, PacketType.UPLINK\n_HELD: list[Item] = []\n",
+        ),
+    )
+    _caught(
+        tmp_path,
+        copy,
+        "rsp/reliable/memory-command-at-once",
+        "R-RSP-26",
+        passing="rsp/reliable/memory-command-acked",
+    )
