@@ -123,6 +123,15 @@ FAULTS = {
         ["rctp/msg/response-unframeable"],
         "R-RCTP-12",
     ),
+    # A receiver that reads `timeout` in Session as written, not in any letter case.
+    "session-timeout-as-written": (
+        "rctp/fields.py",
+        "(?:;[ \\t]*(?ai:timeout)=",
+        "(?:;[ \\t]*timeout=",
+        ROVER,
+        ["rctp/session/session-with-timeout"],
+        "R-RCTP-59",
+    ),
     # A server that serves 8 sessions of one address, below R-RCTP-67's floor of 32.
     "sessions-capped-at-8": (
         "reference/server/limits.py",
