@@ -22,6 +22,9 @@ _ENCRYPTION_FIELD = "                self.encryption,\n                kind,\n"
 _SEALING = "        if self._sealer is None:\n            return data\n"
 #: A module-level counter of session IDs, for the robot that counts them.
 _COUNTER = '_COUNTER = __import__("itertools").count(1)\n'
+#: The reference robot sending the ACKs of a DOWNLINK, and its motion filter's output.
+_ACKS_SENT = "            self._send(session, PacketType.ACK, MapBody(tuple(acks)), now)\n"
+_OUTPUT = "        # Most hold their target, no ramp running (R-RSP-34): that one without a call.\n"
 
 
 def _caught(
@@ -203,19 +206,33 @@ def test_a_robot_stopping_every_effector_on_loss_fails_link_loss_holds(
         "rsp/motion.py",
         ("            if effector.device.on_loss is OnLoss.ZERO:", "            if True:"),
     )
+    _caught_on_weeder(
+        tmp_path,
+        monkeypatch,
+        copy,
+        "rsp/motion/link-loss-holds",
+        "R-RSP-36",
+        passing="rsp/motion/link-loss-stops",
+    )
+
+
+def _caught_on_weeder(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    copy: Path,
+    case: str,
+    requirement: str,
+    *,
+    passing: str,
+) -> None:
+    """`_caught`, the mutated reference robot serving the independent robot's model (WEEDER) as
+    an external target, with the generic body that shows an effector's value as it was told."""
     monkeypatch.setattr(support.processes, "COMMAND", [sys.executable, "-m", "rcmlconf"])
     monkeypatch.setenv("PYTHONPATH", str(copy))
     monkeypatch.chdir(copy)
     with running(tmp_path, "robot", str(WEEDER), "--port", "0") as robot:
         target = ("--rsp-target", f"127.0.0.1:{robot.ready['port']}", "--model", str(WEEDER))
-        _caught(
-            tmp_path,
-            copy,
-            "rsp/motion/link-loss-holds",
-            "R-RSP-36",
-            *target,
-            passing="rsp/motion/link-loss-stops",
-        )
+        _caught(tmp_path, copy, case, requirement, *target, passing=passing)
 
 
 @pytest.mark.parametrize("case", ["rsp/reliable/memory-command-once", "rsp/local/event-old-id"])
@@ -313,11 +330,11 @@ def test_a_robot_acknowledging_memory_commands_with_its_next_uplink_fails(tmp_pa
         tmp_path,
         "rsp/session/robot.py",
         (
-            "        if acks:\n            self._send(session, PacketType.ACK, MapBody(tuple(acks)), now)\n",
+            f"        if acks:\n{_ACKS_SENT}",
             "        held = [a for a in acks if devices[a.device].kind is _K.MEMORY_COMMAND]\n"
             "        _HELD.extend(held)\n"
             "        acks = [a for a in acks if a not in held]\n"
-            "        if acks:\n            self._send(session, PacketType.ACK, MapBody(tuple(acks)), now)\n",
+            f"        if acks:\n{_ACKS_SENT}",
         ),
         (
             "        self._memory_events.sent(due, now)\n",
@@ -339,4 +356,57 @@ def test_a_robot_acknowledging_memory_commands_with_its_next_uplink_fails(tmp_pa
         "rsp/reliable/memory-command-at-once",
         "R-RSP-26",
         passing="rsp/reliable/memory-command-acked",
+    )
+
+
+def test_a_robot_applying_a_queue_of_values_one_a_period_fails_collapse(tmp_path: Path) -> None:
+    """R-RSP-34, D-RSP-20's collapse: the reference's motion filter made to queue every value
+    that arrives and apply one a control period (a robot replaying late positions); the cases
+    sent one value at a time."""
+    copy = mutated(
+        tmp_path,
+        "rsp/motion.py",
+        (
+            "        effector.target = dict(values)\n        effector.stamp = stamp\n",
+            "        _QUEUE.setdefault((id(self), device.position), []).append(dict(values))\n"
+            "        effector.stamp = stamp\n",
+        ),
+        (
+            _OUTPUT,
+            "        for effector in self._effectors.values():\n"
+            "            queue = _QUEUE.get((id(self), effector.device.position))\n"
+            "            if queue:\n"
+            "                effector.target = queue.pop(0)\n" + _OUTPUT,
+        ),
+        (
+            "GAP_PERIODS = 1.5\n",
+            "GAP_PERIODS = 1.5\n_QUEUE: dict[tuple[int, int], list[dict[str, Value]]] = {}\n",
+        ),
+    )
+    _caught(
+        tmp_path, copy, "rsp/motion/collapse", "R-RSP-34", passing="rsp/payload/effector-applied"
+    )
+
+
+def test_a_robot_jumping_to_a_value_after_lost_packets_fails_interpolate(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """R-RSP-35, D-RSP-20's interpolation: the reference's motion filter made to take a value
+    after lost packets whole, serving the independent robot's model (CUBO's wheels accelerate
+    gradually by themselves: there the case says it cannot tell)."""
+    copy = mutated(
+        tmp_path,
+        "rsp/motion.py",
+        (
+            "        effector.start = self._now(effector, now) if late else None\n",
+            "        effector.start = None\n",
+        ),
+    )
+    _caught_on_weeder(
+        tmp_path,
+        monkeypatch,
+        copy,
+        "rsp/motion/interpolate",
+        "R-RSP-35",
+        passing="rsp/motion/collapse",
     )
