@@ -20,12 +20,17 @@ class Outbox:
     def __init__(self) -> None:
         #: Robot href -> node path -> its newest text not yet sent.
         self._values: dict[str, dict[str, str]] = {}
+        #: Robot href -> when the robot sent the newest stream values waiting (Unix seconds).
+        self._sent: dict[str, float] = {}
         self._notes: deque[dict[str, object]] = deque()
         self._dropped = 0
         self._ready = asyncio.Event()
 
-    def values(self, robot: str, values: dict[str, str]) -> None:
+    def values(self, robot: str, values: dict[str, str], sent: float | None = None) -> None:
+        """`sent`: the robot's time of sending, for stream values (the page may show their age)."""
         self._values.setdefault(robot, {}).update(values)
+        if sent is not None:
+            self._sent[robot] = max(sent, self._sent.get(robot, sent))
         self._ready.set()
 
     def note(self, kind: str, **fields: object) -> None:
@@ -43,8 +48,12 @@ class Outbox:
         taken = list(self._notes)
         if self._dropped:
             taken.append(message("dropped", count=self._dropped))
-        taken += [message("values", robot=r, values=v) for r, v in self._values.items()]
+        for robot, values in self._values.items():
+            sent = self._sent.get(robot)
+            extra = {} if sent is None else {"sent": sent}
+            taken.append(message("values", robot=robot, values=values, **extra))
         self._notes.clear()
         self._values = {}
+        self._sent = {}
         self._dropped = 0
         return taken

@@ -24,6 +24,7 @@ from rcmlconf.browse.outbox import Outbox
 from rcmlconf.browse.panel import PanelWidget, checkbox_values, shown
 from rcmlconf.errors import ValueTextError
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode
+from rcmlconf.rctp.datastream.clock import unix_from_ntp
 from rcmlconf.rctp.url import RctpUrl
 from rcmlconf.reference.client.adapter import Client, RctpError
 from rcmlconf.reference.client.session import (
@@ -101,6 +102,7 @@ class RobotSession:
         #: Paced accesses (`_show`): when the page was last told, what waits, and the timer.
         self._paced: dict[str, float] = {}
         self._waiting: dict[str, dict[str, str]] = {}
+        self._waiting_sent: dict[str, float] = {}
         self._later: dict[str, asyncio.TimerHandle] = {}
         #: Set when the user's BYE ends the session: it stays closed until a `connect` action.
         self._parked = False
@@ -151,6 +153,7 @@ class RobotSession:
             handle.cancel()
         self._later.clear()
         self._waiting.clear()
+        self._waiting_sent.clear()
 
     def _state(self, state: str, detail: str | None = None) -> None:
         log.info("%s: %s%s", self.robot, state, f" ({detail})" if detail else "")
@@ -224,7 +227,7 @@ class RobotSession:
             if event is None or isinstance(event, Closed):
                 return client.closed.reason if client.closed else "the session ended"
             if isinstance(event, StreamValues):
-                self._show(event.path, event.values, paced=True)
+                self._show(event.path, event.values, paced=True, sent=unix_from_ntp(event.sent))
                 self._start_writing(client, event.path)
             elif isinstance(event, ServerRequest):
                 self._server_request(event)
@@ -255,7 +258,13 @@ class RobotSession:
         await asyncio.Event().wait()  # nothing to poll: until the session ends
         return ""
 
-    def _show(self, access_path: str, values: Mapping[str, Value], paced: bool) -> None:
+    def _show(
+        self,
+        access_path: str,
+        values: Mapping[str, Value],
+        paced: bool,
+        sent: float | None = None,
+    ) -> None:
         """The access's values to the page; when `paced`, at most once per the access's pace
         (D-RXID-8), values meanwhile merged and the newest kept."""
         access = self.links.model.node(access_path)
@@ -265,9 +274,11 @@ class RobotSession:
         texts = {by_name[k].path: shown(by_name[k], v) for k, v in values.items() if k in by_name}
         use = self.links.accesses.get(access_path)
         if not paced or use is None or use.pace <= 0:
-            self.outbox.values(self.robot, texts)
+            self.outbox.values(self.robot, texts, sent)
             return
         self._waiting.setdefault(access_path, {}).update(texts)
+        if sent is not None:
+            self._waiting_sent[access_path] = sent
         if access_path in self._later:
             return
         loop = asyncio.get_running_loop()
@@ -282,7 +293,7 @@ class RobotSession:
         self._paced[access_path] = asyncio.get_running_loop().time()
         texts = self._waiting.pop(access_path, None)
         if texts:
-            self.outbox.values(self.robot, texts)
+            self.outbox.values(self.robot, texts, self._waiting_sent.pop(access_path, None))
 
     def _refuse_node(self, path: str, text: str) -> None:
         for widget in self.widgets:
