@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from support.robots import ROBOTS
@@ -92,3 +93,30 @@ def test_links_set_up_what_the_panel_uses() -> None:
     settings = rover.accesses["/drive/settings"]
     assert (settings.reads, settings.writes, settings.starts) == (True, True, True)
     assert NORMAL_READ_EVERY > 0
+
+
+def test_one_panel_for_two_robots_in_two_windows(tmp_path: Path) -> None:
+    """Fig. 4: one UI for several robots; each link says which session (D-RXID-2)."""
+    for name in ("camera", "rover"):
+        (tmp_path / f"{name}.rcml").write_bytes((ROBOTS / name / f"{name}.rcml").read_bytes())
+    path = tmp_path / "both.rxid"
+    path.write_text(
+        '<rxid version="2.0" title="Both">'
+        '<window title="Drive and look">'
+        '<session name="cam" href="camera.rcml"/><session name="bot" href="rover.rcml"/>'
+        '<slider session="cam" dataPath="/stream/control/zoom"/>'
+        '<edit session="bot" dataPath="/drive/settings/maxSpeed"/>'
+        '<actionButton caption="Leave" action="bye"/></window>'
+        '<window title="Camera only"><session href="camera.rcml"/>'
+        '<text dataPath="/status/lens/model"/></window></rxid>'
+    )
+    sources = load_sources(str(path), 5.0)
+    panel = build_panel(sources.rxid, {h: r.model for h, r in sources.robots.items()})
+    first, second = panel.describe()["windows"]  # type: ignore[misc]
+    assert [w.get("robot") for w in first["widgets"]] == ["camera.rcml", "rover.rcml", None]
+    assert first["widgets"][2]["robots"] == ["camera.rcml", "rover.rcml"]  # bye ends both
+    assert second["widgets"][0]["robot"] == "camera.rcml"
+    links = robot_links(panel)
+    assert set(links) == {"camera.rcml", "rover.rcml"}
+    assert "/status/lens" in links["camera.rcml"].accesses
+    assert "/drive/settings" in links["rover.rcml"].accesses
