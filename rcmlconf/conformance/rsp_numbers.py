@@ -50,11 +50,25 @@ def stamp_allowance(span: float, scale: float) -> float:
     return (CLOCK_DRIFT * span + STAMP_LAG * scale) * 1000
 
 
+#: Seconds for the wire and the scheduling of both sides, past a retransmission's next packet.
+RESEND_LAG = 0.1
+
+
 def resent_within(rto: float, period: float, scale: float) -> float:
     """Seconds after the send before within which a retransmission due after `rto` is seen: the
-    timeout and a quarter for the timer, a period for the next packet and three for the wire and
-    the scheduling (D-RSP-26)."""
-    return rto + (0.25 * rto + 4 * period) * scale
+    timeout and a quarter for the timer, a period for the next packet, RESEND_LAG (D-RSP-26)."""
+    return rto + period + (0.25 * rto + RESEND_LAG) * scale
+
+
+def measured_rto(held: float, period: float) -> tuple[float, float]:
+    """D-RSP-17's timeout after one round trip measured, 3 R within its bounds, R at least `held`
+    (seconds the harness held its ACK, by a clock within CLOCK_DRIFT) and at most that and two
+    periods (D-RSP-26): the shortest and the longest it may be."""
+
+    def bounded(trip: float) -> float:
+        return min(max(3 * trip, MIN_RTO_PERIODS * period), MAX_RTO)
+
+    return bounded((1 - CLOCK_DRIFT) * held), bounded(held + 2 * period)
 
 
 def timeout_window(period: float, scale: float) -> tuple[float, float]:

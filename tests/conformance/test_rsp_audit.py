@@ -25,6 +25,8 @@ _COUNTER = '_COUNTER = __import__("itertools").count(1)\n'
 #: The reference robot sending the ACKs of a DOWNLINK, and its motion filter's output.
 _ACKS_SENT = "            self._send(session, PacketType.ACK, MapBody(tuple(acks)), now)\n"
 _OUTPUT = "        # Most hold their target, no ramp running (R-RSP-34): that one without a call.\n"
+#: The reference's retransmission timeout held within D-RSP-17's bounds.
+_BOUNDED = "        return min(max(seconds, self._floor), MAX_RTO)\n"
 
 
 def _caught(
@@ -410,3 +412,30 @@ def test_a_robot_jumping_to_a_value_after_lost_packets_fails_interpolate(
         "R-RSP-35",
         passing="rsp/motion/collapse",
     )
+
+
+@pytest.mark.parametrize(
+    ("case", "line", "fault"),
+    [
+        ("rsp/event/memory-event-rto-floor", _BOUNDED, "        return min(seconds, MAX_RTO)\n"),
+        (
+            "rsp/event/memory-event-rto-ceiling",
+            _BOUNDED,
+            "        return max(seconds, self._floor)\n",
+        ),
+        (
+            "rsp/event/memory-event-rto-measured",
+            "        self.rto = self._bounded(self.srtt + 4 * self.rttvar)\n",
+            "        self.rto = self.rto\n",
+        ),
+    ],
+)
+def test_a_robot_whose_timeout_misses_a_part_of_d_rsp_17_fails(
+    tmp_path: Path, case: str, line: str, fault: str
+) -> None:
+    """R-RSP-28, D-RSP-17: the reference's retransmission timeout made to lack its 2 T floor, its
+    2 s ceiling, or to ignore the round trips it measures (10 T for ever); the robot's memory
+    events were timed only before a round trip was measured, at CUBO's T, where none of these
+    shows."""
+    copy = mutated(tmp_path, "rsp/reliable.py", (line, fault))
+    _caught(tmp_path, copy, case, "R-RSP-28", passing="rsp/event/memory-event-resent")
