@@ -7,22 +7,26 @@ the loop, moved only when their `get_timer()` changes. After anything reaches a 
 sends what it has and closes the connection once it is finished.
 
 A peer that does not read what it is sent cannot make the server buffer without bound: when a
-connection's write buffer is full, the server stops reading from it until the buffer drains. Nor
-can one peer hold the others up (D-RCTP-32, `limits`): connections are accepted a few a turn of
-the loop, and one beyond the caps (RCTP's and the files' counted together) is closed as soon as it
-is accepted; a burst of pipelined requests is handed to its session a slice per turn of the loop
-(reading the connection paused meanwhile); the connections' work takes a budget of each turn, and
-what is left waits, peer address by peer address in turn (`turns`); a connection with a large
-request under way waits, unread, for one of a few places; the data socket is read several
-datagrams a wake-up, so that a flood of them does not crowd the sessions' out; and an accept that
-fails for want of file descriptors is one line in the log now and then, not a traceback each time.
+connection's write buffer is full, the server stops reading from it until the buffer drains, and
+resets it if it does not drain within the slow timeout (also once closed). Nor can one peer hold
+the others up (D-RCTP-32, `limits`): connections are accepted a few a turn of the loop, and one
+beyond the caps (RCTP's and the files' counted together) is closed as soon as it is accepted; a
+burst of pipelined requests is handed to its session a slice per turn of the loop (reading the
+connection paused meanwhile); the connections' work takes a budget of each turn, and what is left
+waits, peer address by peer address in turn (`turns`); a connection with a large request under
+way waits, unread, for one of a few places (a wait not counted against it as slowness); the data
+socket is read several datagrams a wake-up, so that a flood of them does not crowd the sessions'
+out; and an accept that fails for want of file descriptors is one line in the log now and then,
+not a traceback each time.
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import socket
+import struct
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -54,6 +58,8 @@ from rcmlconf.reference.timers import BeatClock, LoopTimer
 
 log = logging.getLogger("rcmlconf.server")
 
+#: SO_LINGER on, for 0 s: close() resets the connection.
+_LINGER_RESET = struct.pack("ii", 1, 0)
 #: R-RCTP-23: how long a shutdown waits for the answers to its BYEs.
 SHUTDOWN_WAIT = 5.0
 
@@ -145,13 +151,15 @@ class _Control(asyncio.Protocol):
 
     def _has_room(self, session: ServerSession) -> bool:
         """Whether the request under way may take more input: a small one, or a large one with
-        a place (D-RCTP-32); a large one without waits, unread, for its turn."""
+        a place (D-RCTP-32); a large one without waits, unread, for its turn, a wait that does
+        not count against its peer (`ServerSession.hold`)."""
         if session.conn.buffered <= self.server.settings.limits.large_bytes:
             self._leave_place()
             return True
         if self.server.large.take(self):
             return True
         self._waiting = True
+        session.hold(self.server.loop.time())
         return False
 
     def _leave_place(self) -> None:
@@ -161,6 +169,8 @@ class _Control(asyncio.Protocol):
     def _admitted(self) -> None:
         """A large request's turn has come."""
         self._waiting = False
+        if self.session is not None:
+            self.session.go_on(self.server.loop.time())
         self._read_on()
 
     def _read_on(self) -> None:
@@ -179,33 +189,34 @@ class _Control(asyncio.Protocol):
             transport.resume_reading()
 
     def eof_received(self) -> bool:
-        self._gone(eof=True)
+        """The peer sends no more (a half-close). asyncio tells so only while it reads, and
+        reading is paused while a burst's slices wait (`_take_slice`): what came before has
+        been answered in slices already. The session ends; asyncio closes the connection once
+        its last answers have left, within D-RCTP-32's time (`ReferenceServer._flush_one`)."""
+        session = self.session
+        self._leave_place()
+        if session is not None and not session.finished:
+            session.receive_data(b"", self.server.loop.time())
+            self.server.flush(self)
         return False
 
     def connection_lost(self, exc: Exception | None) -> None:
-        # Nothing can be written any more: the session's end waits its peer's turn (`turns`),
-        # so that a flood of resets is not one long turn of the loop.
+        # The connection is gone: its descriptor no longer counts. The session's end waits its
+        # peer's turn (`turns`), so that a flood of resets is not one long turn of the loop.
         if self.session is not None and not self._ended:
+            self._ended = True
+            self.server.connections.leave(self.peer)
             self.server.turns.run(self.peer, self._lost)
 
     def _lost(self) -> None:
-        self._gone(eof=False)
-
-    def _gone(self, eof: bool) -> None:
-        """The peer closed (`eof`: its requests sent before still count) or the connection
-        broke; once, whichever comes first."""
+        """The connection broke, or its close is over: the session ends, if it has not, and
+        everything of the connection is let go."""
         session = self.session
-        if session is None or self._ended:
-            return  # refused at once (never counted in), or over already
-        self._ended = True
-        self.server.connections.leave(self.peer)
+        assert session is not None
         self._waiting = False
         self._leave_place()
         if not session.finished:
-            now = self.server.loop.time()
-            if eof and self._backlog:  # the rest of a burst sent before the close
-                session.receive_data(bytes(self._backlog), now)
-            session.receive_data(b"", now)
+            session.receive_data(b"", self.server.loop.time())
             self.server.flush(self)
         self._backlog.clear()
         if self.timer is not None:
@@ -218,12 +229,19 @@ class _Control(asyncio.Protocol):
         self.server.controls.pop(session, None)
 
     def pause_writing(self) -> None:
+        # The peer does not take its answers: reading waits (TCP then holds the peer), and
+        # the peer has D-RCTP-32's slow timeout to take some again.
         self._write_paused = True
         if self.transport is not None:
             self.transport.pause_reading()
+        if self.session is not None and self.timer is not None:
+            self.session.stalled(self.server.loop.time())
+            self.timer.set(self.session.maintenance_timer())
 
     def resume_writing(self) -> None:
         self._write_paused = False
+        if self.session is not None and not self.closing:  # a close's answers stay timed
+            self.session.stalled(None)
         self._read_on()
 
     def _timer_fired(self) -> None:
@@ -231,9 +249,24 @@ class _Control(asyncio.Protocol):
             self.server.turns.run(self.peer, self._timer_work)
 
     def _timer_work(self) -> None:
-        if self.session is not None and not self._ended:
-            self.session.handle_timer(self.server.loop.time())
-            self.server.flush(self)
+        session, transport = self.session, self.transport
+        if session is None or transport is None or self._ended:
+            return
+        session.handle_timer(self.server.loop.time())
+        if session.reset:  # its answers were not taken: they never would be (D-RCTP-32)
+            self.closing = True
+            _reset(transport)
+        self.server.flush(self)
+
+
+def _reset(transport: asyncio.Transport) -> None:
+    """Close with a reset: what waits to be sent is dropped, by asyncio and by the kernel too
+    (a socket closed with data unsent would otherwise stay, an orphan, sending it)."""
+    sock = transport.get_extra_info("socket")
+    if sock is not None:
+        with contextlib.suppress(OSError):
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, _LINGER_RESET)
+    transport.abort()
 
 
 class _Data:
@@ -474,12 +507,14 @@ class ReferenceServer:
         if datagrams and peer is not None and self._udp is not None:
             for datagram in datagrams:
                 self._udp.sendto(datagram, peer)
+        if session.finished and not control.closing:
+            control.closing = True
+            transport.close()  # after what is written has left: within the slow timeout
+            if transport.get_write_buffer_size():
+                session.stalled(self.loop.time())
         if control.timer is not None:
             control.timer.set(session.maintenance_timer())
         self.beats.set(control, None if control.closing else session.beat_timer())
-        if session.finished and not control.closing:
-            control.closing = True
-            transport.close()  # after what is written has left
 
     def _beat(self, controls: list[_Control]) -> None:
         """The sessions whose streams are due now: their DATA, and nothing else."""

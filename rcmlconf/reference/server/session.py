@@ -99,9 +99,16 @@ class ServerSession(SessionEnd):
         self._stops: deque[tuple[str, str]] = deque()
         #: The connection is over: close it once everything is sent.
         self.finished = False
-        #: D-RCTP-32: when the connection opened, and when the request not yet whole began.
+        #: D-RCTP-32: when the connection opened, and when the request not yet whole began;
+        #: since when the server holds the connection unread for its own reasons (not counted
+        #: against the peer), and since when the peer takes nothing of what it is sent.
         self._opened = now
         self._partial_since: float | None = None
+        self._held_since: float | None = None
+        self._stalled_since: float | None = None
+        #: The peer took nothing for the slow timeout: the connection is reset, not closed
+        #: (what waits to be sent would never leave).
+        self.reset = False
 
     def _bodies(self, due: tuple[int, ...]) -> dict[int, bytes]:
         """The robot's values, encoded once per tick for every session (`Robot.body`)."""
@@ -119,31 +126,68 @@ class ServerSession(SessionEnd):
         elif self._partial_since is None:
             self._partial_since = now
 
+    def hold(self, now: float) -> None:
+        """The server leaves the connection unread for its own reasons (D-RCTP-32: a large
+        request waiting for a place): the time until `go_on` does not count against the peer."""
+        if self._held_since is None:
+            self._held_since = now
+
+    def go_on(self, now: float) -> None:
+        """The server reads the connection again: its slow clocks move on by the time held."""
+        if self._held_since is None:
+            return
+        held = now - self._held_since
+        self._held_since = None
+        self._opened += held
+        if self._partial_since is not None:
+            self._partial_since += held
+
+    def stalled(self, now: float | None) -> None:
+        """The peer takes nothing of what the server sends since `now` (its answers piled up
+        beyond what the server buffers, or left unsent when the server closes); None: it takes
+        them again. The earliest such moment counts."""
+        if now is None:
+            self._stalled_since = None
+        elif self._stalled_since is None:
+            self._stalled_since = now
+
     def _slow_deadline(self) -> float | None:
-        """When the connection is closed as too slow: no CONNECT taken by then, or the request
-        under way not whole by then."""
-        if self.finished:
-            return None
+        """When the connection is given up as too slow: no CONNECT taken by then, or the
+        request under way not whole by then (neither while the server holds it unread); or
+        its peer has taken nothing it was sent since the slow timeout, even once finished."""
         timeout = self.robot.limits.slow_timeout
-        deadline = self._opened + timeout if self.id is None else None
+        deadline = None if self._stalled_since is None else self._stalled_since + timeout
+        if self.finished or self._held_since is not None:
+            return deadline
+        if self.id is None:
+            opened = self._opened + timeout
+            deadline = opened if deadline is None else min(deadline, opened)
         if self._partial_since is not None:
             partial = self._partial_since + timeout
             deadline = partial if deadline is None else min(deadline, partial)
         return deadline
 
     def maintenance_timer(self) -> float | None:
+        if self.finished:
+            return self._slow_deadline()
         timer = super().maintenance_timer()
         slow = self._slow_deadline()
         return slow if timer is None or (slow is not None and slow < timer) else timer
 
     def handle_timer(self, now: float) -> None:
-        super().handle_timer(now)
+        if not self.finished:
+            super().handle_timer(now)
         slow = self._slow_deadline()
-        if slow is not None and now >= slow:
+        if slow is None or now < slow:
+            return
+        timeout = self.robot.limits.slow_timeout
+        if self._stalled_since is not None and now >= self._stalled_since + timeout:
+            what = "its answers not taken"
+            self.reset = True
+        else:
             what = "no CONNECT" if self.id is None else "a request not whole"
-            timeout = self.robot.limits.slow_timeout
-            log.info("%s closed: %s within %g s (D-RCTP-32)", self._who(), what, timeout)
-            self._end()
+        log.info("%s closed: %s within %g s (D-RCTP-32)", self._who(), what, timeout)
+        self._end()
 
     def shut_down(self, now: float) -> None:
         """Graceful shutdown: BYE with `Reason: shutdown`; the session ends when it is answered

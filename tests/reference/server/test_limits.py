@@ -24,6 +24,7 @@ from support.processes import COMMAND, running
 from support.robots import TESTBOT
 from support.servers import Raw, RawSession, run, serving
 
+from rcmlconf.reference.server.adapter import ReferenceServer
 from rcmlconf.reference.server.datagrams import DATAGRAMS_A_TURN, RECEIVE_BUFFER
 from rcmlconf.reference.server.limits import ACCEPTS_A_TURN, ServerLimits
 
@@ -433,3 +434,129 @@ async def test_a_closed_connection_and_its_session_are_freed_without_the_collect
             assert await _until(lambda: freed() is None)
     finally:
         gc.enable()
+
+
+async def _connected(server_port: int, rcvbuf: int = 0) -> tuple[socket.socket, str]:
+    """A blocking client socket with a session (and a small receive buffer when asked)."""
+    sock = socket.socket()
+    if rcvbuf:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
+    sock.settimeout(5.0)
+    sock.connect(("127.0.0.1", server_port))
+    sock.sendall(b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\n\r\n")
+    answer = b""
+    while b"\r\n\r\n" not in answer:
+        answer += await asyncio.get_running_loop().run_in_executor(None, sock.recv, 4096)
+    return sock, answer.split(b"Session: ")[1].split(b";")[0].decode()
+
+
+def _reads(session: str, count: int, first: int = 2) -> bytes:
+    return b"".join(
+        f"READ / RCTP/2.0\r\nCSeq: {cseq}\r\nSession: {session}\r\n\r\n".encode()
+        for cseq in range(first, first + count)
+    )
+
+
+def _small_send_buffers(server: ReferenceServer) -> None:
+    """A slow network: the server's kernel buffers small, its answers pile up sooner."""
+    for control in server.controls.values():
+        assert control.transport is not None
+        server_side = control.transport.get_extra_info("socket")
+        server_side.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)
+
+
+def _reset(sock: socket.socket) -> bool:
+    """Whether reading `sock` to its end meets a reset (what a server that gave up sends)."""
+    sock.settimeout(5.0)
+    try:
+        while sock.recv(65536):
+            pass
+    except ConnectionResetError:
+        return True
+    return False
+
+
+@run
+async def test_a_half_closed_burst_is_answered_in_slices_in_order_and_in_full() -> None:
+    """D-RCTP-32: a burst of pipelined requests followed by the peer's half-close is answered
+    like any burst, a slice a turn while another peer is served, then the connection closes."""
+    async with serving(limits=ServerLimits(slice_bytes=1024)) as server:
+        sock, session = await _connected(server.port)
+        other = await _from(server.port, "127.0.0.2")
+        count = 500  # about 40 slices
+        # Sent while the loop does not run: the burst and the half-close wait together.
+        sock.sendall(_reads(session, count))
+        sock.shutdown(socket.SHUT_WR)
+        other.writer.write(b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\n\r\n")
+        assert (await other.response()).status == 200
+        assert _has_data(sock)
+        sock.setblocking(True)
+        sock.settimeout(5.0)
+        early = sock.recv(1 << 20, socket.MSG_PEEK).count(b"RCTP/2.0 ")
+        assert early < count  # the other peer was answered before the burst's end
+        flood = Raw(*await asyncio.open_connection(sock=sock))
+        cseqs = [int((await flood.response()).headers.get("CSeq") or 0) for _ in range(count)]
+        assert cseqs == list(range(2, count + 2))
+        assert await flood.closed()
+        other.close()
+        flood.close()
+
+
+@run
+async def test_a_peer_that_takes_no_answers_is_reset_after_the_slow_timeout() -> None:
+    """D-RCTP-32: reading paused because the peer takes none of its answers, the peer has the
+    slow timeout to take some; then the connection is reset (its answers would never leave)
+    and its descriptor is free."""
+    async with serving(limits=ServerLimits(slow_timeout=SLOW)) as server:
+        sock, session = await _connected(server.port, rcvbuf=4096)
+        _small_send_buffers(server)
+        sock.setblocking(False)
+        with contextlib.suppress(BlockingIOError):
+            sock.send(_reads(session, 6000))  # what the kernel takes
+        assert await _until(lambda: any(c._write_paused for c in server.controls.values()))
+        assert await _until(lambda: server.connections.total == 0)
+        assert not server.controls
+        assert _reset(sock)
+        sock.close()
+
+
+@run
+async def test_a_half_closed_peer_whose_answers_do_not_leave_is_reset() -> None:
+    """D-RCTP-32: after a half-close the server closes once its last answers have left; a
+    peer that does not take them has the slow timeout, and until then the connection counts
+    against the caps; then it is reset."""
+    async with serving(limits=ServerLimits(slow_timeout=SLOW)) as server:
+        sock, session = await _connected(server.port, rcvbuf=4096)
+        _small_send_buffers(server)
+        sock.sendall(_reads(session, 250))  # answers beyond the kernel's buffers, within asyncio's
+        sock.shutdown(socket.SHUT_WR)
+        assert await _until(lambda: all(c.closing for c in server.controls.values()))
+        assert server.connections.total == 1  # closing, its answers unsent: still counted
+        assert await _until(lambda: server.connections.total == 0)
+        assert _reset(sock)
+        sock.close()
+
+
+@run
+async def test_a_large_request_waiting_for_a_place_is_not_closed_as_slow() -> None:
+    """D-RCTP-32: the time a large request waits, unread, for a place is the server's, not its
+    peer's: it does not count toward the slow timeout."""
+    slow = 1.0
+    limits = ServerLimits(slow_timeout=slow, large_bytes=1024, large_requests=1)
+    body = bytes(64 * 1024)
+    head = b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\nContent-Length: %d\r\n\r\n" % len(body)
+    async with serving(limits=limits) as server:
+        first, second = await Raw.open(server), await Raw.open(server)
+        await first.send(head + body[:8192])
+        assert await _until(lambda: server.large.held == 1)
+        await second.send(head + body[:8192])  # waits for the place, unread
+        assert await _until(lambda: server.large.waiting == 1)
+        await asyncio.sleep(0.6 * slow)
+        await first.send(body[8192:])  # the first, whole within its slow timeout
+        assert (await first.response()).status == 200
+        assert await _until(lambda: server.large.waiting == 0)
+        await asyncio.sleep(0.6 * slow)  # the second's first byte now more than `slow` ago
+        await second.send(body[8192:])
+        assert (await second.response()).status == 200
+        for raw in (first, second):
+            raw.close()
