@@ -12,12 +12,12 @@ resets it if it does not drain within the slow timeout (also once closed). Nor c
 the others up (D-RCTP-32, `limits`): connections are accepted a few a turn of the loop, and one
 beyond the caps (RCTP's and the files' counted together) is closed as soon as it is accepted; a
 burst of pipelined requests is handed to its session a slice per turn of the loop (reading the
-connection paused meanwhile); the connections' work takes a budget of each turn, and what is left
-waits, peer address by peer address in turn (`turns`); a connection with a large request under
-way waits, unread, for one of a few places (a wait not counted against it as slowness); the data
-socket is read several datagrams a wake-up, so that a flood of them does not crowd the sessions'
-out; and an accept that fails for want of file descriptors is one line in the log now and then,
-not a traceback each time.
+connection paused meanwhile); the connections' work takes a budget of each turn, a peer address's
+connections a share of it, and what is left waits, shared fairly among the addresses (`turns`); a
+connection with a large request under way waits, unread, for one of a few places (a wait not
+counted against it as slowness); the data socket is read several datagrams a wake-up, so that a
+flood of them does not crowd the sessions' out; and an accept that fails for want of file
+descriptors is one line in the log now and then, not a traceback each time.
 """
 
 from __future__ import annotations
@@ -346,7 +346,7 @@ class ReferenceServer:
 
     @property
     def turns(self) -> Turns:
-        """The connections' work, a budget a turn, peer by peer (`turns`)."""
+        """The connections' work, a budget a turn, shared among the peers (`turns`)."""
         assert self._turns is not None, "start() first"
         return self._turns
 
@@ -376,7 +376,7 @@ class ReferenceServer:
         settings = self.settings
         self._handler = loop.get_exception_handler()
         loop.set_exception_handler(self._loop_exception)
-        self._turns = Turns(loop, settings.limits.turn_budget)
+        self._turns = Turns(loop, settings.limits.turn_budget, settings.limits.peer_share)
         self._tcp = _paced(
             await loop.create_server(
                 lambda: _Control(self),

@@ -66,8 +66,12 @@ class ServerLimits:
     large_bytes: int = 64 * 1024
     large_requests: int = 2
     #: Seconds of the connections' work a turn of the loop; the rest waits for the next turns,
-    #: peer by peer (`turns`).
+    #: shared fairly among the peer addresses (`turns`).
     turn_budget: float = 0.004
+    #: Seconds of a turn one peer address's connections take, together, before the rest of
+    #: their work waits for the next turns: a peer with many connections ready cannot take the
+    #: turn's whole budget from another with one.
+    peer_share: float = 0.001
 
     def below_floor(self) -> list[str]:
         """What breaks R-RCTP-67's floor (allowed, for tests; `serve` warns of it)."""

@@ -1,37 +1,73 @@
-"""The connections' work, a slice of time a turn of the loop, peer by peer (D-RCTP-32).
+"""The connections' work, a slice of time a turn of the loop, shared fairly among peer addresses
+(D-RCTP-32).
 
 asyncio runs in one turn the callback of every socket that is ready, and then the timers due,
 among them the streams' beats. When hundreds of connections have something at once (a flood's
 requests sent together), the turn lasts as long as all of them take: the beats wait that long,
 and so does the request of every other peer that came in the same turn. So a connection's work
 goes through `Turns`: it is done at once while the turn has spent less than its budget on such
-work and nothing waits; otherwise it waits in its peer's queue (the connection is not read
-meanwhile), and the queues are served at the head of the next turns, `budget` seconds a turn, one
-piece of work of each peer in turn. A peer with a thousand connections is then served as often
-as a peer with one, and a turn ends, with its beats, within about the budget.
+work, and its peer less than its share of it, with none of its peer's work waiting; otherwise
+it waits in its peer's queue (the connection is not read meanwhile), and the queues are served
+at the head of the next turns, `budget` seconds a turn.
+
+The queues are served by fair queuing over CPU time (start-time fair queuing): each peer's work
+is stamped with the time it has had, the next piece served is the waiting peer's with the least,
+and a peer that begins to wait starts level with the piece served last, or behind it by what it
+had since, never ahead with credit saved while idle. An address with a thousand connections is
+then served as much as one with one, in time as in turns: a slice of 50 requests costs its peer
+fifty times what one request costs another, and a peer that sends one request now and then is
+served before the peers that keep the server busy.
 """
 
 from __future__ import annotations
 
 import asyncio
+import heapq
 import time
 from collections import deque
 from collections.abc import Callable
+from itertools import count
 
 Work = Callable[[], None]
+#: Peers remembered past the clock before those already behind it are forgotten.
+FORGET_AFTER = 256
 
 
 class Turns:
-    __slots__ = ("_budget", "_counting", "_draining", "_loop", "_queues", "_spent")
+    __slots__ = (
+        "_budget",
+        "_clock",
+        "_counting",
+        "_draining",
+        "_finished",
+        "_loop",
+        "_order",
+        "_queues",
+        "_share",
+        "_spent",
+        "_tags",
+        "_used",
+    )
 
-    def __init__(self, loop: asyncio.AbstractEventLoop, budget: float) -> None:
+    def __init__(self, loop: asyncio.AbstractEventLoop, budget: float, share: float) -> None:
         self._loop = loop
         self._budget = budget
-        #: Seconds of work done since the turn's count began (reset at the head of the next).
+        self._share = share
+        #: Seconds of work done since the turn's count began (reset at the head of the next),
+        #: in all and by peer.
         self._spent = 0.0
+        self._used: dict[str, float] = {}
         self._counting = False
-        #: Peer address -> its work waiting, in order; the peers in the order they are served.
+        #: Peer address -> its work waiting, in order.
         self._queues: dict[str, deque[Work]] = {}
+        #: The waiting peers by their time served (fair queuing's virtual time), the least
+        #: first, one entry each; and the time of the piece served last.
+        self._tags: list[tuple[float, int, str]] = []
+        self._clock = 0.0
+        #: Peers not waiting, and the time stamp their work had reached (while it is ahead of
+        #: the clock: forgotten once behind it, as it would count for nothing).
+        self._finished: dict[str, float] = {}
+        self._order = count()
         self._draining = False
 
     @property
@@ -40,23 +76,34 @@ class Turns:
 
     def run(self, peer: str, work: Work) -> bool:
         """Do `work` now (True), or queue it for a next turn under `peer` (False)."""
-        if self._queues or self._spent >= self._budget:
+        if (
+            peer in self._queues
+            or self._spent >= self._budget
+            or self._used.get(peer, 0.0) >= self._share
+        ):
             self.later(peer, work)
             return False
-        self._do(work)
+        took = self._do(peer, work)
+        self._finished[peer] = self._start(peer) + took
         return True
+
+    def _start(self, peer: str) -> float:
+        """Where `peer`'s next work stands: level with the clock, or behind it."""
+        return max(self._clock, self._finished.pop(peer, 0.0))
 
     def later(self, peer: str, work: Work) -> None:
         """Queue `work` under `peer`: done in a next turn, in its peer's turn."""
         queue = self._queues.get(peer)
         if queue is None:
             queue = self._queues[peer] = deque()
+            heapq.heappush(self._tags, (self._start(peer), next(self._order), peer))
         queue.append(work)
         if not self._draining:
             self._draining = True
             self._loop.call_soon(self._drain)
 
-    def _do(self, work: Work) -> None:
+    def _do(self, peer: str, work: Work) -> float:
+        """Do `work`, counted against the turn and `peer`; the seconds it took."""
         if not self._counting:
             self._counting = True
             self._loop.call_soon(self._new_turn)
@@ -64,28 +111,44 @@ class Turns:
         try:
             work()
         finally:
-            self._spent += time.perf_counter() - started
+            took = time.perf_counter() - started
+            self._spent += took
+            self._used[peer] = self._used.get(peer, 0.0) + took
+        return took
 
     def _new_turn(self) -> None:
         self._counting = False
         self._spent = 0.0
+        self._used.clear()
+        clock = self._clock
+        if len(self._finished) > FORGET_AFTER:
+            self._finished = {p: at for p, at in self._finished.items() if at > clock}
 
     def _drain(self) -> None:
-        """At the head of a turn: one piece of work of each peer in turn, until the budget is
-        spent (one at least, so that the queues always move on)."""
+        """At the head of a turn: the least served waiting peer's next piece of work, again
+        and again, until the budget is spent (one at least, so that the queues always move
+        on)."""
         self._draining = False
-        queues = self._queues
+        queues, tags = self._queues, self._tags
         done = False
         try:
-            while queues and (not done or self._spent < self._budget):
-                peer = next(iter(queues))
-                queue = queues.pop(peer)
+            while tags and (not done or self._spent < self._budget):
+                served, order, peer = heapq.heappop(tags)
+                queue = queues[peer]
                 work = queue.popleft()
-                if queue:
-                    queues[peer] = queue  # behind the other peers
+                if not queue:
+                    del queues[peer]
+                self._clock = served
                 done = True
-                self._do(work)
+                took = 0.0
+                try:
+                    took = self._do(peer, work)
+                finally:
+                    if queue:  # behind the peers served less
+                        heapq.heappush(tags, (served + took, order, peer))
+                    else:
+                        self._finished[peer] = served + took
         finally:  # even past a piece of work that raised (the loop's handler logs it)
-            if queues and not self._draining:
+            if tags and not self._draining:
                 self._draining = True
                 self._loop.call_soon(self._drain)

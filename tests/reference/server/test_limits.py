@@ -560,3 +560,43 @@ async def test_a_large_request_waiting_for_a_place_is_not_closed_as_slow() -> No
         assert (await second.response()).status == 200
         for raw in (first, second):
             raw.close()
+
+
+@run
+async def test_a_peer_with_costly_work_gets_a_fair_share_of_time_not_of_turns() -> None:
+    """D-RCTP-32: the queues are served by the time their work takes, not a piece each in turn:
+    while one peer's burst of 3,000 READs (slices of about 55) and another peer's 200
+    connections (a CONNECT each, a few READs' time) wait together, the 200 are all answered
+    before half the burst is: about as much time each, 900 READs' worth here. (Served a piece
+    each in turn, the burst had a slice per CONNECT, and was answered whole, or nearly, by
+    then.)"""
+    count, others = 3000, 200
+    limits = ServerLimits(connections_per_peer=others, sessions_per_peer=others)
+    loop = asyncio.get_running_loop()
+    async with serving(limits=limits) as server:
+        sock, session = await _connected(server.port, rcvbuf=1 << 20)  # room for its answers
+        light = [
+            socket.create_connection(
+                ("127.0.0.1", server.port), timeout=2.0, source_address=("127.0.0.2", 0)
+            )
+            for _ in range(others)
+        ]
+        assert await _until(lambda: server.connections.total == others + 1)
+        # Sent while the loop does not run: all of it ready in the same turn (the rest of the
+        # burst follows as the server reads).
+        for other in light:
+            other.sendall(b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\n\r\n")
+        burst = _reads(session, count)
+        sock.setblocking(False)
+        sent = sock.send(burst)
+        sending = asyncio.ensure_future(loop.sock_sendall(sock, burst[sent:]))
+        while not all(_has_data(other) for other in light):
+            await asyncio.sleep(0)  # one turn of the loop: the burst's answers, seen at once
+        answered = sock.recv(1 << 22, socket.MSG_PEEK).count(b"RCTP/2.0 ")
+        assert answered < count // 2, answered
+        for other in light:
+            other.setblocking(True)
+            assert other.recv(4096).startswith(b"RCTP/2.0 200 ")
+            other.close()
+        await sending
+        sock.close()
