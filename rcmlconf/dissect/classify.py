@@ -34,7 +34,7 @@ DEFAULT_UDP = {7340: RSP, 7330: RCTP_DATA}
 #: methods (D-RCTP-12), or of another token (a method the peer does not know is still RCTP).
 START = re.compile(
     rb"RCTP/[0-9]|(?:" + b"|".join(m.encode() for m in METHODS) + rb") |"
-    rb"[!#$%&'*+\-.^_`|~0-9A-Za-z]+ [!-~]+ RCTP/[0-9]"
+    rb"[!#$%&'*+\-.^_`|~0-9A-Za-z]+ [!-~]+ (?i:RCTP)/[0-9]"  # rctp/2.0: another version, 505
 )
 #: Bytes of each direction looked at, and segments held, before a connection is taken as not RCTP.
 LOOK = 16

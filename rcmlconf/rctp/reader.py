@@ -31,7 +31,9 @@ class Limits:
 LIMITS = Limits()
 
 _TOKEN = re.compile(rb"[!#$%&'*+\-.^_`|~0-9A-Za-z]+")
-_VERSION = re.compile(rb"RCTP/[0-9]+\.[0-9]+")
+# The grammar's quoted "RCTP/" matches in any letter case (RFC 5234 §2.3), so `rctp/2.0` parses;
+# D-RCTP-30 then makes it another version than RCTP/2.0 (505, the connection's check), not 400.
+_VERSION = re.compile(rb"(?i:RCTP)/[0-9]+\.[0-9]+")
 _STATUS = re.compile(rb"[0-9]{3}")
 # field-vchar, SP and HTAB (RFC 9110 field-value): no other control character.
 _FIELD_VALUE = re.compile(rb"[\t\x20-\x7e\x80-\xff]*")

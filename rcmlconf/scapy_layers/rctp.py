@@ -117,7 +117,7 @@ class FramingError(ValueError):
 
 
 _TOKEN = re.compile(rb"[!#$%&'*+\-.^_`|~0-9A-Za-z]+")
-_VERSION = re.compile(rb"RCTP/[0-9]+\.[0-9]+")
+_VERSION = re.compile(rb"(?i:RCTP)/[0-9]+\.[0-9]+")  # rctp/2.0 parses: another version
 _STATUS = re.compile(rb"[0-9]{3}")
 _FIELD_VALUE = re.compile(rb"[\t\x20-\x7e\x80-\xff]*")
 _DIGITS = re.compile(rb"[0-9]{1,10}")

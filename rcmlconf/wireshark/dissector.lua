@@ -334,7 +334,9 @@ local function dissect_message(tvb, pinfo, tree, offset, infos)
             return fail(0, #start_line, "malformed request line (method SP target SP version)",
                 nil)
         end
-        if not parts[3]:find("^RCTP/%d+%.%d+$") then
+        -- "RCTP/" in any letter case parses (RFC 5234 quoted text); D-RCTP-30 then makes
+        -- rctp/2.0 another version than RCTP/2.0 (505), which the warning below says.
+        if not parts[3]:upper():find("^RCTP/%d+%.%d+$") then
             return fail(#parts[1] + #parts[2] + 2, #parts[3],
                 parts[3]:sub(1, 20) .. " is not an RCTP version", "R-RCTP-2")
         end

@@ -150,6 +150,15 @@ FAULTS = {
         [FLOORS],
         "R-RCTP-67",
     ),
+    # A reader that takes the grammar's "RCTP/" as case-sensitive: rctp/2.0 answered 400.
+    "version-parsed-case-sensitively": (
+        "rctp/reader.py",
+        '_VERSION = re.compile(rb"(?i:RCTP)/[0-9]+\\.[0-9]+")',
+        '_VERSION = re.compile(rb"RCTP/[0-9]+\\.[0-9]+")',
+        ROVER,
+        ["rctp/msg/wrong-version"],
+        "R-RCTP-10",
+    ),
 }
 #: More (line, line as the fault reads) some faults change in their module.
 ALSO = {

@@ -9,7 +9,7 @@ from rcmlconf.conformance.cases.rctp_grammar import (
     _filler,
     _refused_and_closed,
 )
-from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.context import Context, expect_answer
 from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.registry import case
 from rcmlconf.rctp.messages import VERSION
@@ -52,15 +52,19 @@ async def unknown_method(ctx: Context) -> None:
 
 @case(
     "rctp/msg/wrong-version",
-    "A request with another version than RCTP/2.0 is answered 505 and the connection stays open",
+    "A request with another version than RCTP/2.0 (RCTP/1.0, and rctp/2.0: the version is"
+    " case-sensitive) is answered 505 and the connection stays open",
     ["R-RCTP-10"],
 )
 async def wrong_version(ctx: Context) -> None:
     probe = await ctx.session()
-    await probe.send(f"CONNECT {ctx.target.site_path} RCTP/1.0\r\nCSeq: 2\r\n\r\n".encode())
-    answer = await probe.response()
-    ctx.expect_status(answer, 505)
-    probe.cseq = 2
+    # D-RCTP-30: the version is compared as written, so `rctp/2.0` is another version, not a
+    # line that fails to parse (400) nor RCTP/2.0 in other letters (200).
+    for cseq, version in enumerate(("RCTP/1.0", "rctp/2.0"), start=2):
+        line = f"CONNECT {ctx.target.site_path} {version}"
+        await probe.send(f"{line}\r\nCSeq: {cseq}\r\n\r\n".encode())
+        expect_answer(ctx, await probe.response(), 505, line)
+        probe.cseq = cseq
     await still_open(ctx, probe)
 
 
