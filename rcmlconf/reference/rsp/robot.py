@@ -23,12 +23,13 @@ import asyncio
 import logging
 from collections import deque
 from dataclasses import dataclass
-from typing import cast
 
+from rcmlconf.reference.datagrams import DataSocket
 from rcmlconf.reference.faults import Fault, describe
 from rcmlconf.reference.rsp.batch import Batch, Datagrams, Timer
 from rcmlconf.reference.rsp.bodies import Body, body_for
 from rcmlconf.reference.rsp.log_text import event_text, values_text
+from rcmlconf.reference.throttled import Throttled
 from rcmlconf.reference.timers import LoopTimer
 from rcmlconf.rsp.audio import AudioReceiver
 from rcmlconf.rsp.codec import Encryption
@@ -56,7 +57,7 @@ class RobotSettings:
     faults: frozenset[Fault] = frozenset()
 
 
-class ReferenceRobot(asyncio.DatagramProtocol):
+class ReferenceRobot:
     """A robot serving one RSP session at a time on a UDP port."""
 
     def __init__(
@@ -83,6 +84,8 @@ class ReferenceRobot(asyncio.DatagramProtocol):
         #: D-RSP-22: each audio effector's audio processor, and the fragment it played last.
         self.audio = {d.name: AudioReceiver() for d in model.devices if audio_effector(d)}
         self._played: dict[str, dict[str, Value]] = {}
+        #: A flood of hostile datagrams is a line in the log now and then, not a line each.
+        self._dropped = Throttled(log, "packets dropped")
 
     # -- lifetime ------------------------------------------------------------------------------
 
@@ -97,7 +100,9 @@ class ReferenceRobot(asyncio.DatagramProtocol):
         loop = asyncio.get_running_loop()
         local = (self.settings.host, self.settings.port)
         if batch is None:
-            await loop.create_datagram_endpoint(lambda: self, local_addr=local)
+            # Read several datagrams a wake-up: a flood at the port must not fill its buffer,
+            # or the kernel drops the session's DOWNLINKs with the rest (issue 18).
+            self.transport = await DataSocket.bind(*local, self.datagram_received, log)
             self._timer = LoopTimer(loop, self._timer_fired)
         else:
             self.transport = batch.open(self.datagram_received, local=local)
@@ -122,19 +127,12 @@ class ReferenceRobot(asyncio.DatagramProtocol):
         if self.transport is not None:
             self.transport.close()
 
-    # -- asyncio -------------------------------------------------------------------------------
-
-    def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        # The selector loop's datagram transport does not derive from DatagramTransport.
-        self.transport = cast(asyncio.DatagramTransport, transport)
+    # -- the socket --------------------------------------------------------------------------
 
     def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
         now = self._now()
         self.endpoint.receive_datagram(data, (addr[0], addr[1]), now)
         self._flush(now)
-
-    def error_received(self, exc: Exception) -> None:
-        log.debug("UDP error: %s", exc)  # an ICMP unreachable from a local system gone away
 
     def _now(self) -> float:
         return asyncio.get_running_loop().time()
@@ -188,11 +186,13 @@ class ReferenceRobot(asyncio.DatagramProtocol):
             self._timer.set(at)
 
     def _log(self, event: events.Event) -> None:
-        """An event but a state: into the history and the log."""
+        """An event but a state: into the history and the log (a packet dropped, once in a
+        while: they may come in floods)."""
         self.history.append(event)
-        level = logging.WARNING if isinstance(event, events.PacketDropped) else logging.INFO
-        if log.isEnabledFor(level):
-            log.log(level, "%s", event_text(self.model, event))
+        if isinstance(event, events.PacketDropped):
+            self._dropped.happened(self._now(), event_text(self.model, event))
+        elif log.isEnabledFor(logging.INFO):
+            log.info("%s", event_text(self.model, event))
 
     def _forget(self) -> None:
         """A session opens or ends, and what the one before asked for with it: the memory command

@@ -37,9 +37,9 @@ from rcmlconf.rctp.datastream.endpoint import Address
 from rcmlconf.rctp.datastream.packets import peek_tag
 from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
 from rcmlconf.rctp.url import DEFAULT_PORT, FILES_PORT_OFFSET, RctpUrl
+from rcmlconf.reference.datagrams import DataSocket
 from rcmlconf.reference.drivers import Driver
 from rcmlconf.reference.faults import CONTROL_FAULTS, Fault, describe, rewrite_control
-from rcmlconf.reference.server.datagrams import DataSocket
 from rcmlconf.reference.server.files import FileServer, robot_files
 from rcmlconf.reference.server.limits import (
     ACCEPT_ERRNOS,
@@ -48,12 +48,12 @@ from rcmlconf.reference.server.limits import (
     PeerCount,
     Places,
     ServerLimits,
-    Throttled,
     connection_cap,
 )
 from rcmlconf.reference.server.robot import Robot
 from rcmlconf.reference.server.session import ServerSession
 from rcmlconf.reference.server.turns import Turns
+from rcmlconf.reference.throttled import Throttled
 from rcmlconf.reference.timers import BeatClock, LoopTimer
 
 log = logging.getLogger("rcmlconf.server")
@@ -327,10 +327,10 @@ class ReferenceServer:
         self.connections = PeerCount(
             connection_cap(limits.connections), limits.connections_per_peer
         )
-        self.refused = Throttled("connections refused")
+        self.refused = Throttled(log, "connections refused")
         #: The connections with a large request under way (D-RCTP-32).
         self.large: Places[_Control] = Places(limits.large_requests)
-        self._accept_failed = Throttled("cannot accept connections")
+        self._accept_failed = Throttled(log, "cannot accept connections")
         self._handler: Any = None
 
     @property
@@ -388,7 +388,7 @@ class ReferenceServer:
         )
         port = self.port
         udp = await DataSocket.bind(
-            settings.host, port if settings.port else 0, self.data.datagram_received
+            settings.host, port if settings.port else 0, self.data.datagram_received, log
         )
         self._udp = udp
         self._robot = Robot(

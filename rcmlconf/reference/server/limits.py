@@ -10,15 +10,12 @@ once, never meets them; a server behind a NAT that many clients share raises the
 from __future__ import annotations
 
 import errno
-import logging
 import resource
 from collections import Counter
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
 T = TypeVar("T")
-
-log = logging.getLogger("rcmlconf.server")
 
 #: R-RCTP-67's floor: a server that limits its peers serves at least this many of one address.
 MIN_CONNECTIONS_PER_PEER = 64
@@ -35,8 +32,6 @@ RESERVED_FDS = 64
 #: and waits in the kernel's queue, `LISTEN_QUEUE` long, with the legitimate connects among it.
 ACCEPTS_A_TURN = 8
 LISTEN_QUEUE = 1024
-#: An accept error is logged once in this many seconds, however often it happens.
-ACCEPT_ERROR_INTERVAL = 10.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -122,28 +117,6 @@ class PeerCount:
         self._by_peer[peer] -= 1
         if self._by_peer[peer] <= 0:
             del self._by_peer[peer]
-
-
-class Throttled:
-    """Logs a recurring condition once an interval, with how often it happened meanwhile: a flood
-    of refused connections or failed accepts must not become a flood of log lines."""
-
-    __slots__ = ("_count", "_interval", "_last", "_what")
-
-    def __init__(self, what: str, interval: float = ACCEPT_ERROR_INTERVAL) -> None:
-        self._what = what
-        self._interval = interval
-        self._last: float | None = None
-        self._count = 0
-
-    def happened(self, now: float, detail: str) -> None:
-        self._count += 1
-        if self._last is not None and now - self._last < self._interval:
-            return
-        more = f" ({self._count - 1} more since the last notice)" if self._count > 1 else ""
-        log.warning("%s: %s%s", self._what, detail, more)
-        self._last = now
-        self._count = 0
 
 
 #: What an accept fails with when the process or the system is out of something: asyncio logs

@@ -15,7 +15,6 @@ import socket
 import subprocess
 import time
 import weakref
-from collections.abc import Callable
 from pathlib import Path
 from urllib.parse import urlsplit
 
@@ -23,9 +22,10 @@ import pytest
 from support.processes import COMMAND, running
 from support.robots import TESTBOT
 from support.servers import Raw, RawSession, run, serving
+from support.waits import until
 
+from rcmlconf.reference.datagrams import DATAGRAMS_A_TURN, RECEIVE_BUFFER
 from rcmlconf.reference.server.adapter import ReferenceServer
-from rcmlconf.reference.server.datagrams import DATAGRAMS_A_TURN, RECEIVE_BUFFER
 from rcmlconf.reference.server.limits import ACCEPTS_A_TURN, ServerLimits
 
 #: A slow timeout short enough for a test (R-RCTP-67's floor is 10 s; `serve` warns below it).
@@ -253,16 +253,6 @@ async def test_the_files_server_closes_a_slow_request_and_refuses_beyond_the_pee
             other.close()
 
 
-async def _until(condition: Callable[[], bool], within: float = 10.0) -> bool:
-    """Whether `condition` holds within `within` seconds, the loop running meanwhile."""
-    deadline = time.monotonic() + within
-    while not condition():
-        if time.monotonic() > deadline:
-            return False
-        await asyncio.sleep(0.01)
-    return True
-
-
 @run
 async def test_a_burst_of_connects_waits_in_the_queue_and_is_accepted_a_few_a_turn() -> None:
     """D-RCTP-32: 200 connections made while the server's loop does not run all complete (the
@@ -276,7 +266,7 @@ async def test_a_burst_of_connects_waits_in_the_queue_and_is_accepted_a_few_a_tu
             for turn in range(1, 6):
                 await asyncio.sleep(0)  # one turn of the loop
                 assert server.connections.total <= turn * ACCEPTS_A_TURN
-            assert await _until(lambda: server.connections.total == 200)
+            assert await until(lambda: server.connections.total == 200)
         finally:
             for sock in burst:
                 sock.close()
@@ -290,11 +280,11 @@ async def test_rctp_and_files_connections_count_against_one_cap() -> None:
         assert server.http_port is not None
         rctp = [await Raw.open(server) for _ in range(2)]
         files = Raw(*await asyncio.open_connection("127.0.0.1", server.http_port))
-        assert await _until(lambda: server.connections.total == 3)
+        assert await until(lambda: server.connections.total == 3)
         beyond = await Raw.open(server)
         assert await beyond.closed(timeout=5.0)
         files.close()
-        assert await _until(lambda: server.connections.total == 2)
+        assert await until(lambda: server.connections.total == 2)
         again = await Raw.open(server)
         await again.send(b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\n\r\n")
         assert (await again.response()).status == 200
@@ -320,7 +310,7 @@ async def test_the_data_socket_is_read_several_datagrams_a_turn() -> None:
                 await asyncio.sleep(0)
             assert server.data.unclaimed > 2  # more than one a turn
             assert DATAGRAMS_A_TURN > 2
-            assert await _until(lambda: server.data.unclaimed == 300)
+            assert await until(lambda: server.data.unclaimed == 300)
 
 
 @run
@@ -334,15 +324,15 @@ async def test_large_requests_take_turns_while_small_ones_are_served() -> None:
     async with serving(limits=limits) as server:
         first, second = await Raw.open(server), await Raw.open(server)
         await first.send(head + body[:8192])  # a place taken, the body not whole
-        assert await _until(lambda: server.large.held == 1)
+        assert await until(lambda: server.large.held == 1)
         await second.send(head + body[:8192])
-        assert await _until(lambda: server.large.waiting == 1)
+        assert await until(lambda: server.large.waiting == 1)
         small = await RawSession.open(server)  # served while the second waits
         assert (await small.ask("CONNECT", "/")).status == 200
         assert server.large.waiting == 1
         await first.send(body[8192:])
         assert (await first.response()).status == 200
-        assert await _until(lambda: server.large.waiting == 0)  # the second's turn
+        assert await until(lambda: server.large.waiting == 0)  # the second's turn
         await second.send(body[8192:])
         assert (await second.response()).status == 200
         for raw in (first, second, small.raw):
@@ -375,7 +365,7 @@ async def test_a_peer_that_does_not_read_is_not_read_and_then_answered_in_full()
         )
 
         # Its answers over asyncio's high-water mark, the connection is paused.
-        assert await _until(lambda: any(c._write_paused for c in server.controls.values()))
+        assert await until(lambda: any(c._write_paused for c in server.controls.values()))
         cseqs = [int((await flood.response()).headers.get("CSeq") or 0) for _ in range(count)]
         assert cseqs == list(range(2, count + 2))
         flood.close()
@@ -398,7 +388,7 @@ async def test_a_peer_with_many_requests_at_once_does_not_hold_up_another() -> N
                     )
                 )
             other = await Raw.open(server)
-            assert await _until(lambda: server.connections.total == count + 1)
+            assert await until(lambda: server.connections.total == count + 1)
             # Sent while the loop does not run: all ready in the same turn, the other last.
             for sock in flood:
                 sock.sendall(b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\n\r\n")
@@ -430,8 +420,8 @@ async def test_a_closed_connection_and_its_session_are_freed_without_the_collect
             session = await RawSession.open(server)
             freed = weakref.ref(next(iter(server.controls)))
             session.raw.close()
-            assert await _until(lambda: not server.controls)
-            assert await _until(lambda: freed() is None)
+            assert await until(lambda: not server.controls)
+            assert await until(lambda: freed() is None)
     finally:
         gc.enable()
 
@@ -513,8 +503,8 @@ async def test_a_peer_that_takes_no_answers_is_reset_after_the_slow_timeout() ->
         sock.setblocking(False)
         with contextlib.suppress(BlockingIOError):
             sock.send(_reads(session, 6000))  # what the kernel takes
-        assert await _until(lambda: any(c._write_paused for c in server.controls.values()))
-        assert await _until(lambda: server.connections.total == 0)
+        assert await until(lambda: any(c._write_paused for c in server.controls.values()))
+        assert await until(lambda: server.connections.total == 0)
         assert not server.controls
         assert _reset(sock)
         sock.close()
@@ -530,9 +520,9 @@ async def test_a_half_closed_peer_whose_answers_do_not_leave_is_reset() -> None:
         _small_send_buffers(server)
         sock.sendall(_reads(session, 250))  # answers beyond the kernel's buffers, within asyncio's
         sock.shutdown(socket.SHUT_WR)
-        assert await _until(lambda: all(c.closing for c in server.controls.values()))
+        assert await until(lambda: all(c.closing for c in server.controls.values()))
         assert server.connections.total == 1  # closing, its answers unsent: still counted
-        assert await _until(lambda: server.connections.total == 0)
+        assert await until(lambda: server.connections.total == 0)
         assert _reset(sock)
         sock.close()
 
@@ -548,13 +538,13 @@ async def test_a_large_request_waiting_for_a_place_is_not_closed_as_slow() -> No
     async with serving(limits=limits) as server:
         first, second = await Raw.open(server), await Raw.open(server)
         await first.send(head + body[:8192])
-        assert await _until(lambda: server.large.held == 1)
+        assert await until(lambda: server.large.held == 1)
         await second.send(head + body[:8192])  # waits for the place, unread
-        assert await _until(lambda: server.large.waiting == 1)
+        assert await until(lambda: server.large.waiting == 1)
         await asyncio.sleep(0.6 * slow)
         await first.send(body[8192:])  # the first, whole within its slow timeout
         assert (await first.response()).status == 200
-        assert await _until(lambda: server.large.waiting == 0)
+        assert await until(lambda: server.large.waiting == 0)
         await asyncio.sleep(0.6 * slow)  # the second's first byte now more than `slow` ago
         await second.send(body[8192:])
         assert (await second.response()).status == 200
@@ -581,7 +571,7 @@ async def test_a_peer_with_costly_work_gets_a_fair_share_of_time_not_of_turns() 
             )
             for _ in range(others)
         ]
-        assert await _until(lambda: server.connections.total == others + 1)
+        assert await until(lambda: server.connections.total == others + 1)
         # Sent while the loop does not run: all of it ready in the same turn (the rest of the
         # burst follows as the server reads).
         for other in light:
