@@ -70,6 +70,7 @@ def cases(show_matrix: bool, only: tuple[str, ...], output_format: str, strict: 
                         "impairment": c.impairment,
                         "features": list(c.features),
                         "serial": c.serial,
+                        "exclusive": c.exclusive,
                     }
                     for c in chosen
                 ]

@@ -61,7 +61,9 @@ def test_usage_errors_exit_2_with_a_reason(tmp_path: Path) -> None:
 def test_cases_lists_and_the_matrix_covers(tmp_path: Path) -> None:
     listed = run_command("cases", "--format", "json")
     assert listed.returncode == 0, listed.stderr
-    assert any(c["id"] == "rctp/msg/unknown-method" for c in json.loads(listed.stdout))
+    by_case = {c["id"]: c for c in json.loads(listed.stdout)}
+    assert not by_case["rctp/msg/unknown-method"]["exclusive"]
+    assert by_case["rctp/session/peer-floors"]["exclusive"]  # it runs alone, after the rest
     rows = run_command("cases", "--matrix", "--format", "json")
     assert rows.returncode == 0, rows.stderr
     by_id = {r["requirement"]: r for r in json.loads(rows.stdout)}
