@@ -65,6 +65,7 @@ from typing import Any, NamedTuple
 
 from children import cpu_seconds
 from hostile_attacks import ATTACKS, SOURCES, Target, attack_process
+from hostile_turns import summarise
 from scale import load_average, percentile, split_cpus
 
 from rcmlconf.reference.client.adapter import Client, RctpError
@@ -73,6 +74,7 @@ from rcmlconf.reference.server.limits import DEFAULT_LIMITS, RESERVED_FDS
 from rcmlconf.validate.validator import load_robot
 
 RCML = Path(__file__).resolve().parent / "hostile_load.rcml"
+TURNS = Path(__file__).resolve().parent / "hostile_turns.py"
 STREAM = "/drive/stream"
 GROUP = "/drive"
 PROBED = "/identity/info/serial"
@@ -98,9 +100,14 @@ BACK_PERCENTILE, RECOVERED_FOR, SLACK_MS = 95, 2.0, 1.0
 class Server:
     """`rcmlconf serve` in a process of its own, its standard error in a file."""
 
-    def __init__(self, folder: Path, nofile: int, cpu: int | None) -> None:
+    def __init__(
+        self, folder: Path, nofile: int, cpu: int | None, turns: bool, collect: str | None
+    ) -> None:
         self.cpu = cpu
         self.stderr_path = folder / "serve.stderr"
+        #: The profile of the loop's turns (`hostile_turns`), when asked, with other collector
+        #: settings when asked.
+        self.turns = folder / "turns.bin" if turns or collect else None
         ready = folder / "ready.json"
         self._stderr = self.stderr_path.open("wb")
 
@@ -111,7 +118,9 @@ class Server:
             if cpu is not None:
                 os.sched_setaffinity(0, {cpu})
 
-        command = [sys.executable, "-m", "rcmlconf", "serve", str(RCML), "--port", "0"]
+        run = ["-m", "rcmlconf"] if self.turns is None else [str(TURNS), str(self.turns)]
+        run += ["--gc", collect] if collect else []
+        command = [sys.executable, *run, "serve", str(RCML), "--port", "0"]
         command += ["--http-port", "0", "--ready-file", str(ready)]
         self.process = subprocess.Popen(
             command, stdout=subprocess.DEVNULL, stderr=self._stderr, preexec_fn=limit
@@ -372,6 +381,8 @@ async def attack(
 @dataclass
 class Row:
     name: str
+    #: The row's window, this loop's (monotonic) time.
+    window: tuple[float, float]
     seconds: float
     gap_p99: float
     gap_max: float
@@ -496,6 +507,7 @@ def measure(
     log = server.log()[len(log_before) :]
     return Row(
         name=name,
+        window=(start, end),
         seconds=end - start,
         gap_p99=percentile(gaps, 99),
         gap_max=_max(gaps),
@@ -674,6 +686,24 @@ def log_summary(log: str, shown: int = 12) -> None:
         print(f"  {count:>7} {line}")
 
 
+def turns_report(rows: list[Row], profile: Path) -> None:
+    """What the server's loop did, turn by turn, within each row (`hostile_turns`)."""
+    print("\nthe server's turns (--turns; ms: wall without select's wait, CPU, wall - CPU):")
+    for row in rows:
+        turns = summarise(profile, *row.window)
+        if turns is None:
+            print("  no profile (the server did not exit normally)")
+            return
+        print(
+            f"  {row.name:<14}{turns.count:,} turns; wall {turns.wall}; cpu {turns.cpu}; "
+            f"waited {turns.waited}; callbacks {turns.callbacks}; the collector by generation "
+            f"{turns.pauses}; wake-ups late "
+            f"(count, latest ms) {turns.late}; CPU a second by kind {turns.spent}"
+        )
+        for long in turns.longest:
+            print(f"  {'':<14}  {long}")
+
+
 def _ratio(value: float, anchor: float) -> str:
     return f"{value / anchor:.2f}" if anchor > 0 and value != float("inf") else "?"
 
@@ -690,6 +720,12 @@ def main() -> None:
     parser.add_argument("--smoke", action="store_true", help="3 s a row: checks the script")
     parser.add_argument(
         "--pin", action="store_true", help="the server on the first CPU, the rest on the last"
+    )
+    parser.add_argument(
+        "--turns", action="store_true", help="profile the server's loop turns (hostile_turns)"
+    )
+    parser.add_argument(
+        "--gc", metavar="YOUNG,MIDDLE,OLD", help="the server's collector thresholds (and --turns)"
     )
     args = parser.parse_args()
     if args.seconds is not None and not 1.0 <= args.seconds <= 3600.0:
@@ -710,7 +746,7 @@ def main() -> None:
     where = f"CPU {server_cpu}" if server_cpu is not None else "any CPU"
     sources = sorted({s for group in SOURCES.values() for s in group}, key=_address)
     with tempfile.TemporaryDirectory(prefix="hostile-") as folder:
-        server = Server(Path(folder), args.nofile, server_cpu)
+        server = Server(Path(folder), args.nofile, server_cpu, args.turns, args.gc)
         try:
             print(
                 f"rcmlconf serve {RCML.name} (pid {server.pid}, {where}, "
@@ -727,6 +763,8 @@ def main() -> None:
         finally:
             server.stop()
         report(rows, server.cap)
+        if server.turns is not None:
+            turns_report(rows, server.turns)
         log_summary(server.log())
     if args.json is not None:
         args.json.write_text(json.dumps([asdict(row) for row in rows], indent=1) + "\n")
