@@ -127,20 +127,28 @@ class _Control(asyncio.Protocol):
             self.transport.pause_reading()  # until its turn (`turns`): the kernel holds the rest
 
     def _take_slice(self) -> None:
-        """Hand the session the next slice of the backlog; if more is left, pause reading and
-        come back in a next turn of the loop (after the other peers and the beats, `turns`)."""
+        """Hand the session the backlog a piece at a time, for a slice's time (`ServerLimits`);
+        if more is left, pause reading and come back in a next turn of the loop (after the
+        other peers and the beats, `turns`)."""
         self._slicing = False
         session, transport = self.session, self.transport
         if session is None or transport is None or self._ended or self._write_paused:
             return  # resume_writing comes back for the rest
         if self._waiting:
             return  # _admitted comes back for it
-        size = self.server.settings.limits.slice_bytes
-        piece = bytes(self._backlog[:size])
-        del self._backlog[:size]
-        session.receive_data(piece, self.server.loop.time())
+        limits = self.server.settings.limits
+        now = self.server.loop.time()
+        until = time.perf_counter() + limits.slice_time
+        room = True
+        while self._backlog and room and not session.finished:
+            piece = bytes(self._backlog[: limits.slice_bytes])
+            del self._backlog[: limits.slice_bytes]
+            session.receive_data(piece, now)
+            room = self._has_room(session)
+            if time.perf_counter() >= until:
+                break
         self.server.flush(self)
-        if not self._has_room(session):
+        if not room:
             transport.pause_reading()
         elif self._backlog and not self.closing:
             transport.pause_reading()
@@ -203,6 +211,7 @@ class _Control(asyncio.Protocol):
     def connection_lost(self, exc: Exception | None) -> None:
         # The connection is gone: its descriptor no longer counts. The session's end waits its
         # peer's turn (`turns`), so that a flood of resets is not one long turn of the loop.
+        _uncycle(self.transport)
         if self.session is not None and not self._ended:
             self._ended = True
             self.server.connections.leave(self.peer)
@@ -257,6 +266,16 @@ class _Control(asyncio.Protocol):
             self.closing = True
             _reset(transport)
         self.server.flush(self)
+
+
+def _uncycle(transport: asyncio.Transport | None) -> None:
+    """asyncio's socket transport holds a bound method of its own (`_read_ready_cb`, CPython 3.11
+    to 3.13): a reference cycle, so a closed one, its socket and buffers wait for the collector,
+    and under a flood of connections enough of them live long enough to reach its oldest
+    generation (`collector`). Once the connection is lost the transport reads no more: the cycle
+    is broken, and the last reference frees it."""
+    if getattr(transport, "_read_ready_cb", None) is not None:
+        setattr(transport, "_read_ready_cb", None)  # noqa: B010 (asyncio's own, untyped)
 
 
 def _reset(transport: asyncio.Transport) -> None:

@@ -49,11 +49,15 @@ class ServerLimits:
     #: A connection that sends no CONNECT this long after it opened, or that has not finished a
     #: request this long after its first byte, is closed (seconds).
     slow_timeout: float = 10.0
-    #: Bytes of one connection's input taken per turn of the loop: a pipelined burst is answered
-    #: in slices, and the other sessions and their streams are served in between. A slice is
-    #: done whole, so it is kept within `turn_budget`: 4 KiB of READs, about 55 of them, take
-    #: about 3 ms (8 KiB took 5 to 10, beyond the budget: bench/hostile_load.py).
-    slice_bytes: int = 4096
+    #: One connection's input is handed to its session a piece of `slice_bytes` at a time, for
+    #: `slice_time` seconds at most a turn of the loop (a slice): a pipelined burst is answered
+    #: in slices, and the other sessions and their streams are served in between. A piece is
+    #: done whole, and what it costs depends on the requests it holds: 4 KiB of READs without
+    #: a session, 140 of them, took 6 ms, beyond a turn's budget (bench/hostile_load.py
+    #: --turns), 512 bytes at most 0.8 ms; while a 4 MiB body's pieces take microseconds each,
+    #: and go on together within the slice.
+    slice_bytes: int = 512
+    slice_time: float = 0.001
     #: A request under way that holds more than `large_bytes` of input (a body D-RCTP-9 allows
     #: up to 4 MiB) is a large one: `large_requests` connections at most hold one at once, the
     #: others are not read meanwhile (TCP holds their peers) and go on in turn. Memory then
