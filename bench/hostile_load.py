@@ -223,22 +223,37 @@ class Sample(NamedTuple):
 class Record:
     """Everything the legitimate clients and the sampler saw, stamped with this loop's time."""
 
-    #: Per read stream: each DATA's arrival, and the server's send stamp (seconds).
+    #: Per read stream: each DATA's arrival, the server's send stamp (seconds), and the CPU
+    #: waits until then (`Waits`).
     arrivals: list[list[float]] = field(default_factory=lambda: [[] for _ in range(READERS)])
     sent: list[list[float]] = field(default_factory=lambda: [[] for _ in range(READERS)])
-    #: (when the READ was sent, its round trip; inf: failed)
-    reads: list[tuple[float, float]] = field(default_factory=list)
+    waited: list[list[float]] = field(default_factory=lambda: [[] for _ in range(READERS)])
+    #: (when the READ was sent, its round trip, the CPU waits meanwhile; inf: failed)
+    reads: list[tuple[float, float, float]] = field(default_factory=list)
     #: (when, what): STOP, BYE or a close from the server, a stream lost, a READ failed.
     incidents: list[tuple[float, str]] = field(default_factory=list)
     samples: list[Sample] = field(default_factory=list)
 
 
+class Waits:
+    """Seconds the server's loop and this process's have waited for a CPU, ready to run, since
+    they started (the kernel's schedstat): what of a late answer the machine made, not the
+    server's work."""
+
+    def __init__(self, server_pid: int) -> None:
+        self.pids = (server_pid, os.getpid())
+
+    def __call__(self) -> float:
+        return sum(run_delay(pid) for pid in self.pids)
+
+
 class Legitimate:
     """The four readers, the writer and the prober, until `stop`."""
 
-    def __init__(self, url: str, record: Record) -> None:
+    def __init__(self, url: str, record: Record, waits: Waits) -> None:
         self.url = url
         self.record = record
+        self.waits = waits
         self.model = load_robot(RCML)
         self.clients: list[Client] = []
         self.tasks: list[asyncio.Task[None]] = []
@@ -281,6 +296,7 @@ class Legitimate:
                 if index is not None:
                     self.record.arrivals[index].append(loop.time())
                     self.record.sent[index].append(event.sent / 2**32)
+                    self.record.waited[index].append(self.waits())
             elif event is not None:
                 self._incident(who, event)
             elif client.closed is not None:  # and its Closed taken
@@ -290,12 +306,12 @@ class Legitimate:
         loop = asyncio.get_running_loop()
         due = loop.time()
         while self.running and client.closed is None:
-            start = loop.time()
+            start, waited = loop.time(), self.waits()
             try:
                 await client.read(PROBED)
-                self.record.reads.append((start, loop.time() - start))
+                self.record.reads.append((start, loop.time() - start, self.waits() - waited))
             except RctpError as error:
-                self.record.reads.append((start, float("inf")))
+                self.record.reads.append((start, float("inf"), 0.0))
                 self.record.incidents.append((loop.time(), f"prober: {error}"))
             while (event := await client.next_event(timeout=0)) is not None:
                 self._incident("prober", event)
@@ -390,6 +406,10 @@ class Row:
     sent_max: float
     read_p99: float
     read_max: float
+    #: The same less the CPU waits of the server's loop and the clients' within each (`Waits`).
+    gap_p99_less_waits: float
+    gap_max_less_waits: float
+    read_p99_less_waits: float
     reads_failed: int
     stop_bye: int
     lost: int
@@ -417,7 +437,7 @@ class Row:
 
 def _gaps(series: Iterable[Sequence[float]], start: float, end: float) -> list[int]:
     """Sorted gaps (ns) between consecutive stamps within [start, end)."""
-    gaps = []
+    gaps: list[int] = []
     for stamps in series:
         inside = [t for t in stamps if start <= t < end]
         gaps.extend(round((b - a) * 1e9) for a, b in pairwise(inside))
@@ -432,10 +452,20 @@ def _sent_in(record: Record, start: float, end: float) -> list[list[float]]:
     ]
 
 
-def _reads(record: Record, start: float, end: float) -> list[int]:
+def _less_waits(record: Record, start: float, end: float) -> list[int]:
+    """Sorted gaps (ns) as `_gaps`, less the CPU waits within each (`Waits`)."""
+    gaps: list[int] = []
+    for stamps, waits in zip(record.arrivals, record.waited, strict=True):
+        inside = [(t, w) for t, w in zip(stamps, waits, strict=True) if start <= t < end]
+        for (a, wa), (b, wb) in pairwise(inside):
+            gaps.append(round(max(0.0, (b - a) - (wb - wa)) * 1e9))
+    return sorted(gaps)
+
+
+def _reads(record: Record, start: float, end: float, less_waits: bool = False) -> list[int]:
     return sorted(
-        round(rtt * 1e9) if rtt != float("inf") else 2**62
-        for sent, rtt in record.reads
+        round(max(0.0, rtt - waited * less_waits) * 1e9) if rtt != float("inf") else 2**62
+        for sent, rtt, waited in record.reads
         if start <= sent < end
     )
 
@@ -493,6 +523,7 @@ def measure(
     gaps = _gaps(record.arrivals, start, end)
     sent = _gaps(_sent_in(record, start, end), -1e18, 1e18)
     reads = _reads(record, start, end)
+    less_waits = _less_waits(record, start, end)
     incidents = [what for when, what in record.incidents if start <= when < after]
     samples = [s for s in record.samples if start <= s.when < after]
     inside = [s for s in record.samples if start <= s.when <= end]
@@ -515,6 +546,9 @@ def measure(
         sent_max=_max(sent),
         read_p99=percentile(reads, 99),
         read_max=_max(reads),
+        gap_p99_less_waits=percentile(less_waits, 99),
+        gap_max_less_waits=_max(less_waits),
+        read_p99_less_waits=percentile(_reads(record, start, end, less_waits=True), 99),
         reads_failed=sum(1 for r in reads if r == 2**62),
         stop_bye=sum(1 for i in incidents if "STOP" in i or "BYE" in i or "closed" in i),
         lost=sum(1 for i in incidents if "lost" in i),
@@ -552,7 +586,7 @@ async def run(plan: Plan, server: Server, bench_cpu: int | None) -> list[Row]:
     record = Record()
     running = [True]
     sampler = asyncio.ensure_future(sample(server, record, running))
-    legitimate = Legitimate(server.url, record)
+    legitimate = Legitimate(server.url, record, Waits(server.pid))
     site = server.url.split("/", 3)[3]
     target = Target(
         rctp_port=int(server.url.split(":")[2].split("/")[0]),
@@ -664,6 +698,15 @@ def report(rows: list[Row], cap: int) -> None:
         print(
             f"  {row.name:<14}gap p99 x{_ratio(row.gap_p99, alone.gap_p99)}, "
             f"READ p99 x{_ratio(row.read_p99, alone.read_p99)}"
+        )
+    print(
+        "\nless the CPU waits (the server's loop and the clients' waiting for a CPU, ready to run,"
+        " within each gap or READ: the machine's share of it, not the server's work):"
+    )
+    for row in rows:
+        print(
+            f"  {row.name:<14}gap p99 {_ms(row.gap_p99_less_waits)} ms, max "
+            f"{_ms(row.gap_max_less_waits)} ms; READ p99 {_ms(row.read_p99_less_waits)} ms"
         )
     judged = next((row for row in rows if row.name == MIX), rows[-1])
     print(f"\ngoals (issue 18), under {judged.name}; every row:")
