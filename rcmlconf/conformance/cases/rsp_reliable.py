@@ -1,13 +1,7 @@
 """rsp/reliable, rsp/security: selective retransmission and the memory-command buffer (D-RSP-16,
 D-RSP-17, D-RSP-19; R-RSP-25, R-RSP-26, R-RSP-31, R-RSP-33) and the security processor (D-RSP-21;
 R-RSP-18, R-RSP-37, R-RSP-38). The harness plays the local system (the motion filter's link loss,
-timed against T, is rsp_pace's).
-
-Memory commands show whether they were taken by the robot's free-buffer count (the header's buffer
-byte): the cases first send one whose `duration` field (if the model has one) keeps the robot
-busy, so that those after it wait in the buffer. D-RSP-19 says CUBO's keyframes take their
-duration, so a CUBO whose buffer does not fill fails R-RSP-31; another robot may execute memory
-commands at once, never fill its buffer, and leave the cases that count on it inconclusive.
+timed against T, is rsp_pace's). How the buffer cases keep the robot busy: probes/rsp_buffer.
 """
 
 from __future__ import annotations
@@ -43,8 +37,9 @@ from rcmlconf.conformance.probes.rsp import (
     taken,
     zero_values,
 )
+from rcmlconf.conformance.probes.rsp_buffer import BUSY_MS, keyframe, not_held, take
 from rcmlconf.conformance.registry import Role, case
-from rcmlconf.conformance.verdicts import CaseStop, Failed, Inconclusive, NotApplicable
+from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import (
     CLEAR_BUFFER,
     Encryption,
@@ -58,50 +53,9 @@ from rcmlconf.rsp.layout import MAC_SIZE, NONCE_SIZE
 from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
 from rcmlconf.rsp.security import mac
 from rcmlconf.rsp.session import events
-from rcmlconf.values import Value
 
-#: How long the first memory command of a buffer case keeps the robot busy (ms, D-RSP-19).
-BUSY_MS = 30_000
 #: rsp/reliable/keyframe-duration's keyframes last this long (ms, scaled): many periods.
 KEYFRAME_MS = 400
-
-
-def keyframe(found: Device) -> dict[str, Value]:
-    """A memory command's fields at their safe values, a duration field (if any) long."""
-    values = zero_values(found)
-    for field in found.fields:
-        if "duration" in field.name.lower() and field.type.base.numeric:
-            high = field.maximum if field.maximum is not None else BUSY_MS
-            values[field.name] = int(min(high, BUSY_MS))
-    return values
-
-
-def _not_held(probe: RspProbe, memory: Device, what: str) -> CaseStop:
-    """The robot's free buffers did not drop for a memory command sent while one executes.
-    D-RSP-19 says CUBO's motion keyframes take their `duration`: a CUBO with a 30 s keyframe
-    running must hold the next ones (R-RSP-31: its free count says so). Any other robot may
-    execute memory commands at once, and the case cannot tell."""
-    durable = probe.model.name == "CUBO" and any(
-        "duration" in f.name.lower() for f in memory.fields
-    )
-    if durable:
-        return Failed(
-            "R-RSP-31",
-            f"fewer free buffers while {memory.name} keyframes of {BUSY_MS} ms wait (D-RSP-19)",
-            what,
-        )
-    return Inconclusive(f"the robot executes memory commands at once: {what}")
-
-
-async def _take(
-    ctx: Context, probe: RspProbe, raw: RawSession, found: Device, ident: int, *, buffer: int = 0
-) -> Datagram:
-    """Send memory command or command `ident` and return the robot's ACK of it (R-RSP-26)."""
-    values = keyframe(found) if found.kind is DeviceKind.MEMORY_COMMAND else None
-    ack = await acked(probe, raw, found, ident, values, buffer=buffer)
-    if ack is None:
-        raise Failed("R-RSP-26", f"ACK of {found.name} #{ident}", f"none within {probe.wait:.2g} s")
-    return ack
 
 
 async def _busy(ctx: Context) -> tuple[RspProbe, RawSession, Device, int]:
@@ -109,7 +63,7 @@ async def _busy(ctx: Context) -> tuple[RspProbe, RawSession, Device, int]:
     probe, raw = await raw_session(ctx)
     memory = first(probe.model, DeviceKind.MEMORY_COMMAND)
     raw.standing = flags(probe.model, reported(probe.model, 1)[0])  # an UPLINK every T
-    taken_at = (await _take(ctx, probe, raw, memory, 0)).header.buffer
+    taken_at = (await take(probe, raw, memory, 0)).header.buffer
     # #0 leaves the buffer when the robot starts to execute it, at a control tick of its own
     # (D-RSP-19): wait for an UPLINK that says so, not a fixed time a loaded machine overruns.
     await probe.next(
@@ -153,7 +107,7 @@ async def command_acked(ctx: Context) -> None:
     acks = []
     delays = []
     for ident in range(7):
-        ack = await _take(ctx, probe, raw, command, ident)
+        ack = await take(probe, raw, command, ident)
         _acks_only(ctx, probe.model, ack, command, ident)
         acks.append(ack)
         sent_at, sent = probe.sent[-1]
@@ -193,7 +147,7 @@ async def command_reacked(ctx: Context) -> None:
     probe, raw = await raw_session(ctx)
     command = first(probe.model, DeviceKind.COMMAND)
     for ident in (0, 0, 0, 1, 0):
-        await _take(ctx, probe, raw, command, ident)
+        await take(probe, raw, command, ident)
 
 
 @case(
@@ -205,7 +159,7 @@ async def command_reacked(ctx: Context) -> None:
 async def memory_command_acked(ctx: Context) -> None:
     probe, raw = await raw_session(ctx)
     memory = first(probe.model, DeviceKind.MEMORY_COMMAND)
-    ack = await _take(ctx, probe, raw, memory, 0)
+    ack = await take(probe, raw, memory, 0)
     _acks_only(ctx, probe.model, ack, memory, 0)
 
 
@@ -241,10 +195,10 @@ async def two_reliable_at_once(ctx: Context) -> None:
 )
 async def memory_command_once(ctx: Context) -> None:
     probe, raw, memory, free = await _busy(ctx)
-    first_take = (await _take(ctx, probe, raw, memory, 1)).header.buffer
+    first_take = (await take(probe, raw, memory, 1)).header.buffer
     if first_take >= free:
-        raise _not_held(probe, memory, f"#1 taken, free {free}, then {first_take}")
-    again = (await _take(ctx, probe, raw, memory, 1)).header.buffer
+        raise not_held(probe, memory, f"#1 taken, free {free}, then {first_take}")
+    again = (await take(probe, raw, memory, 1)).header.buffer
     ctx.expect(
         again == first_take,
         f"{first_take} free buffers still ({memory.name} #1 taken once)",
@@ -256,7 +210,7 @@ async def memory_command_once(ctx: Context) -> None:
     bits = 8 * probe.model.id_length
     behind = (1 << bits) // 4
     old = (1 - behind) % (1 << bits)
-    stale = (await _take(ctx, probe, raw, memory, old)).header.buffer
+    stale = (await take(probe, raw, memory, old)).header.buffer
     ctx.expect(
         stale == first_take,
         f"{first_take} free buffers still ({memory.name} #{old}, {behind} behind #1 on {bits}"
@@ -264,13 +218,13 @@ async def memory_command_once(ctx: Context) -> None:
         f"{stale} free",
         "R-RSP-25",
     )
-    then = (await _take(ctx, probe, raw, memory, 2)).header.buffer
+    then = (await take(probe, raw, memory, 2)).header.buffer
     ctx.expect(then == first_take - 1, f"{first_take - 1} free after #2", f"{then}", "R-RSP-25")
     if then == 0:
         return  # no buffer left for the edge below
     # D-RSP-16's edge: exactly half the ID space ahead is new (RFC 1982 leaves it undefined).
     edge = (2 + (1 << bits) // 2) % (1 << bits)
-    past = (await _take(ctx, probe, raw, memory, edge)).header.buffer
+    past = (await take(probe, raw, memory, edge)).header.buffer
     ctx.expect(
         past == then - 1,
         f"{then - 1} free after #{edge}: half the ID space ahead of #2 is new (D-RSP-16), taken",
@@ -306,7 +260,7 @@ async def keyframe_duration(ctx: Context) -> None:
             raise Failed("R-RSP-26", f"ACK of {memory.name} #{ident}", "none")
     waiting = probe.received[-1].header.buffer
     if waiting >= free:
-        raise _not_held(probe, memory, f"#0 and #1 of {lasting} ms taken, still {waiting} free")
+        raise not_held(probe, memory, f"#0 and #1 of {lasting} ms taken, still {waiting} free")
     # #0 done, #1 starts and leaves the buffer: the free count comes back, at a tick of the
     # robot's after `lasting` ms (a period), read off an UPLINK (one every T).
     bound = start + lasting / 1000 + 3 * period + probe.quiet
@@ -344,9 +298,9 @@ async def full_buffer(ctx: Context) -> None:
     while left > 0:
         if ident > probe.model.command_buffers + 1:
             raise Inconclusive(f"{ident} memory commands and still {left} free buffers")
-        now = (await _take(ctx, probe, raw, memory, ident)).header.buffer
+        now = (await take(probe, raw, memory, ident)).header.buffer
         if now >= left:
-            raise _not_held(probe, memory, f"#{ident} taken, still {now} free")
+            raise not_held(probe, memory, f"#{ident} taken, still {now} free")
         left, ident = now, ident + 1
     start = probe.mark()
     raw.downlink([occurrence(memory, ident, keyframe(memory))])
@@ -360,7 +314,7 @@ async def full_buffer(ctx: Context) -> None:
         f"{cleared}",
         "R-RSP-33",
     )
-    await _take(ctx, probe, raw, memory, ident)
+    await take(probe, raw, memory, ident)
 
 
 @case(
@@ -373,10 +327,10 @@ async def clear_buffer(ctx: Context) -> None:
     probe, raw, memory, _ = await _busy(ctx)
     empty = await _free(probe, raw, CLEAR_BUFFER)
     for ident in (1, 2, 3):
-        held = (await _take(ctx, probe, raw, memory, ident)).header.buffer
+        held = (await take(probe, raw, memory, ident)).header.buffer
     if held != empty - 3:
-        raise _not_held(probe, memory, f"three taken, {empty} free, then {held}")
-    ack = await _take(ctx, probe, raw, memory, 4, buffer=CLEAR_BUFFER)
+        raise not_held(probe, memory, f"three taken, {empty} free, then {held}")
+    ack = await take(probe, raw, memory, 4, buffer=CLEAR_BUFFER)
     ctx.expect(
         ack.header.buffer == empty - 1,
         f"{empty - 1} free in the ACK: the three dropped, then #4 taken",
@@ -406,7 +360,7 @@ async def _issued_once(ctx: Context, count: int) -> None:
     await probe.listen(6 * probe.session.period)
     after = _newest(probe).header.buffer
     if after == free:
-        raise _not_held(probe, memory, f"{count} taken, {free} free throughout")
+        raise not_held(probe, memory, f"{count} taken, {free} free throughout")
     ctx.expect(
         after == free - count,
         f"{free - count} free buffers: {count} memory commands taken once each",
