@@ -439,3 +439,35 @@ def test_a_robot_whose_timeout_misses_a_part_of_d_rsp_17_fails(
     shows."""
     copy = mutated(tmp_path, "rsp/reliable.py", (line, fault))
     _caught(tmp_path, copy, case, "R-RSP-28", passing="rsp/event/memory-event-resent")
+
+
+def test_a_robot_counting_the_memory_command_it_executes_fails_executing_left_buffer(
+    tmp_path: Path,
+) -> None:
+    """R-RSP-31, D-RSP-19: the reference made to hold the memory command it executes in its
+    buffer until it is done (commandBuffers - 1 free while one runs alone), as the independent
+    robot did; the buffer cases compared counts with each other, and passed it."""
+    copy = mutated(
+        tmp_path,
+        "rsp/session/robot.py",
+        (
+            "        return self._buffer.popleft() if self._buffer else None\n",
+            "        if self._buffer and self._buffer[0] is _RUN:\n"
+            "            self._buffer.popleft()\n"
+            "        if not self._buffer:\n"
+            "            return None\n"
+            "        found, self._buffer[0] = self._buffer[0], _RUN\n"
+            "        return found\n",
+        ),
+        (
+            "_DOWNLINK, _UPLINK = PacketType.DOWNLINK, PacketType.UPLINK\n",
+            "_DOWNLINK, _UPLINK = PacketType.DOWNLINK, PacketType.UPLINK\n_RUN = object()\n",
+        ),
+    )
+    _caught(
+        tmp_path,
+        copy,
+        "rsp/reliable/executing-left-buffer",
+        "R-RSP-31",
+        passing="rsp/reliable/full-buffer",
+    )
