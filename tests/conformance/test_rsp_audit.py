@@ -471,3 +471,28 @@ def test_a_robot_counting_the_memory_command_it_executes_fails_executing_left_bu
         "R-RSP-31",
         passing="rsp/reliable/full-buffer",
     )
+
+
+def test_a_robot_taking_a_late_packets_clear_buffer_fails_late_clear_buffer_ignored(
+    tmp_path: Path,
+) -> None:
+    """R-RSP-19, D-RSP-15: the reference made to empty its buffer for a DOWNLINK with Clear
+    Buffer, late or not (the buffer byte is a state); only newer ones were sent Clear Buffer."""
+    copy = mutated(
+        tmp_path,
+        "rsp/session/robot.py",
+        (
+            "        newer = arrival is _NEWER\n        if newer:\n",
+            "        newer = arrival is _NEWER\n"
+            "        if header.buffer & CLEAR_BUFFER:\n"
+            "            self._buffer.clear()\n"
+            "        if newer:\n",
+        ),
+    )
+    _caught(
+        tmp_path,
+        copy,
+        "rsp/payload/late-clear-buffer-ignored",
+        "R-RSP-19",
+        passing="rsp/reliable/clear-buffer",
+    )

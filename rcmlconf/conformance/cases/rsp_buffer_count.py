@@ -1,9 +1,12 @@
 """What a robot's free-buffer count (the header's buffer byte, D-RSP-19) says about the memory
-command it is executing. The harness plays the local system.
+command it is executing and about a late Clear Buffer. The harness plays the local system.
 
 - rsp/reliable/executing-left-buffer: the memory command being executed has left the buffer
   (R-RSP-31). The other buffer cases compare counts with each other, so a robot that counts the
   one it executes (`commandBuffers` - 1 free while one runs alone) passed them all.
+- rsp/payload/late-clear-buffer-ignored: the buffer byte is one of a packet's states (D-RSP-15),
+  so a late DOWNLINK's Clear Buffer is not applied (R-RSP-19); rsp/payload/late-state-ignored and
+  late-request-ignored check the other states.
 """
 
 from __future__ import annotations
@@ -16,16 +19,18 @@ from rcmlconf.conformance.probes.rsp import (
     first,
     flags,
     newer,
+    occurrence,
     open_probe,
+    raw_session,
     reported,
     sequence_of,
     taken,
 )
-from rcmlconf.conformance.probes.rsp_buffer import not_held, take
+from rcmlconf.conformance.probes.rsp_buffer import durable, keyframe, not_held, take
 from rcmlconf.conformance.probes.rsp_held import margin, seen_by
 from rcmlconf.conformance.registry import Role, case
-from rcmlconf.conformance.verdicts import Inconclusive
-from rcmlconf.rsp.codec import PacketType
+from rcmlconf.conformance.verdicts import Failed, Inconclusive
+from rcmlconf.rsp.codec import CLEAR_BUFFER, PacketType
 from rcmlconf.rsp.model import DeviceKind
 
 #: R-RSP-31: a memory command taken while the robot executes none has left the buffer within
@@ -34,6 +39,12 @@ START_PERIODS = 3
 #: executing-left-buffer asks for a T this long at least (scaled), so that R-RSP-31's three
 #: periods leave a loaded machine room: a robot may raise HELLO's period (D-RSP-13).
 SLOW_PERIOD = 0.3
+#: Memory commands late-clear-buffer-ignored leaves waiting behind the one executing: a Clear
+#: Buffer frees them all at once, more than one command done in the meantime could.
+WAITING = 2
+#: Periods late-clear-buffer-ignored watches the UPLINKs after the late DOWNLINK (one for the
+#: robot to read it, the rest to report what it then holds).
+WATCH = 4
 _STAMPS = 1 << 32
 _FROM_ROBOT = (PacketType.UPLINK, PacketType.ACK)
 
@@ -125,3 +136,67 @@ async def _one_waiting(ctx: Context, probe: RspProbe, raw: RawSession, horizon: 
         f"{counts} free",
         "R-RSP-31",
     )
+
+
+@case(
+    "rsp/payload/late-clear-buffer-ignored",
+    "A late DOWNLINK (not newer) with Clear Buffer leaves the memory commands waiting in the"
+    " buffer",
+    ["R-RSP-19"],
+    role=Role.ROBOT,
+)
+async def late_clear_buffer_ignored(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    model = probe.model
+    memory = first(model, DeviceKind.MEMORY_COMMAND)
+    raw.standing = flags(model, reported(model, 1)[0])  # an UPLINK every T
+    await take(probe, raw, memory, 0)
+    await probe.listen(START_PERIODS * raw.period)  # #0 has left the buffer (R-RSP-31)
+    ident = 1
+    while ident <= WAITING and probe.received[-1].header.buffer > 0:
+        await take(probe, raw, memory, ident)
+        ident += 1
+    raw.skip(5)  # numbers left unused: the late packet's is one never seen (D-RSP-15)
+    before = await taken(probe, raw)
+    if before is None:
+        raise Inconclusive("no UPLINK after the memory commands")
+    held, top = before.header.buffer, sequence_of(raw.last)
+    # The late packet repeats the newest memory command: an old ID, acknowledged again and not
+    # taken (D-RSP-16), whose ACK says the robot read the packet (D-RSP-15: a late packet's
+    # occurrences are handled) and gives its free buffers then.
+    repeated = ident - 1
+
+    def late() -> None:
+        raw.rewind(top - 3)
+        raw.downlink([occurrence(memory, repeated, keyframe(memory))], buffer=CLEAR_BUFFER)
+        raw.rewind(top + 1)
+
+    mark = probe.mark()
+    ack = await probe.answer_to(
+        late, PacketType.ACK, where=lambda d: repeated in d.acks(memory.position)
+    )
+    if ack is None:
+        raise Failed("R-RSP-26", f"ACK of {memory.name} #{repeated} in a late DOWNLINK", "none")
+    await probe.listen(WATCH * raw.period)
+    counts = [d.header.buffer for d in probe.packets(_FROM_ROBOT, after=mark)]
+    cleared = await taken(probe, raw, buffer=CLEAR_BUFFER)
+    if cleared is None:
+        raise Inconclusive("no UPLINK after a newer DOWNLINK with Clear Buffer")
+    empty = cleared.header.buffer
+    if empty <= held:
+        raise Inconclusive(
+            f"{held} free, {empty} after a newer Clear Buffer: nothing waited in the buffer (or"
+            " its Clear Buffer frees nothing, rsp/reliable/clear-buffer's to judge)"
+        )
+    if all(count < empty for count in counts):
+        return
+    expected = (
+        f"{held} free after late DOWNLINK #{top - 3} with Clear Buffer (not newer than #{top}: its"
+        " buffer byte not applied, D-RSP-15)"
+    )
+    got = f"{counts} free, {empty} as a newer Clear Buffer leaves"
+    # Commands done in the meantime free one buffer each: all of them at the late packet's ACK,
+    # or any keyframe of CUBO's (D-RSP-19: they take their 30 s), is its Clear Buffer.
+    if durable(probe, memory) or (ack.header.buffer >= empty and empty - held >= WAITING):
+        raise Failed("R-RSP-19", expected, got)
+    raise Inconclusive(f"the robot executes memory commands fast: expected {expected}; got {got}")
