@@ -315,8 +315,9 @@ def main() -> None:
             ratio = found.gap_p99 / alone.gap_p99 if alone.gap_p99 else float("nan")
             print(
                 f"  {found.name:<16}gap p99 x{ratio:.2f}; nothing taken: "
-                f"{'yes' if found.old == 0 and not found.closed else 'NO'}; "
-                f"nothing lost: {'yes' if found.lost == 0 else 'NO'}"
+                f"{'yes' if found.old == 0 and not found.closed else 'NO'}; UPLINKs lost: "
+                f"{found.lost}; dropped by the kernel at the robot's port (hostile or not): "
+                f"{found.drops}"
             )
         print(f"\nthe robot's standard error, last lines:\n{robot.log()[-600:]}")
 

@@ -96,6 +96,7 @@ class _Control(asyncio.Protocol):
         self._slicing = False
         self._write_paused = False
         self._waiting = False
+        #: The connection is lost: its session's end is under way (`_lost`), nothing else.
         self._ended = False
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
