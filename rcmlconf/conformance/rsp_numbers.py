@@ -50,8 +50,17 @@ def stamp_allowance(span: float, scale: float) -> float:
     return (CLOCK_DRIFT * span + STAMP_LAG * scale) * 1000
 
 
-#: Seconds for the wire and the scheduling of both sides, past a retransmission's next packet.
+#: Seconds for the wire and the scheduling of both sides, past a retransmission's next packet,
+#: and past the two periods after a BYE in which its receiver may still send (D-RSP-26).
 RESEND_LAG = 0.1
+#: Periods after a BYE in which its receiver may still send: one packet in flight as it went, one
+#: made as it arrived (D-RSP-26).
+BYE_PERIODS = 2
+
+
+def after_bye(period: float, scale: float) -> float:
+    """Seconds after a BYE went past which what its receiver sends was sent after it (D-RSP-26)."""
+    return BYE_PERIODS * period + RESEND_LAG * scale
 
 
 def resent_within(rto: float, period: float, scale: float) -> float:

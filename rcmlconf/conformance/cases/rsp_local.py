@@ -15,11 +15,13 @@ from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.locals import REQUESTED, LocalProbe, zeros
 from rcmlconf.conformance.probes.pace import paced, spaced
 from rcmlconf.conformance.probes.rsp import Datagram, first, newer, of_kind
+from rcmlconf.conformance.probes.rsp_held import held
 from rcmlconf.conformance.registry import CaseFunction, Role, case
 from rcmlconf.conformance.rsp_numbers import (
     HELLO_INTERVAL,
     HELLO_RETRIES,
     KEEPALIVE_PERIODS,
+    after_bye,
     stamp_allowance,
 )
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
@@ -498,11 +500,15 @@ async def bye_ends(ctx: Context) -> None:
     period = probe.period
     bye = probe.bye(ByeReason.SHUTDOWN)
     at, sequence = probe.now, int.from_bytes(bye[5:7])
+    # D-RSP-26: what names the BYE as received, or is read two periods and the slack after it
+    # (less a hold of the harness's loop, which delays what it reads), was sent after it.
+    after = after_bye(period, ctx.scale)
+    seen = await probe.received_within(max(8 * period, probe.quiet) + after)
+    last = at + after + held(ctx, at)
     late = [
         d
-        for d in await probe.received_within(max(8 * period, probe.quiet))
-        if d.type is not PacketType.BYE
-        and (newer(d.header.last_received, sequence) or d.at > at + 2 * period)
+        for d in seen
+        if d.type is not PacketType.BYE and (newer(d.header.last_received, sequence) or d.at > last)
     ]
     ctx.expect(
         not late,
