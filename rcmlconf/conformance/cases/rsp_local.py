@@ -209,19 +209,31 @@ async def hello_retries(ctx: Context) -> None:
 def _stamped_since(ctx: Context, start: Datagram, found: Iterable[Datagram], base: int) -> None:
     """Each of `found` is stamped `base` and the milliseconds since `start`, the local system's
     first HELLO, as the harness's clock shows them within D-RSP-26's 5 % and 50 ms (a timing
-    check: it reads the arrivals off the harness's clock)."""
-    for d in found:
+    check: it reads the arrivals off the harness's clock). A stamp behind its arrival is a packet
+    read late, which a harness kept waiting may not see as a hold (the embedded local system
+    shares its loop): D-RSP-26 lets a quarter of them fall behind, none ahead."""
+    behind: list[str] = []
+    judged = list(found)
+    for d in judged:
         span = d.at - start.at
         expected = span * 1000 + base
         allowed = stamp_allowance(span, ctx.scale)
-        ctx.expect(
-            abs(d.header.timestamp - expected) <= allowed,
+        got = f"{d.header.timestamp} in {d.type.name} #{d.header.sequence}"
+        wanted = (
             f"timestamp about {expected:.0f} (ms since the first HELLO, D-RSP-26: within"
-            f" {allowed:.0f} ms)",
-            f"{d.header.timestamp} in {d.type.name} #{d.header.sequence}",
-            "R-RSP-14",
-            timing=True,
+            f" {allowed:.0f} ms)"
         )
+        if d.header.timestamp < expected - allowed:
+            behind.append(f"{wanted}; got {got}")
+            continue
+        ctx.expect(d.header.timestamp <= expected + allowed, wanted, got, "R-RSP-14", timing=True)
+    ctx.expect(
+        len(behind) <= len(judged) // 4,
+        f"at most {len(judged) // 4} of {len(judged)} stamps behind their arrivals (D-RSP-26)",
+        "; ".join(behind),
+        "R-RSP-14",
+        timing=True,
+    )
 
 
 # -- the DOWNLINK beat and its header ------------------------------------------------------------
