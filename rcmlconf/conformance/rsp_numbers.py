@@ -51,16 +51,18 @@ def stamp_allowance(span: float, scale: float) -> float:
 
 
 #: Seconds for the wire and the scheduling of both sides, past a retransmission's next packet,
-#: and past the two periods after a BYE in which its receiver may still send (D-RSP-26).
+#: and past the two periods after a packet in which its receiver may still send what it made
+#: before it had it (D-RSP-26).
 RESEND_LAG = 0.1
-#: Periods after a BYE in which its receiver may still send: one packet in flight as it went, one
-#: made as it arrived (D-RSP-26).
-BYE_PERIODS = 2
+#: Periods after a packet went in which its receiver may still send what it made before it had
+#: it: one packet in flight as it went, one made as it arrived (D-RSP-26).
+UNHEARD_PERIODS = 2
 
 
-def after_bye(period: float, scale: float) -> float:
-    """Seconds after a BYE went past which what its receiver sends was sent after it (D-RSP-26)."""
-    return BYE_PERIODS * period + RESEND_LAG * scale
+def unheard_for(period: float, scale: float) -> float:
+    """Seconds after a packet went past which what its receiver sends was sent after it had it
+    (D-RSP-26); a hold of the harness's loop excuses as much more."""
+    return UNHEARD_PERIODS * period + RESEND_LAG * scale
 
 
 def resent_within(rto: float, period: float, scale: float) -> float:

@@ -21,8 +21,8 @@ from rcmlconf.conformance.rsp_numbers import (
     HELLO_INTERVAL,
     HELLO_RETRIES,
     KEEPALIVE_PERIODS,
-    after_bye,
     stamp_allowance,
+    unheard_for,
 )
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import ByeReason, Encryption, Hello, Item, PacketType, Period, RefusedReason
@@ -514,7 +514,7 @@ async def bye_ends(ctx: Context) -> None:
     at, sequence = probe.now, int.from_bytes(bye[5:7])
     # D-RSP-26: what names the BYE as received, or is read two periods and the slack after it
     # (less a hold of the harness's loop, which delays what it reads), was sent after it.
-    after = after_bye(period, ctx.scale)
+    after = unheard_for(period, ctx.scale)
     seen = await probe.received_within(max(8 * period, probe.quiet) + after)
     last = at + after + held(ctx, at)
     late = [

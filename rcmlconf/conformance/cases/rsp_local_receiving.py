@@ -40,7 +40,8 @@ from rcmlconf.conformance.cases.rsp_local import (
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.locals import LocalProbe, zeros
 from rcmlconf.conformance.probes.rsp import Datagram, first, newer, patch, sequence_of
-from rcmlconf.conformance.probes.rsp_held import margin, seen_by
+from rcmlconf.conformance.probes.rsp_held import held, margin, seen_by
+from rcmlconf.conformance.rsp_numbers import unheard_for
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import Encryption, Header, Item, MapBody, PacketType, Period
 from rcmlconf.rsp.model import Device, DeviceKind, Field, RobotModel
@@ -165,11 +166,19 @@ def intact(probe: LocalProbe, send: Callable[[], bytes], what: str) -> bytes:
     return sent[-1]
 
 
-def heard_after(probe: LocalProbe, sent: bytes, at: float) -> Callable[[Datagram], bool]:
+def heard_after(
+    ctx: Context, probe: LocalProbe, sent: bytes, at: float
+) -> Callable[[Datagram], bool]:
     """Whether a DOWNLINK was sent after the local system had the packet `sent` (sent at `at`):
-    it says it received it or newer (R-RSP-15), or it came two periods later."""
+    it says it received it or newer (R-RSP-15), or it was read D-RSP-26's two periods and slack
+    later, and as much more as the harness's loop was held (held up, it reads late)."""
     sequence = sequence_of(sent)
-    return lambda d: newer(d.header.last_received, sequence) or d.at >= at + 2 * probe.period
+
+    def heard(d: Datagram) -> bool:
+        last = at + unheard_for(probe.period, ctx.scale) + held(ctx, at)
+        return newer(d.header.last_received, sequence) or d.at > last
+
+    return heard
 
 
 # -- R-RSP-15: the newest, by serial arithmetic ----------------------------------------------------
@@ -354,7 +363,7 @@ async def _acknowledged_only_by_ack(
     (`what`, R-RSP-18): the command must still ride every DOWNLINK. Then its well-formed ACK
     must end the ride (R-RSP-27), which shows the first was dropped for what was wrong with it."""
     bad = intact(probe, send, what)
-    riding = await _downlinks_after(probe, bad)
+    riding = await _downlinks_after(ctx, probe, bad)
     gone = [d for d in riding if not carries(command, ident)(d)]
     ctx.expect(
         not gone,
@@ -363,7 +372,7 @@ async def _acknowledged_only_by_ack(
         "R-RSP-18",
     )
     good = intact(probe, lambda: probe.ack([Item(command.position, ident)]), "the ACK")
-    still = [d for d in await _downlinks_after(probe, good) if carries(command, ident)(d)]
+    still = [d for d in await _downlinks_after(ctx, probe, good) if carries(command, ident)(d)]
     ctx.expect(
         not still,
         f"the well-formed ACK taken: {command.name} #{ident} no more",
@@ -372,14 +381,15 @@ async def _acknowledged_only_by_ack(
     )
 
 
-async def _downlinks_after(probe: LocalProbe, sent: bytes) -> list[Datagram]:
-    """The DOWNLINKs of the next four periods sent after the local system had `sent`;
-    Inconclusive if none came (D-RSP-13: one every T)."""
+async def _downlinks_after(ctx: Context, probe: LocalProbe, sent: bytes) -> list[Datagram]:
+    """The DOWNLINKs of two periods past D-RSP-26's bound sent after the local system had
+    `sent`; Inconclusive if none came (D-RSP-13: one every T)."""
     at = probe.now
-    later = await probe.received_within(4 * probe.period, PacketType.DOWNLINK)
-    found = [d for d in later if heard_after(probe, sent, at)(d)]
+    wait = unheard_for(probe.period, ctx.scale) + 2 * probe.period
+    later = await probe.received_within(wait, PacketType.DOWNLINK)
+    found = [d for d in later if heard_after(ctx, probe, sent, at)(d)]
     if not found:
-        raise Inconclusive(f"no DOWNLINK after #{sequence_of(sent)} within four periods")
+        raise Inconclusive(f"no DOWNLINK after #{sequence_of(sent)} within {wait:.2f} s")
     return found
 
 
