@@ -73,11 +73,11 @@ class MessageReader:
     def next_message(self) -> Message | None:
         """The next whole message, or None until more bytes arrive."""
         if self._failure is not None:
-            raise self._failure
+            raise _detached(self._failure)
         try:
             return self._next()
         except RemoteProtocolError as error:
-            self._failure = error
+            self._failure = _detached(error)
             raise
 
     def _next(self) -> Message | None:
@@ -248,3 +248,16 @@ class MessageReader:
         raise RemoteProtocolError(
             reason, self._base + offset, status, rule, fatal=True, answerable=not is_response
         )
+
+
+def _detached(error: RemoteProtocolError) -> RemoteProtocolError:
+    """`error` again, with no traceback: one kept with its frames holds its reader in a cycle
+    that only the collector frees, one per bad request under a flood (issue 18)."""
+    return RemoteProtocolError(
+        error.reason,
+        error.offset,
+        error.status,
+        error.rule,
+        fatal=error.fatal,
+        answerable=error.answerable,
+    )

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import gc
+import weakref
+
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -161,3 +164,20 @@ def test_a_broken_response_is_not_answerable() -> None:
 def test_the_writer_refuses_what_the_grammar_refuses(message: Message) -> None:
     with pytest.raises(LocalProtocolError):
         write_message(message)
+
+
+def test_a_failed_reader_is_freed_without_the_collector() -> None:
+    """The failure it keeps holds no traceback: its frames would hold the reader in a cycle that
+    only the collector frees, one per bad request of a flood (issue 18)."""
+    reader = MessageReader()
+    reader.feed(b"GARBAGE\n\n")
+    for _ in range(2):  # the failure, then the same again
+        with pytest.raises(RemoteProtocolError):
+            reader.next_message()
+    gone = weakref.ref(reader)
+    gc.disable()
+    try:
+        del reader
+        assert gone() is None
+    finally:
+        gc.enable()
