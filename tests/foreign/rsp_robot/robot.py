@@ -82,7 +82,7 @@ FAULTS: dict[str, tuple[str, str]] = {
     ),
     "stale-states": (
         "R-RSP-19",
-        "effector values, requests and modules of a late packet are applied",
+        "effector values, requests, modules and Clear Buffer of a late packet are applied",
     ),
     "model-low-byte": ("R-RSP-21", "only the low byte of a HELLO's model ID is compared"),
     "seq-from-1": ("R-RSP-14", "the robot numbers its packets of a session from 1, not 0"),
@@ -295,6 +295,9 @@ class Session:
         self.client_nonce = client_nonce
         self.robot_nonce = secrets.token_bytes(NONCE_LENGTH)
         self.welcome_period = period_ms
+        # the WELCOME's buffer byte, given again in a repeated WELCOME (D-RSP-12): a new session
+        # holds no memory command yet
+        self.welcome_buffer = self.model.command_buffers
         self.period_ms = period_ms
         depth = WINDOW + 1 if "replay-window-65" in self.faults else WINDOW
         self.window = ReplayWindow(hello.seq, depth)
@@ -349,18 +352,25 @@ class Session:
         return self.period_ms / 1000
 
     def clamp_rto(self, value: float) -> float:
-        return max(2 * self.period, min(value, RTO_MAX))
+        """D-RSP-17's bounds, 2 T to 2 s; the 2 s ceiling wins over the floor (T over 1 s)."""
+        return min(RTO_MAX, max(2 * self.period, value))
 
     def deadline(self) -> float:
         return min(self.next_tick, self.last_heard + SESSION_TIMEOUT)
 
     # --- sending ----------------------------------------------------------------------------
 
-    def free(self) -> int:
-        held = len(self.buffer) + (1 if self.executing else 0)
-        return max(0, self.model.command_buffers - held)
+    def waiting(self) -> int:
+        """Memory commands held and not yet executed (D-RSP-19). The one being executed has left
+        the buffer; so has the head of the queue when nothing runs (it starts at once, in
+        `service`, which runs after a DOWNLINK's memory commands are taken)."""
+        starts_now = 1 if self.executing is None and self.buffer else 0
+        return len(self.buffer) - starts_now
 
-    def packet(self, kind: int, body: bytes, now: float) -> bytes:
+    def free(self) -> int:
+        return max(0, self.model.command_buffers - self.waiting())
+
+    def packet(self, kind: int, body: bytes, now: float, buffer: int | None = None) -> bytes:
         index = self.next_index
         self.next_index += 1
         start = self.robot.started if "uptime-timestamp" in self.faults else self.t0
@@ -374,7 +384,7 @@ class Session:
             int((now - start) * 1000),
             self.id,
             last,
-            self.free(),
+            self.free() if buffer is None else buffer,
         ).pack()
         if self.uplink is not None and kind != WELCOME:
             body = self.uplink.seal(index, header, body)
@@ -393,7 +403,7 @@ class Session:
         self.last_arrived = hello.seq
         self.last_heard = now
         body = self.client_nonce + self.robot_nonce + self.welcome_period.to_bytes(2, "big")
-        return [(self.packet(WELCOME, body, now), self.address)]
+        return [(self.packet(WELCOME, body, now, self.welcome_buffer), self.address)]
 
     def bye(self, reason: int, now: float) -> bytes:
         return self.packet(BYE, bytes([reason]), now)
@@ -517,7 +527,9 @@ class Session:
         return 1 <= ahead <= self.model.id_space // 2
 
     def on_downlink(self, header: Header, parsed: Parsed, newer: bool, now: float) -> Out:
-        clear = newer and bool(header.buffer & 0x80)
+        # Clear Buffer is in the buffer byte, a state: a late packet's is ignored (D-RSP-15,
+        # R-RSP-19); its memory commands are handled as any late occurrence
+        clear = (newer or "stale-states" in self.faults) and bool(header.buffer & 0x80)
         clear_first = "clear-after-payloads" not in self.faults
         if clear and clear_first:
             self.clear_buffer()
@@ -659,13 +671,14 @@ class Session:
         self.robot.note(f"executed {device.name} #{ident}: {values}")
 
     def clear_buffer(self) -> None:
-        self.robot.note(f"Clear Buffer: {len(self.buffer) + bool(self.executing)} dropped")
+        """D-RSP-19: the waiting memory commands are dropped unexecuted; the one being executed
+        has left the buffer and runs on."""
+        self.robot.note(f"Clear Buffer: {len(self.buffer)} dropped")
         self.buffer.clear()
-        self.executing = None
 
     def service(self, now: float) -> None:
         """Run the memory-command buffer: one job at a time, in the order taken (D-RSP-19).
-        A job holds its buffer until it is done; finishing one raises the model's last memory
+        A job leaves its buffer when it starts; finishing one raises the model's last memory
         event (waypointReached) if it is requested then."""
         while True:
             if self.executing is not None:
