@@ -18,11 +18,11 @@ from rcmlconf.conformance.cases.rctp_client_streams import (
     visible,
     written,
 )
-from rcmlconf.conformance.cases.rctp_streams import UNKNOWN_TYPE
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.played import PlayedServer
 from rcmlconf.conformance.probes.played_stream import STREAM_ID, PlayedStream
 from rcmlconf.conformance.probes.stream import StreamProbe
+from rcmlconf.conformance.probes.stream_access import UNKNOWN_TYPE
 from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.rcml.model import AccessNode, DataNode
 from rcmlconf.rctp.bodies import ValuesCodec

@@ -12,11 +12,11 @@ import math
 from collections.abc import Mapping
 
 from rcmlconf.conformance.cases.rctp_client_scenario import edge, scenario_case
-from rcmlconf.conformance.cases.rctp_streams import UNKNOWN_OPERATION
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.played import PlayedServer, path_of, played
 from rcmlconf.conformance.probes.played_stream import STREAM_ID, PlayedStream
 from rcmlconf.conformance.probes.stream import flow_text
+from rcmlconf.conformance.probes.stream_access import UNKNOWN_OPERATION
 from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.errors import ProtocolError
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, Permission

@@ -19,17 +19,7 @@ import asyncio
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.picks import RW, Named
 from rcmlconf.conformance.probes.control import ControlProbe
-from rcmlconf.conformance.registry import case
-from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
-from rcmlconf.errors import ValueTextError
-from rcmlconf.rcml.model import AccessNode, AccessType, DataNode
-from rcmlconf.rctp.fields import parse_nodes
-from rcmlconf.rctp.messages import PUSH_DELAY, SERVER_METHODS, Message, Request, Response
-from rcmlconf.rctp.targets import parse_target
-from rcmlconf.values import Value
-from rcmlconf.values.shown import values_text
-
-from .rctp_nodes import (
+from rcmlconf.conformance.probes.nodes import (
     acquire,
     check_values,
     other_values,
@@ -40,6 +30,15 @@ from .rctp_nodes import (
     write,
     writer,
 )
+from rcmlconf.conformance.registry import case
+from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
+from rcmlconf.errors import ValueTextError
+from rcmlconf.rcml.model import AccessNode, AccessType, DataNode
+from rcmlconf.rctp.fields import parse_nodes
+from rcmlconf.rctp.messages import PUSH_DELAY, SERVER_METHODS, Message, Request, Response
+from rcmlconf.rctp.targets import parse_target
+from rcmlconf.values import Value
+from rcmlconf.values.shown import values_text
 
 #: Seconds without a WRITE that count as "none came" (scaled by --timeout-scale): D-RCTP-27's
 #: bound, within which a change is pushed.

@@ -2,7 +2,7 @@
 ends (specs/rctp-2.0.md §4 D-RCTP-16, R-RCTP-33 to R-RCTP-37).
 
 The privilege is the whole server's state: every case that can be granted one runs alone
-(`serial`), starts once no session holds anything (`rctp_nodes.sessions`: the sessions of the
+(`serial`), starts once no session holds anything (`probes.nodes.sessions`: the sessions of the
 case before end when the server reads their closed connections, R-RCTP-36), and ends its own
 sessions (the context closes them). Paths are picked from the robot's RCML, never named: a data
 node, its access, and the group (or the whole tree) above that.
@@ -17,14 +17,13 @@ from typing import NamedTuple
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.picks import RW, Named, missing_path, parent_of, pick
 from rcmlconf.conformance.probes.control import ControlProbe
+from rcmlconf.conformance.probes.nodes import acquire, check_allow, read, sessions, write
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.rcml.model import AccessNode, AccessType, Permission
 from rcmlconf.rctp.fields import Transport
 from rcmlconf.rctp.messages import Response
 from rcmlconf.rctp.targets import ROOT, STAR, format_target
-
-from .rctp_nodes import acquire, check_allow, read, sessions, write
 
 #: How long a case waits for a closed connection to end its session on the server.
 _CLOSE_WAIT = 1.0

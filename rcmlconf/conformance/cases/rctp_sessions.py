@@ -7,11 +7,15 @@ from __future__ import annotations
 import asyncio
 import itertools
 
-from rcmlconf.conformance.cases.rctp_streams import _heartbeat, _readable, stream_request
 from rcmlconf.conformance.context import Context, expect_answer
 from rcmlconf.conformance.picks import STRANGER, read_target
 from rcmlconf.conformance.probes.control import ControlProbe, Fields, describe
 from rcmlconf.conformance.probes.stream import open_stream
+from rcmlconf.conformance.probes.stream_access import (
+    heartbeat_request,
+    readable_stream,
+    stream_request,
+)
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.verdicts import Failed, Inconclusive
 from rcmlconf.errors import ValueTextError
@@ -274,7 +278,7 @@ async def keepalive(ctx: Context) -> None:
 async def stream_keeps_alive(ctx: Context) -> None:
     probe, timeout, _ = await _timed_session(ctx)
     stream = await open_stream(ctx, probe)
-    set_up = await stream.setup(probe, _readable(ctx))
+    set_up = await stream.setup(probe, readable_stream(ctx))
     await stream_request(ctx, probe, "GO", set_up)
     # D-RCTP-11: any data-stream packet from the client keeps the session alive, as a request
     # does; a server that times sessions by their requests alone BYEs a client that streams.
@@ -284,7 +288,7 @@ async def stream_keeps_alive(ctx: Context) -> None:
     # 5 s a session case has beyond --session-wait, less what it took to get here).
     until = loop.time() + timeout + min(timeout / 2, 2.0, ctx.left - 1.0)
     while (left := until - loop.time()) > 0:
-        stream.send_flow(_heartbeat(stream.next_request_id()))
+        stream.send_flow(heartbeat_request(stream.next_request_id()))
         outcome = await probe.outcome(min(every, left))
         ctx.expect(
             outcome == "silent",

@@ -11,15 +11,15 @@ from __future__ import annotations
 
 import asyncio
 
-from rcmlconf.conformance.cases.rctp_streams import (
+from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.control import ControlProbe, describe
+from rcmlconf.conformance.probes.stream import StreamSetUp
+from rcmlconf.conformance.probes.stream_access import (
     set_up_writing,
     short_write_timeout,
     stream_request,
     writable_stream,
 )
-from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.control import ControlProbe, describe
-from rcmlconf.conformance.probes.stream import StreamSetUp
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.verdicts import Failed, Inconclusive
 from rcmlconf.rctp.messages import Request

@@ -22,6 +22,17 @@ from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.flaws import Bad, Flaw, flawed, has, spliced
 from rcmlconf.conformance.picks import RW, Named, parent_of, writable
 from rcmlconf.conformance.probes.control import ControlProbe
+from rcmlconf.conformance.probes.nodes import (
+    acquire,
+    other_values,
+    put_back,
+    read,
+    sessions,
+    values_for,
+    write,
+    writer,
+)
+from rcmlconf.conformance.probes.stream_writing import Writing
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, Permission
@@ -30,9 +41,6 @@ from rcmlconf.rctp.targets import format_target
 from rcmlconf.values import Value
 from rcmlconf.values.binary import encode_value
 from rcmlconf.values.shown import values_text
-
-from .rctp_nodes import acquire, other_values, put_back, read, sessions, values_for, write, writer
-from .rctp_streams import Writing
 
 #: How many times the canonical-order case reads the access whole and node by node, looking for
 #: a moment the values stand still (a robot's sensors move).

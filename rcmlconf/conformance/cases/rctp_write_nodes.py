@@ -11,10 +11,9 @@ from __future__ import annotations
 
 from rcmlconf.conformance.context import Context, expect_answer
 from rcmlconf.conformance.picks import Named, event_access
+from rcmlconf.conformance.probes.nodes import values_for
 from rcmlconf.conformance.registry import case
 from rcmlconf.rcml.model import DataNode
-
-from .rctp_nodes import values_for
 
 
 async def _refused_listing(ctx: Context, order: tuple[int, ...]) -> None:
