@@ -16,7 +16,7 @@ from rcmlconf.cli.hosts import Address
 from rcmlconf.conformance.command import Command, CommandError
 from rcmlconf.conformance.ics import Ics
 from rcmlconf.conformance.probes.clients import ClientListener
-from rcmlconf.conformance.probes.locals import LocalListener
+from rcmlconf.conformance.probes.local_listener import LocalListener
 from rcmlconf.conformance.targets import Target
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rctp.url import http_base

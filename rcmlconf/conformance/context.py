@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, TypeVar
 
 from rcmlconf.conformance.probes.control import ControlProbe
+from rcmlconf.conformance.probes.local_probe import LocalProbe
 from rcmlconf.conformance.registry import SESSION_WAIT, Case, Role
 from rcmlconf.conformance.targets import Target
 from rcmlconf.conformance.transcript import Address, Transcript
@@ -21,7 +22,6 @@ from rcmlconf.rctp.messages import Request, Response
 
 if TYPE_CHECKING:
     from rcmlconf.conformance.loopwatch import LoopWatch
-    from rcmlconf.conformance.probes.locals import LocalProbe
 
 T = TypeVar("T")
 #: A hold of the harness's loop this long (seconds, times --timeout-scale) makes a failed timing

@@ -14,6 +14,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rcmlconf.conformance.probes.clients import HARNESS_RCML, ClientListener
+from rcmlconf.conformance.probes.local_listener import LocalListener
+from rcmlconf.conformance.probes.local_scenario import reference_local
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rctp.url import FILES_PORT_OFFSET
 from rcmlconf.reference.faults import Fault
@@ -22,7 +24,6 @@ from rcmlconf.rsp.model import RobotModel
 from rcmlconf.rsp.security import KEY_SIZE
 
 if TYPE_CHECKING:
-    from rcmlconf.conformance.probes.locals import LocalListener
     from rcmlconf.reference.server.adapter import ReferenceServer
 
 Address = tuple[str, int]
@@ -71,7 +72,6 @@ async def embedded_reference(
     """The reference RCTP server (the rover, its files on the port after RCTP's as D-RCTP-29
     says) and RSP robot (CUBO) on free loopback ports; `faults` (`reference.faults`) make them
     misbehave, to test the harness itself."""
-    from rcmlconf.conformance.probes.locals import LocalListener, reference_local
     from rcmlconf.reference.drivers import choose_driver
     from rcmlconf.reference.faults import ROBOT_FAULTS, SERVER_FAULTS
     from rcmlconf.reference.rsp.robot import ReferenceRobot, RobotSettings

@@ -25,8 +25,9 @@ from support.processes import COMMAND, free_port
 
 import rcmlconf
 from rcmlconf.conformance.cases.rsp_local import occurrence
-from rcmlconf.conformance.probes.locals import LocalListener
-from rcmlconf.conformance.probes.rsp import Datagram, first
+from rcmlconf.conformance.probes.local_listener import LocalListener
+from rcmlconf.conformance.probes.rsp_datagram import Datagram
+from rcmlconf.conformance.probes.rsp_devices import first
 from rcmlconf.conformance.targets import REFERENCE_RMODEL
 from rcmlconf.conformance.transcript import Transcript
 from rcmlconf.reference.rsp.simulacrum import Simulacrum

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from support.processes import COMMAND
 
-from rcmlconf.conformance.probes.locals import reference_local
+from rcmlconf.conformance.probes.local_scenario import reference_local
 from rcmlconf.conformance.targets import REFERENCE_RMODEL
 from rcmlconf.rsp.security import KEY_SIZE
 from rcmlconf.validate.validator import load_robot_model

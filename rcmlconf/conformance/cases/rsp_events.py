@@ -15,20 +15,17 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.rsp import (
-    Datagram,
-    RawSession,
-    RspProbe,
+from rcmlconf.conformance.probes.rsp_datagram import Datagram, sequence_of
+from rcmlconf.conformance.probes.rsp_devices import (
     flags,
-    fresh_uplink,
     of_kind,
     reported,
-    sequence_of,
-    taken,
     value_item,
     values_of,
     zero_values,
 )
+from rcmlconf.conformance.probes.rsp_exchanges import fresh_uplink, taken
+from rcmlconf.conformance.probes.rsp_probe import RspProbe
 from rcmlconf.conformance.probes.rsp_raised import (
     OCCURS_WITHIN,
     id_space,
@@ -38,6 +35,7 @@ from rcmlconf.conformance.probes.rsp_raised import (
     requesting,
     watch,
 )
+from rcmlconf.conformance.probes.rsp_raw import RawSession
 from rcmlconf.conformance.registry import Role, case
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import PacketType

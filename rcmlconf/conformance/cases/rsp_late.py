@@ -7,7 +7,9 @@ local system."""
 from __future__ import annotations
 
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.rsp import flags, raw_session, reported, sequence_of, taken
+from rcmlconf.conformance.probes.rsp_datagram import sequence_of
+from rcmlconf.conformance.probes.rsp_devices import flags, reported
+from rcmlconf.conformance.probes.rsp_exchanges import raw_session, taken
 from rcmlconf.conformance.registry import Role, case
 from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.rsp.codec import PacketType

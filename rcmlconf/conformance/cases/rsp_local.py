@@ -12,9 +12,11 @@ import itertools
 from collections.abc import Callable, Iterable
 
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.locals import REQUESTED, LocalProbe, zeros
+from rcmlconf.conformance.probes.local_probe import LocalProbe
+from rcmlconf.conformance.probes.local_scenario import REQUESTED
 from rcmlconf.conformance.probes.pace import paced, spaced
-from rcmlconf.conformance.probes.rsp import Datagram, first, newer, of_kind
+from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer
+from rcmlconf.conformance.probes.rsp_devices import first, of_kind, zero_values
 from rcmlconf.conformance.probes.rsp_held import held
 from rcmlconf.conformance.registry import CaseFunction, Role, case
 from rcmlconf.conformance.rsp_numbers import (
@@ -130,7 +132,7 @@ def numbered(device: Device, idents: Iterable[int]) -> str:
 
 
 def occurrence(device: Device, ident: int) -> Item:
-    return Item(device.position, ident, zeros(device))
+    return Item(device.position, ident, zero_values(device))
 
 
 # -- HELLO --------------------------------------------------------------------------------------

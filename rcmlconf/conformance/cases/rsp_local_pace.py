@@ -12,9 +12,10 @@ import math
 
 from rcmlconf.conformance.cases.rsp_local import local_case, occurrence, played_model, session
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.locals import SCENARIO_LIFETIME, LocalProbe
+from rcmlconf.conformance.probes.local_probe import LocalProbe
+from rcmlconf.conformance.probes.local_scenario import SCENARIO_LIFETIME
 from rcmlconf.conformance.probes.pace import paced
-from rcmlconf.conformance.probes.rsp import first, of_kind
+from rcmlconf.conformance.probes.rsp_devices import first, of_kind
 from rcmlconf.conformance.rsp_numbers import KEEPALIVE_PERIODS, LOST_PERIODS, SESSION_TIMEOUT
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import PacketType, Period

@@ -38,8 +38,10 @@ from rcmlconf.conformance.cases.rsp_local import (
     session,
 )
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.locals import LocalProbe, zeros
-from rcmlconf.conformance.probes.rsp import Datagram, first, newer, patch, sequence_of
+from rcmlconf.conformance.probes.local_probe import LocalProbe
+from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, sequence_of
+from rcmlconf.conformance.probes.rsp_devices import first, zero_values
+from rcmlconf.conformance.probes.rsp_forged import patch
 from rcmlconf.conformance.probes.rsp_held import held, margin, seen_by
 from rcmlconf.conformance.rsp_numbers import unheard_for
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
@@ -432,7 +434,7 @@ def _with_bool(model: RobotModel) -> tuple[Device, Field]:
 
 def _reporting(memory: Device, device: Device, flag: Field, on: bool) -> tuple[Item, ...]:
     """`memory` #0, and `device` with `flag` `on` (every item of an array), in model order."""
-    values: dict[str, Value] = zeros(device)
+    values: dict[str, Value] = zero_values(device)
     values[flag.name] = (on,) * flag.type.count if flag.type.is_array else on
     ident = 0 if device.kind in _OCCURRENCES else None
     items = {  # `device` may be the memory event itself: one item

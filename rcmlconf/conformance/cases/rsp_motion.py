@@ -16,20 +16,18 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.rsp import (
-    Datagram,
-    RawSession,
-    RspProbe,
+from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, sequence_of
+from rcmlconf.conformance.probes.rsp_devices import (
     close_to,
     flags,
     monitored,
-    newer,
-    raw_session,
-    sequence_of,
     value_item,
     values_of,
     visible,
 )
+from rcmlconf.conformance.probes.rsp_exchanges import raw_session
+from rcmlconf.conformance.probes.rsp_probe import RspProbe
+from rcmlconf.conformance.probes.rsp_raw import RawSession
 from rcmlconf.conformance.registry import Role, case
 from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.rsp.codec import Item, PacketType

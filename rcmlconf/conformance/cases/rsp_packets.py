@@ -9,40 +9,42 @@ import random
 from collections.abc import Callable
 
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.rsp import (
+from rcmlconf.conformance.probes.rsp_datagram import (
     ENCRYPTION_AT,
     MODEL_AT,
     SESSION_AT,
     TYPE_AT,
     VERSION_AT,
     Datagram,
-    RspProbe,
-    acked,
+    newer,
+    sequence_of,
+)
+from rcmlconf.conformance.probes.rsp_devices import (
     close_to,
-    drive,
-    dropped_then_taken,
     first,
     flags,
-    flip,
-    fresh_uplink,
-    late_acked,
     modules_of,
     monitored,
-    newer,
     occurrence,
     of_kind,
-    open_probe,
-    patch,
-    raw_session,
-    replay_dropped,
     reported,
-    requested_uplinks,
-    sequence_of,
-    taken,
     value_item,
     values_of,
     visible,
 )
+from rcmlconf.conformance.probes.rsp_driven import drive
+from rcmlconf.conformance.probes.rsp_exchanges import (
+    acked,
+    dropped_then_taken,
+    fresh_uplink,
+    late_acked,
+    raw_session,
+    replay_dropped,
+    requested_uplinks,
+    taken,
+)
+from rcmlconf.conformance.probes.rsp_forged import flip, patch
+from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
 from rcmlconf.conformance.registry import Role, case
 from rcmlconf.conformance.rsp_numbers import stamp_allowance
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable

@@ -11,33 +11,28 @@ import statistics
 from collections.abc import Awaitable, Callable
 
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.rsp import (
+from rcmlconf.conformance.probes.rsp_buffer import BUSY_MS, keyframe, not_held, take
+from rcmlconf.conformance.probes.rsp_datagram import (
     ENCRYPTION_AT,
     TIMESTAMP_AT,
     Datagram,
-    RawSession,
-    RspProbe,
+    sequence_of,
+)
+from rcmlconf.conformance.probes.rsp_devices import first, flags, occurrence, reported, zero_values
+from rcmlconf.conformance.probes.rsp_exchanges import (
     ack_of,
     acked,
     another_welcomed,
     dropped_then_taken,
-    first,
-    flags,
-    flip,
     fresh_uplink,
-    hello_packet,
-    occurrence,
-    open_probe,
-    patch,
     raw_session,
     replay_dropped,
-    reported,
     reporting,
-    sequence_of,
     taken,
-    zero_values,
 )
-from rcmlconf.conformance.probes.rsp_buffer import BUSY_MS, keyframe, not_held, take
+from rcmlconf.conformance.probes.rsp_forged import flip, hello_packet, patch
+from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
+from rcmlconf.conformance.probes.rsp_raw import RawSession
 from rcmlconf.conformance.registry import Role, case
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import (

@@ -10,22 +10,19 @@ import statistics
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.ics import FEATURES
 from rcmlconf.conformance.probes.pace import gaps, ms, paced, spaced
-from rcmlconf.conformance.probes.rsp import (
-    Datagram,
+from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, sequence_of
+from rcmlconf.conformance.probes.rsp_devices import flags, reported
+from rcmlconf.conformance.probes.rsp_exchanges import (
     another_welcomed,
-    flags,
     fresh_uplink,
     hello_from_another,
-    hello_packet,
-    newer,
-    open_probe,
     raw_session,
-    reported,
     reporting,
-    sequence_of,
     taken,
 )
+from rcmlconf.conformance.probes.rsp_forged import hello_packet
 from rcmlconf.conformance.probes.rsp_held import margin, seen_by
+from rcmlconf.conformance.probes.rsp_probe import open_probe
 from rcmlconf.conformance.registry import Role, case
 from rcmlconf.conformance.rsp_numbers import (
     KEEPALIVE_PERIODS,

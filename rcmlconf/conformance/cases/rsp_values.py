@@ -18,21 +18,20 @@ from collections.abc import Callable, Iterable
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.flaws import Bad, Flaw, flawed, has, spliced
-from rcmlconf.conformance.probes.rsp import (
-    RawSession,
-    RspProbe,
-    acked,
+from rcmlconf.conformance.probes.rsp_datagram import summary
+from rcmlconf.conformance.probes.rsp_devices import (
     close_to,
     flags,
     monitored,
     occurrence,
-    raw_session,
-    summary,
     value_item,
     values_of,
     visible,
     zero_values,
 )
+from rcmlconf.conformance.probes.rsp_exchanges import acked, raw_session
+from rcmlconf.conformance.probes.rsp_probe import RspProbe
+from rcmlconf.conformance.probes.rsp_raw import RawSession
 from rcmlconf.conformance.registry import Role, case
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import Item, MapBody, PacketType

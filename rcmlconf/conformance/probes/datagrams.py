@@ -1,5 +1,5 @@
-"""What the RSP probes share, whichever side the harness plays (`rsp.RspProbe` the local
-system, `locals.LocalProbe` the robot): the datagrams received so far, in order, decoded, and
+"""What the RSP probes share, whichever side the harness plays (`rsp_probe.RspProbe` the local
+system, `local_probe.LocalProbe` the robot): the datagrams received so far, in order, decoded, and
 bounded waits for the next one of some types; `answer_to` sends again what the case's impairment
 spoiled."""
 
@@ -8,13 +8,12 @@ from __future__ import annotations
 import asyncio
 import contextlib
 from collections.abc import Callable, Iterable
-from typing import TYPE_CHECKING
 
+from rcmlconf.conformance.probes.rsp_datagram import Datagram, Where
+from rcmlconf.conformance.transcript import Transcript
 from rcmlconf.conformance.verdicts import Failed, Inconclusive
+from rcmlconf.errors import ProtocolError
 from rcmlconf.rsp.codec import PacketType
-
-if TYPE_CHECKING:
-    from rcmlconf.conformance.probes.rsp import Datagram, Where
 
 #: Packets `answer_to` sends at most while the impairment spoils them. They go at once, one
 #: after the other, so a loss burst (`burst`, counted in datagrams) takes several in a row: with
@@ -25,18 +24,32 @@ ANSWER_TRIES = 12
 
 class DatagramLog:
     """Mixed into a probe that keeps `received` (decoded, in arrival order), sets `_arrival` on
-    each, keeps the first undecodable datagram's failure in `fault`, has `wait` and `now`, and
-    counts in `spoiled` the datagrams it sent of which its impairment let no intact copy through."""
+    each, keeps the first undecodable datagram's failure in `fault` (`_fail`), has `wait`, `now`
+    and a `transcript`, and counts in `spoiled` the datagrams it sent of which its impairment let
+    no intact copy through."""
 
     received: list[Datagram]
     fault: Failed | None
     wait: float
     spoiled: int
+    transcript: Transcript
     _arrival: asyncio.Event
 
     @property
     def now(self) -> float:
         raise NotImplementedError
+
+    @property
+    def _who(self) -> str:
+        """What marks the probe's lines in the transcript (nothing by default)."""
+        return ""
+
+    def _fail(self, rule: str, expected: str, data: bytes, error: ProtocolError) -> None:
+        """A datagram the codec refuses: noted, and the first one's failure kept for `check`."""
+        actual = f"{error.reason} at byte {error.offset} of {data[:32].hex()}"
+        self.transcript.note(f"{self._who}<- {len(data)} bytes the codec refuses: {actual}")
+        if self.fault is None:
+            self.fault = Failed(rule, expected, actual)
 
     def check(self) -> None:
         """Fail the case if the peer sent a datagram the codec could not read."""

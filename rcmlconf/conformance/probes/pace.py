@@ -10,7 +10,7 @@ import statistics
 from collections.abc import Iterable, Sequence
 
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.rsp import Datagram
+from rcmlconf.conformance.probes.rsp_datagram import Datagram
 from rcmlconf.rsp.codec import PacketType
 
 

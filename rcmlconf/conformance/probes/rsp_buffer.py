@@ -10,7 +10,11 @@ commands at once, never fill its buffer, and leave the cases that count on it in
 
 from __future__ import annotations
 
-from rcmlconf.conformance.probes.rsp import Datagram, RawSession, RspProbe, acked, zero_values
+from rcmlconf.conformance.probes.rsp_datagram import Datagram
+from rcmlconf.conformance.probes.rsp_devices import zero_values
+from rcmlconf.conformance.probes.rsp_exchanges import acked
+from rcmlconf.conformance.probes.rsp_probe import RspProbe
+from rcmlconf.conformance.probes.rsp_raw import RawSession
 from rcmlconf.conformance.verdicts import CaseStop, Failed, Inconclusive
 from rcmlconf.rsp.model import Device, DeviceKind
 from rcmlconf.values import Value

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.datagrams import DatagramLog
-from rcmlconf.conformance.probes.rsp import Datagram
+from rcmlconf.conformance.probes.rsp_datagram import Datagram
 from rcmlconf.conformance.verdicts import Failed, Inconclusive
 
 #: Seconds (times --timeout-scale) a case waits past a bound for what must come: only a hold of

@@ -17,15 +17,10 @@ import contextlib
 from collections.abc import Callable, Sequence
 
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.rsp import (
-    Datagram,
-    RawSession,
-    RspProbe,
-    flags,
-    of_kind,
-    open_probe,
-    sequence_of,
-)
+from rcmlconf.conformance.probes.rsp_datagram import Datagram, sequence_of
+from rcmlconf.conformance.probes.rsp_devices import flags, of_kind
+from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
+from rcmlconf.conformance.probes.rsp_raw import RawSession
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import Item, MapBody, PacketType
 from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
