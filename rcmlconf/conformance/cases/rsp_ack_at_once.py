@@ -10,8 +10,8 @@ of 5 periods for an ACK held for the next packet, and a few milliseconds for one
 from __future__ import annotations
 
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.held import margin, seen_by
 from rcmlconf.conformance.probes.rsp_devices import first, occurrence, zero_values
-from rcmlconf.conformance.probes.rsp_held import margin, seen_by
 from rcmlconf.conformance.probes.rsp_probe import open_probe
 from rcmlconf.conformance.registry import Role, case
 from rcmlconf.rsp.codec import PacketType

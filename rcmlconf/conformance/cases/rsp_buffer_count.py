@@ -12,11 +12,11 @@ command it is executing and about a late Clear Buffer. The harness plays the loc
 from __future__ import annotations
 
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.held import margin, seen_by
 from rcmlconf.conformance.probes.rsp_buffer import durable, keyframe, not_held, take
 from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, sequence_of
 from rcmlconf.conformance.probes.rsp_devices import first, flags, occurrence, reported
 from rcmlconf.conformance.probes.rsp_exchanges import raw_session, taken
-from rcmlconf.conformance.probes.rsp_held import margin, seen_by
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
 from rcmlconf.conformance.probes.rsp_raw import RawSession
 from rcmlconf.conformance.registry import Role, case

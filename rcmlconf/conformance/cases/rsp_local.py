@@ -12,12 +12,12 @@ import itertools
 from collections.abc import Callable, Iterable
 
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.held import held
 from rcmlconf.conformance.probes.local_probe import LocalProbe
 from rcmlconf.conformance.probes.local_scenario import REQUESTED
 from rcmlconf.conformance.probes.pace import paced, spaced
 from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer
 from rcmlconf.conformance.probes.rsp_devices import first, of_kind, zero_values
-from rcmlconf.conformance.probes.rsp_held import held
 from rcmlconf.conformance.registry import CaseFunction, Role, case
 from rcmlconf.conformance.rsp_numbers import (
     HELLO_INTERVAL,

@@ -12,11 +12,11 @@ import math
 
 from rcmlconf.conformance.cases.rsp_local import local_case, occurrence, played_model, session
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.held import margin, seen_by
 from rcmlconf.conformance.probes.local_probe import LocalProbe
 from rcmlconf.conformance.probes.local_scenario import SCENARIO_LIFETIME
 from rcmlconf.conformance.probes.pace import paced
 from rcmlconf.conformance.probes.rsp_devices import first, of_kind
-from rcmlconf.conformance.probes.rsp_held import margin, seen_by
 from rcmlconf.conformance.rsp_numbers import (
     KEEPALIVE_PERIODS,
     LOST_PERIODS,

@@ -38,11 +38,11 @@ from rcmlconf.conformance.cases.rsp_local import (
     session,
 )
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.held import held, margin, seen_by
 from rcmlconf.conformance.probes.local_probe import LocalProbe
 from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, sequence_of
 from rcmlconf.conformance.probes.rsp_devices import first, zero_values
 from rcmlconf.conformance.probes.rsp_forged import patch
-from rcmlconf.conformance.probes.rsp_held import held, margin, seen_by
 from rcmlconf.conformance.rsp_numbers import unheard_for
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import Encryption, Header, Item, MapBody, PacketType, Period

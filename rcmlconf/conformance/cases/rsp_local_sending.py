@@ -18,10 +18,10 @@ from rcmlconf.conformance.cases.rsp_local import (
     session,
 )
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.held import margin, seen_by
 from rcmlconf.conformance.probes.pace import ms
 from rcmlconf.conformance.probes.rsp_datagram import newer
 from rcmlconf.conformance.probes.rsp_devices import first, of_kind
-from rcmlconf.conformance.probes.rsp_held import margin, seen_by
 from rcmlconf.conformance.rsp_numbers import STAMP_ROUNDING, resent_within, unmeasured_rto
 from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.rsp.codec import PacketType

@@ -17,8 +17,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.held import margin, seen_by
 from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, summary
-from rcmlconf.conformance.probes.rsp_held import margin, seen_by
 from rcmlconf.conformance.probes.rsp_probe import RspProbe
 from rcmlconf.conformance.probes.rsp_raised import (
     OCCURS_WITHIN,

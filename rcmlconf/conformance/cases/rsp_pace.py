@@ -13,12 +13,12 @@ import itertools
 from collections.abc import Callable, Mapping
 
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.held import margin, seen_by
 from rcmlconf.conformance.probes.pace import ms, spaced
 from rcmlconf.conformance.probes.rsp_datagram import SESSION_AT, Datagram, Where, newer, sequence_of
 from rcmlconf.conformance.probes.rsp_devices import close_to, flags, reported, values_of
 from rcmlconf.conformance.probes.rsp_driven import Driven, drive
 from rcmlconf.conformance.probes.rsp_exchanges import reporting, taken
-from rcmlconf.conformance.probes.rsp_held import margin, seen_by
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
 from rcmlconf.conformance.registry import Role, case
 from rcmlconf.conformance.rsp_numbers import LOST_PERIODS, STAMP_ROUNDING, STOP_LAG

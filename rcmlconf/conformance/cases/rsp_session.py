@@ -9,6 +9,7 @@ import statistics
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.ics import FEATURES
+from rcmlconf.conformance.probes.held import margin, seen_by
 from rcmlconf.conformance.probes.pace import gaps, ms, paced, spaced
 from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, sequence_of
 from rcmlconf.conformance.probes.rsp_devices import flags, reported
@@ -21,7 +22,6 @@ from rcmlconf.conformance.probes.rsp_exchanges import (
     taken,
 )
 from rcmlconf.conformance.probes.rsp_forged import hello_packet
-from rcmlconf.conformance.probes.rsp_held import margin, seen_by
 from rcmlconf.conformance.probes.rsp_probe import open_probe
 from rcmlconf.conformance.registry import Role, case
 from rcmlconf.conformance.rsp_numbers import (
