@@ -56,7 +56,7 @@ import sys
 import tempfile
 import time
 from collections import Counter
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass, field
 from itertools import pairwise
 from multiprocessing.connection import Connection
@@ -97,46 +97,33 @@ BACK_PERCENTILE, RECOVERED_FOR, SLACK_MS = 95, 2.0, 1.0
 # -- the server --------------------------------------------------------------------------------
 
 
-class Server:
-    """`rcmlconf serve` in a process of its own, its standard error in a file."""
+class Command:
+    """An `rcmlconf` command in a process of its own, its standard error in FOLDER/NAME.stderr,
+    up once its --ready-file says where it listens (`found`)."""
 
     def __init__(
-        self, folder: Path, nofile: int, cpu: int | None, turns: bool, collect: str | None
+        self,
+        folder: Path,
+        name: str,
+        command: list[str],
+        preexec_fn: Callable[[], None] | None = None,
     ) -> None:
-        self.cpu = cpu
-        self.stderr_path = folder / "serve.stderr"
-        #: The profile of the loop's turns (`hostile_turns`), when asked, with other collector
-        #: settings when asked.
-        self.turns = folder / "turns.bin" if turns or collect else None
-        ready = folder / "ready.json"
+        ready = folder / f"{name}.ready.json"
+        self.stderr_path = folder / f"{name}.stderr"
         self._stderr = self.stderr_path.open("wb")
-
-        def limit() -> None:  # in the child, before exec
-            if nofile:
-                _soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
-                resource.setrlimit(resource.RLIMIT_NOFILE, (nofile, hard))
-            if cpu is not None:
-                os.sched_setaffinity(0, {cpu})
-
-        run = ["-m", "rcmlconf"] if self.turns is None else [str(TURNS), str(self.turns)]
-        run += ["--gc", collect] if collect else []
-        command = [sys.executable, *run, "serve", str(RCML), "--port", "0"]
-        command += ["--http-port", "0", "--ready-file", str(ready)]
         self.process = subprocess.Popen(
-            command, stdout=subprocess.DEVNULL, stderr=self._stderr, preexec_fn=limit
+            [*command, "--ready-file", str(ready)],
+            stdout=subprocess.DEVNULL,
+            stderr=self._stderr,
+            preexec_fn=preexec_fn,
         )
         deadline = time.monotonic() + 30.0
         while not ready.exists():
             if self.process.poll() is not None or time.monotonic() > deadline:
                 self.stop()
-                raise RuntimeError(f"rcmlconf serve did not start: {self.log()[-2000:]}")
+                raise RuntimeError(f"rcmlconf {name} did not start: {self.log()[-2000:]}")
             time.sleep(0.05)
-        found = json.loads(ready.read_text())
-        self.url: str = found["rctp"]
-        self.data_port = int(found["data_port"])
-        self.http_port = int(found["http"].rsplit(":", 1)[1].strip("/"))
-        wanted = DEFAULT_LIMITS.connections
-        self.cap = min(wanted, nofile - RESERVED_FDS) if nofile else wanted
+        self.found: dict[str, Any] = json.loads(ready.read_text())
 
     @property
     def pid(self) -> int:
@@ -154,6 +141,36 @@ class Server:
                 self.process.kill()
                 self.process.wait(5)
         self._stderr.close()
+
+
+class Server(Command):
+    """`rcmlconf serve` in a process of its own, its standard error in a file."""
+
+    def __init__(
+        self, folder: Path, nofile: int, cpu: int | None, turns: bool, collect: str | None
+    ) -> None:
+        self.cpu = cpu
+        #: The profile of the loop's turns (`hostile_turns`), when asked, with other collector
+        #: settings when asked.
+        self.turns = folder / "turns.bin" if turns or collect else None
+
+        def limit() -> None:  # in the child, before exec
+            if nofile:
+                _soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+                resource.setrlimit(resource.RLIMIT_NOFILE, (nofile, hard))
+            if cpu is not None:
+                os.sched_setaffinity(0, {cpu})
+
+        run = ["-m", "rcmlconf"] if self.turns is None else [str(TURNS), str(self.turns)]
+        run += ["--gc", collect] if collect else []
+        command = [sys.executable, *run, "serve", str(RCML), "--port", "0", "--http-port", "0"]
+        super().__init__(folder, "serve", command, limit)
+        found = self.found
+        self.url: str = found["rctp"]
+        self.data_port = int(found["data_port"])
+        self.http_port = int(found["http"].rsplit(":", 1)[1].strip("/"))
+        wanted = DEFAULT_LIMITS.connections
+        self.cap = min(wanted, nofile - RESERVED_FDS) if nofile else wanted
 
 
 def rss_mib(pid: int) -> float:

@@ -25,13 +25,10 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import json
 import multiprocessing
 import os
 import random
-import signal
 import socket
-import subprocess
 import sys
 import tempfile
 import time
@@ -42,7 +39,7 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 
 from children import cpu_seconds
-from hostile_load import rss_mib, udp_drops
+from hostile_load import Command, rss_mib, udp_drops
 from scale import percentile
 
 from rcmlconf.reference.rsp.simulacrum import Simulacrum
@@ -62,38 +59,13 @@ OWN_REPLAYS_EVERY = 0.05
 TYPE_AT, SEQUENCE_AT = 4, 5
 
 
-class Robot:
+class Robot(Command):
     """`rcmlconf robot` in a process of its own, its standard error in a file."""
 
     def __init__(self, folder: Path) -> None:
-        ready = folder / "ready.json"
-        self.stderr_path = folder / "robot.stderr"
-        self._stderr = self.stderr_path.open("wb")
         command = [sys.executable, "-m", "rcmlconf", "robot", str(MODEL), "--port", "0"]
-        self.process = subprocess.Popen(
-            [*command, "--ready-file", str(ready)], stdout=subprocess.DEVNULL, stderr=self._stderr
-        )
-        deadline = time.monotonic() + 30.0
-        while not ready.exists():
-            if self.process.poll() is not None or time.monotonic() > deadline:
-                self.stop()
-                raise RuntimeError(f"rcmlconf robot did not start: {self.log()[-2000:]}")
-            time.sleep(0.05)
-        found = json.loads(ready.read_text())
-        self.address = (str(found["host"]), int(found["port"]))
-
-    def log(self) -> str:
-        return self.stderr_path.read_text(errors="replace")
-
-    def stop(self) -> None:
-        if self.process.poll() is None:
-            self.process.send_signal(signal.SIGTERM)
-            try:
-                self.process.wait(15)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait(5)
-        self._stderr.close()
+        super().__init__(folder, "robot", command)
+        self.address = (str(self.found["host"]), int(self.found["port"]))
 
 
 # -- the flood, in a process of its own --------------------------------------------------------
