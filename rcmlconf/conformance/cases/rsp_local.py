@@ -16,7 +16,7 @@ from rcmlconf.conformance.probes.held import held
 from rcmlconf.conformance.probes.local_probe import LocalProbe
 from rcmlconf.conformance.probes.local_scenario import REQUESTED
 from rcmlconf.conformance.probes.pace import paced, spaced
-from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer
+from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, sequence_of
 from rcmlconf.conformance.probes.rsp_devices import first, of_kind, zero_values
 from rcmlconf.conformance.registry import CaseFunction, Role, case
 from rcmlconf.conformance.rsp_numbers import (
@@ -501,6 +501,18 @@ def _empty(downlinks: list[Datagram]) -> list[Datagram]:
     return [d for d in downlinks if not d.items]
 
 
+def sent_after(
+    ctx: Context, probe: LocalProbe, sent: bytes, at: float
+) -> Callable[[Datagram], bool]:
+    """Whether a packet of the local system's was sent after it had `sent` (which went at loop
+    time `at`), judged now, once the case has waited: it says it received it or newer (R-RSP-15),
+    or it was read D-RSP-26's two periods and slack later, and as much more as the harness's loop
+    was held (held up, it reads late)."""
+    sequence = sequence_of(sent)
+    last = at + unheard_for(probe.period, ctx.scale) + held(ctx, at)
+    return lambda d: newer(d.header.last_received, sequence) or d.at > last
+
+
 # -- the end ------------------------------------------------------------------------------------
 
 
@@ -513,17 +525,12 @@ async def bye_ends(ctx: Context) -> None:
     probe = await session(ctx)
     period = probe.period
     bye = probe.bye(ByeReason.SHUTDOWN)
-    at, sequence = probe.now, int.from_bytes(bye[5:7])
-    # D-RSP-26: what names the BYE as received, or is read two periods and the slack after it
-    # (less a hold of the harness's loop, which delays what it reads), was sent after it.
-    after = unheard_for(period, ctx.scale)
-    seen = await probe.received_within(max(8 * period, probe.quiet) + after)
-    last = at + after + held(ctx, at)
-    late = [
-        d
-        for d in seen
-        if d.type is not PacketType.BYE and (newer(d.header.last_received, sequence) or d.at > last)
-    ]
+    at = probe.now
+    seen = await probe.received_within(
+        max(8 * period, probe.quiet) + unheard_for(period, ctx.scale)
+    )
+    after_bye = sent_after(ctx, probe, bye, at)
+    late = [d for d in seen if d.type is not PacketType.BYE and after_bye(d)]
     ctx.expect(
         not late,
         "nothing of the session after BYE",

@@ -35,12 +35,13 @@ from rcmlconf.conformance.cases.rsp_local import (
     numbered,
     occurrence,
     played_model,
+    sent_after,
     session,
 )
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.held import held, margin, seen_by
+from rcmlconf.conformance.probes.held import margin, seen_by
 from rcmlconf.conformance.probes.local_probe import LocalProbe
-from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, sequence_of
+from rcmlconf.conformance.probes.rsp_datagram import Datagram, sequence_of
 from rcmlconf.conformance.probes.rsp_devices import first, zero_values
 from rcmlconf.conformance.probes.rsp_forged import patch
 from rcmlconf.conformance.rsp_numbers import unheard_for
@@ -166,21 +167,6 @@ def intact(probe: LocalProbe, send: Callable[[], bytes], what: str) -> bytes:
     if not probe.send_intact(lambda: sent.append(send())):
         raise Inconclusive(f"the impairment spoiled every copy of {what}")
     return sent[-1]
-
-
-def heard_after(
-    ctx: Context, probe: LocalProbe, sent: bytes, at: float
-) -> Callable[[Datagram], bool]:
-    """Whether a DOWNLINK was sent after the local system had the packet `sent` (sent at `at`):
-    it says it received it or newer (R-RSP-15), or it was read D-RSP-26's two periods and slack
-    later, and as much more as the harness's loop was held (held up, it reads late)."""
-    sequence = sequence_of(sent)
-
-    def heard(d: Datagram) -> bool:
-        last = at + unheard_for(probe.period, ctx.scale) + held(ctx, at)
-        return newer(d.header.last_received, sequence) or d.at > last
-
-    return heard
 
 
 # -- R-RSP-15: the newest, by serial arithmetic ----------------------------------------------------
@@ -389,7 +375,8 @@ async def _downlinks_after(ctx: Context, probe: LocalProbe, sent: bytes) -> list
     at = probe.now
     wait = unheard_for(probe.period, ctx.scale) + 2 * probe.period
     later = await probe.received_within(wait, PacketType.DOWNLINK)
-    found = [d for d in later if heard_after(ctx, probe, sent, at)(d)]
+    heard = sent_after(ctx, probe, sent, at)
+    found = [d for d in later if heard(d)]
     if not found:
         raise Inconclusive(f"no DOWNLINK after #{sequence_of(sent)} within {wait:.2f} s")
     return found
