@@ -5,6 +5,8 @@ constant must not move the expectation with it (mutation testing found cases tha
 #: D-RSP-12: a HELLO that gets no answer is repeated every 250 ms, five times at most.
 HELLO_INTERVAL = 0.25
 HELLO_RETRIES = 5
+#: D-RSP-13: a harness judges each single gap of a pace within these fractions of its interval.
+GAP_SHORTEST, GAP_LONGEST = 0.6, 1.6
 #: D-RSP-13: a side with nothing to say sends an empty Device Map every 5 periods; silence from
 #: its peer for 25 periods means the link is lost; after 10 s the session ends with BYE.
 KEEPALIVE_PERIODS = 5

@@ -20,6 +20,8 @@ from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, sequence_o
 from rcmlconf.conformance.probes.rsp_devices import first, of_kind, zero_values
 from rcmlconf.conformance.registry import CaseFunction, Role, case
 from rcmlconf.conformance.rsp_numbers import (
+    GAP_LONGEST,
+    GAP_SHORTEST,
     HELLO_INTERVAL,
     HELLO_RETRIES,
     KEEPALIVE_PERIODS,
@@ -455,7 +457,7 @@ async def idle_keep_alive(ctx: Context) -> None:
     # own clock (R-RSP-14): a harness held up reads datagrams that waited together at once.
     stamped = (periods[-1].header.timestamp - periods[0].header.timestamp) % (1 << 32)
     ctx.expect(
-        stamped >= 0.6 * slower * 1000,
+        stamped >= GAP_SHORTEST * slower * 1000,
         f"the PERIODs spread over three periods of {slower * 1000:g} ms, not sent at once",
         f"stamped {', '.join(str(d.header.timestamp) for d in periods)} ms",
         "R-RSP-43",
@@ -488,7 +490,7 @@ def _welcome_pace_kept(
     times = [since, *(d.at for d in probe.packets(PacketType.DOWNLINK, after=mark)), probe.now]
     longest = max(b - a for a, b in itertools.pairwise(times))
     ctx.expect(
-        longest <= 1.6 * keep,
+        longest <= GAP_LONGEST * keep,
         f"no PERIOD, so WELCOME's T of {period * 1000:g} ms kept: a DOWNLINK every period, or"
         f" an empty one every {KEEPALIVE_PERIODS} ({keep * 1000:g} ms)",
         f"no DOWNLINK for {longest * 1000:.0f} ms",

@@ -18,6 +18,7 @@ from rcmlconf.conformance.probes.local_scenario import SCENARIO_LIFETIME
 from rcmlconf.conformance.probes.pace import paced
 from rcmlconf.conformance.probes.rsp_devices import first, of_kind
 from rcmlconf.conformance.rsp_numbers import (
+    GAP_LONGEST,
     KEEPALIVE_PERIODS,
     LOST_PERIODS,
     RESEND_LAG,
@@ -48,7 +49,7 @@ async def welcome_opens(ctx: Context) -> None:
     # every T, or an empty one every 5 periods at least: D-RSP-26 judges such a gap to 1.6 of
     # 5 T, and the wire and the scheduling of both sides (RESEND_LAG); a hold of the harness's
     # loop excuses a DOWNLINK read that much later, and the case waits a margin past the bound.
-    due = since + 1.6 * KEEPALIVE_PERIODS * period + RESEND_LAG * ctx.scale
+    due = since + GAP_LONGEST * KEEPALIVE_PERIODS * period + RESEND_LAG * ctx.scale
     found = await probe.next(PacketType.DOWNLINK, after=0, wait=due + margin(ctx) - probe.now)
     hellos = len(probe.hellos)
     seen_by(

@@ -21,7 +21,13 @@ from rcmlconf.conformance.probes.rsp_driven import Driven, drive
 from rcmlconf.conformance.probes.rsp_exchanges import reporting, taken
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
 from rcmlconf.conformance.registry import Role, case
-from rcmlconf.conformance.rsp_numbers import LOST_PERIODS, STAMP_ROUNDING, STOP_LAG
+from rcmlconf.conformance.rsp_numbers import (
+    GAP_LONGEST,
+    GAP_SHORTEST,
+    LOST_PERIODS,
+    STAMP_ROUNDING,
+    STOP_LAG,
+)
 from rcmlconf.conformance.verdicts import Failed, Inconclusive
 from rcmlconf.rsp.codec import PacketType
 from rcmlconf.rsp.model import OnLoss
@@ -32,8 +38,6 @@ from rcmlconf.values.shown import values_text
 SLOW_MS = 1200
 #: UPLINKs a slow case watches: two gaps of T.
 BEATS = 3
-#: `spaced`'s shortest and longest gaps, in periods.
-EARLIEST, LATEST = 0.6, 1.6
 #: D-RSP-20: a stop is seen at most this many periods after the link is lost (the control period
 #: to come round, then the UPLINK).
 STOP_PERIODS = 2
@@ -61,7 +65,7 @@ async def _uplinks(probe: RspProbe, where: Where, until: float, count: int) -> l
 def _watched(probe: RspProbe, period: float) -> float:
     """How long `BEATS` UPLINKs may take from the first (or from a time before it): each as late
     after the one before as `spaced` lets it be, and the probe's quiet time for the harness."""
-    return (BEATS - 1) * LATEST * period + probe.quiet
+    return (BEATS - 1) * GAP_LONGEST * period + probe.quiet
 
 
 async def _rested(probe: RspProbe, period: float, bye: Callable[[], object]) -> None:
@@ -89,7 +93,7 @@ def _beating(ctx: Context, found: list[Datagram], period: float, note: str) -> N
         for earlier, later in itertools.pairwise(found)
     ]
     ctx.expect(
-        all(gap >= EARLIEST * period * 1000 - STAMP_ROUNDING for gap in stamped),
+        all(gap >= GAP_SHORTEST * period * 1000 - STAMP_ROUNDING for gap in stamped),
         f"UPLINKs {period * 1000:g} ms apart by the robot's own clock{note}",
         f"timestamps (R-RSP-14) {', '.join(map(str, stamped))} ms apart",
         "R-RSP-42",
@@ -115,7 +119,9 @@ async def slow_hello(ctx: Context) -> None:
     try:
         # R-RSP-42: with a sensor to report, an UPLINK every T: the first within a period of the
         # request, and a period between each and the next.
-        first = await taken(probe, raw, flags(model, sensor), wait=1.6 * period + probe.quiet)
+        first = await taken(
+            probe, raw, flags(model, sensor), wait=GAP_LONGEST * period + probe.quiet
+        )
         if first is None:
             raise Failed(
                 "R-RSP-42",

@@ -11,6 +11,7 @@ from collections.abc import Iterable, Sequence
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.rsp_datagram import Datagram
+from rcmlconf.conformance.rsp_numbers import GAP_LONGEST, GAP_SHORTEST
 from rcmlconf.rsp.codec import PacketType
 
 
@@ -69,7 +70,7 @@ def spaced(
     within 0.6 to 1.6 intervals (D-RSP-13's bounds)."""
     between = gaps(found)
     ctx.expect(
-        all(0.6 * interval <= gap <= 1.6 * interval for gap in between),
+        all(GAP_SHORTEST * interval <= gap <= GAP_LONGEST * interval for gap in between),
         f"{what} {interval * 1000:g} ms apart{note}",
         ms(between),
         requirement,
