@@ -61,13 +61,35 @@ def _run(
     return done, json.loads(report.read_text())["results"]
 
 
+#: How a case says it could not judge because the harness's own event loop was held (its
+#: process kept waiting for a CPU: the machine's doing, not the target's).
+HARNESS_HELD = "the harness's event loop was held"
+
+
 def test_every_case_passes_on_the_reference_twice_with_the_same_verdicts(tmp_path: Path) -> None:
-    done, results = _run(tmp_path, "--repeat", "2")
     cases = all_cases()
+    done, results = _run(tmp_path, "--repeat", "2")
+    stopped = _not_passing(results, cases)
+    if stopped and all(
+        r["verdict"] == Verdict.INCONCLUSIVE.value and HARNESS_HELD in r["reason"] for r in stopped
+    ):
+        # The other tests' processes beside this one kept the harness from judging some timing:
+        # the run is made once more, and must pass as a whole.
+        done, results = _run(tmp_path, "--repeat", "2")
+        stopped = _not_passing(results, cases)
     assert {r["case"] for r in results} == set(cases), done.stderr
     failing = [
         f"{r['case']} (run {r['run']}): {r['verdict']}: {r['reason']}\n"
         + "\n".join(e["summary"] for e in r["exchange"])
+        for r in stopped
+    ]
+    assert not failing, "\n\n".join(failing)
+
+
+def _not_passing(results: list[dict[str, Any]], cases: dict[str, Any]) -> list[dict[str, Any]]:
+    """The results that neither passed nor are the known not applicable."""
+    return [
+        r
         for r in results
         if r["verdict"] != Verdict.PASS.value
         and not (r["verdict"] == Verdict.NOT_APPLICABLE.value and r["case"] in NOT_APPLICABLE)
@@ -75,7 +97,6 @@ def test_every_case_passes_on_the_reference_twice_with_the_same_verdicts(tmp_pat
         # never a failure (rsp/reliable/memory-commands-under-loss, about one run in 1,600).
         and not (r["verdict"] == Verdict.INCONCLUSIVE.value and cases[r["case"]].impairment)
     ]
-    assert not failing, "\n\n".join(failing)
 
 
 def test_under_a_run_wide_impairment_nothing_fails_and_few_are_inconclusive(
