@@ -15,14 +15,19 @@ from rcmlconf.conformance.cases.rsp_local import (
     numbered,
     occurrence,
     played_model,
+    sent_after,
     session,
 )
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.held import margin, seen_by
 from rcmlconf.conformance.probes.pace import ms
-from rcmlconf.conformance.probes.rsp_datagram import newer
 from rcmlconf.conformance.probes.rsp_devices import first, of_kind
-from rcmlconf.conformance.rsp_numbers import STAMP_ROUNDING, resent_within, unmeasured_rto
+from rcmlconf.conformance.rsp_numbers import (
+    STAMP_ROUNDING,
+    resent_within,
+    unheard_for,
+    unmeasured_rto,
+)
 from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.rsp.codec import PacketType
 from rcmlconf.rsp.model import DeviceKind
@@ -70,12 +75,13 @@ async def command_until_acked(ctx: Context) -> None:
             "R-RSP-24",
         )
     ack = probe.ack([item])
-    ack_at, ack_sequence = probe.now, int.from_bytes(ack[5:7])
-    after = [
-        d
-        for d in await probe.received_within(6 * period, PacketType.DOWNLINK)
-        if newer(d.header.last_received, ack_sequence) or d.at >= ack_at + 2 * period
-    ]
+    ack_at = probe.now
+    # D-RSP-26: sent after the ACK was had, as bye-ends and the -dropped cases judge it.
+    seen = await probe.received_within(
+        unheard_for(period, ctx.scale) + 4 * period, PacketType.DOWNLINK
+    )
+    heard = sent_after(ctx, probe, ack, ack_at)
+    after = [d for d in seen if heard(d)]
     if not after:
         raise Inconclusive("no DOWNLINK after the ACK")
     still = [d for d in after if carries(command, ident)(d)]
