@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from support.processes import COMMAND
+from support.sweeps import SWEEPS
 
 from rcmlconf.conformance.coverage import matrix, unknown_requirements
 from rcmlconf.conformance.registry import all_cases
@@ -66,6 +67,7 @@ def _run(
 HARNESS_HELD = "the harness's event loop was held"
 
 
+@SWEEPS
 def test_every_case_passes_on_the_reference_twice_with_the_same_verdicts(tmp_path: Path) -> None:
     cases = all_cases()
     done, results = _run(tmp_path, "--repeat", "2")
@@ -99,6 +101,7 @@ def _not_passing(results: list[dict[str, Any]], cases: dict[str, Any]) -> list[d
     ]
 
 
+@SWEEPS
 def test_under_a_run_wide_impairment_nothing_fails_and_few_are_inconclusive(
     tmp_path: Path,
 ) -> None:
