@@ -30,6 +30,11 @@ LATE = 0.02
 _ANY = Permission(0)
 
 
+def outside_bounds(value: float, low: float, high: float) -> float:
+    """How far `value` lies outside [low, high] (0 within): a failed check's `by`, in its units."""
+    return max(low - value, value - high, 0.0)
+
+
 @dataclass
 class Context:
     case: Case
@@ -271,15 +276,21 @@ class Context:
         requirement: str | None = None,
         *,
         timing: bool = False,
+        by: float | None = None,
     ) -> None:
         """Fail the case unless `holds`. A check of `timing` read off the harness's clock that
         fails while the harness's event loop was held LATE or longer during the case is
         inconclusive instead: the datagrams were read late, so the gaps measured are the
-        harness's, not the target's."""
+        harness's, not the target's. `by`, where the check can say it: how far (seconds of the
+        harness's clock) what was seen lies past its bound. Holds that add up to less cannot
+        have moved it that far, and the check fails however long the longest was: a target
+        that sends for half a second after it should stop is not excused by a 250 ms hold."""
         if holds:
             return
-        held = self.loop_watch.held(self.started) if timing and self.loop_watch else 0.0
-        if held >= LATE * self.scale:
+        watch = self.loop_watch if timing else None
+        held = watch.held(self.started) if watch else 0.0
+        explained = watch is not None and (by is None or watch.total(self.started) >= by)
+        if explained and held >= LATE * self.scale:
             wanted = " or ".join((expected,) if isinstance(expected, str) else expected)
             raise Inconclusive(
                 f"expected {wanted}; got {actual}; but the harness's event loop was held"

@@ -5,7 +5,9 @@ event loop. When that loop is held up (a loaded CI machine, a collection pause; 
 reference, the target's timers too), datagrams are read late and the gaps between them are the
 harness's, not the target's. `LoopWatch` ticks every TICK seconds and keeps each tick that came
 more than NOTABLE late; `Context.expect(..., timing=True)` asks it how long the loop was held during
-the case, and turns a timing failure into inconclusive when the hold was long enough to explain it.
+the case, and turns a timing failure into inconclusive when the hold was long enough to explain it:
+where the check says by how much it missed, when the holds add up to that much (D-RSP-26,
+D-RCTP-33: a hold delays what the harness reads by its length at most).
 """
 
 from __future__ import annotations
@@ -46,6 +48,11 @@ class LoopWatch:
     def held(self, since: float) -> float:
         """The longest the loop was held (seconds) in a hold that ended after `since`."""
         return max((lag for at, lag in self._holds if at >= since), default=0.0)
+
+    def total(self, since: float) -> float:
+        """How long the loop was held (seconds) in all the holds that ended after `since`
+        together: the most that they can have moved what was read off the harness's clock."""
+        return sum(lag for at, lag in self._holds if at >= since)
 
     def stop(self) -> None:
         if self._handle is not None:

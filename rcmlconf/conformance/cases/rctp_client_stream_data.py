@@ -351,6 +351,7 @@ async def _ended_while_streaming(
         f"{plural(len(late), 'DATA payload')}, up to {max(late, default=0):.2f} s after",
         "R-RCTP-44",
         timing=True,
+        by=max(late, default=slack) - slack,
     )
     return server
 

@@ -230,7 +230,8 @@ def _stamped_since(ctx: Context, start: Datagram, found: Iterable[Datagram], bas
         if d.header.timestamp < expected - allowed:
             behind.append(f"{wanted}; got {got}")
             continue
-        ctx.expect(d.header.timestamp <= expected + allowed, wanted, got, "R-RSP-14", timing=True)
+        ahead = (d.header.timestamp - expected - allowed) / 1000
+        ctx.expect(ahead <= 0, wanted, got, "R-RSP-14", timing=True, by=ahead)
     ctx.expect(
         len(behind) <= len(judged) // 4,
         f"at most {len(judged) // 4} of {len(judged)} stamps behind their arrivals (D-RSP-26)",
@@ -496,6 +497,7 @@ def _welcome_pace_kept(
         f"no DOWNLINK for {longest * 1000:.0f} ms",
         "R-RSP-42",
         timing=True,
+        by=longest - GAP_LONGEST * keep,
     )
 
 

@@ -143,6 +143,7 @@ async def timestamp(ctx: Context) -> None:
         f" {allowed:.0f} ms)",
         f"{told} ms",
         timing=True,
+        by=(abs(told - span * 1000) - allowed) / 1000,
     )
 
 

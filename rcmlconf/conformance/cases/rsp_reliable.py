@@ -269,6 +269,7 @@ async def keyframe_duration(ctx: Context) -> None:
         f"{probe.received[-1].header.buffer} free after {took * 1000:.0f} ms",
         "R-RSP-44",
         timing=True,
+        by=None if back is None else took - (bound - start),
     )
     # R-RSP-44's lower bound, the duration less a period; the UPLINK that shows the free buffer
     # can only come later than the buffer freed, so a loaded machine cannot fail this.

@@ -9,7 +9,7 @@ import itertools
 import statistics
 from collections.abc import Iterable, Sequence
 
-from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.context import Context, outside_bounds
 from rcmlconf.conformance.probes.rsp_datagram import Datagram
 from rcmlconf.conformance.rsp_numbers import GAP_LONGEST, GAP_SHORTEST
 from rcmlconf.rsp.codec import PacketType
@@ -54,6 +54,7 @@ def paced(
         f"a median of {median * 1000:.1f} ms between {len(found)} {name}s",
         requirement,
         timing=True,
+        by=outside_bounds(median, 0.7 * period, 1.4 * period),
     )
 
 
@@ -69,10 +70,12 @@ def spaced(
     """Each of `found` (`what`, in the failure's text) came `interval` after the one before,
     within 0.6 to 1.6 intervals (D-RSP-13's bounds)."""
     between = gaps(found)
+    low, high = GAP_SHORTEST * interval, GAP_LONGEST * interval
     ctx.expect(
-        all(GAP_SHORTEST * interval <= gap <= GAP_LONGEST * interval for gap in between),
+        all(low <= gap <= high for gap in between),
         f"{what} {interval * 1000:g} ms apart{note}",
         ms(between),
         requirement,
         timing=True,
+        by=max((outside_bounds(gap, low, high) for gap in between), default=0.0),
     )

@@ -19,7 +19,7 @@ import math
 import time
 from collections.abc import Callable
 
-from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.context import Context, outside_bounds
 from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.probes.stream import (
     Datagram,
@@ -264,4 +264,5 @@ def once_per_interval(
         f"{count}",
         "R-RCTP-44",
         timing=True,
+        by=outside_bounds(count, low, high) * interval,
     )

@@ -1,0 +1,74 @@
+"""A timing check read off the harness's clock while its loop was held (D-RSP-26, D-RCTP-33):
+inconclusive when the holds can explain the miss, a fail when the miss is longer than the holds
+add up to. The holds are real: the loop is blocked, and `LoopWatch` sees it late."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+import pytest
+
+from rcmlconf.conformance.context import LATE, Context, outside_bounds
+from rcmlconf.conformance.loopwatch import LoopWatch
+from rcmlconf.conformance.registry import all_cases
+from rcmlconf.conformance.targets import Target
+from rcmlconf.conformance.verdicts import Failed, Inconclusive
+
+#: Each hold blocks the loop this long (seconds): well over LATE.
+HOLD = 0.1
+assert HOLD > 2 * LATE
+
+
+async def _held_context(holds: int) -> Context:
+    """A context whose case saw `holds` holds of HOLD each."""
+    ctx = Context(all_cases()["rctp/client/stream-pace"], Target())
+    ctx.loop_watch = LoopWatch()
+    ctx.loop_watch.start()
+    for _ in range(holds):
+        await asyncio.sleep(0.02)
+        time.sleep(HOLD)  # the loop is held: its next tick runs late
+    await asyncio.sleep(0.02)
+    return ctx
+
+
+def _check(holds: int, by: float | None, timing: bool = True) -> type[Exception]:
+    async def main() -> type[Exception]:
+        ctx = await _held_context(holds)
+        try:
+            ctx.expect(False, "no DATA", "1 DATA", "R-RCTP-44", timing=timing, by=by)
+        except (Failed, Inconclusive) as verdict:
+            return type(verdict)
+        finally:
+            assert ctx.loop_watch is not None
+            ctx.loop_watch.stop()
+        raise AssertionError("a failed check passed")
+
+    return asyncio.run(main())
+
+
+def test_a_miss_the_holds_explain_is_inconclusive() -> None:
+    assert _check(holds=1, by=HOLD / 2) is Inconclusive
+    assert _check(holds=1, by=None) is Inconclusive  # a check that cannot say by how much
+
+
+def test_holds_add_up() -> None:
+    assert _check(holds=3, by=2.5 * HOLD) is Inconclusive
+
+
+def test_a_miss_longer_than_the_holds_add_up_to_fails() -> None:
+    assert _check(holds=1, by=5 * HOLD) is Failed
+    assert _check(holds=2, by=5 * HOLD) is Failed
+
+
+def test_no_hold_or_no_timing_check_fails() -> None:
+    assert _check(holds=0, by=None) is Failed
+    assert _check(holds=1, by=None, timing=False) is Failed
+
+
+@pytest.mark.parametrize(
+    ("value", "low", "high", "far"),
+    [(5, 1, 10, 0.0), (0, 1, 10, 1.0), (12, 1, 10, 2.0), (1, 1, 1, 0.0)],
+)
+def test_outside_bounds(value: float, low: float, high: float, far: float) -> None:
+    assert outside_bounds(value, low, high) == far
