@@ -99,9 +99,14 @@ def arrivals(draw: st.DrawFn) -> tuple[int, list[int]]:
     offsets from `start` (the run is shorter than 32,768, so no offset is ambiguous)."""
     start = draw(st.integers(0, 65535) | st.integers(65535 - 300, 65535))
     length = draw(st.integers(1, 300))
-    sent = [i for i in range(length) if not draw(st.booleans()) or i == 0]
+    # The lost as one drawn set, not a coin a packet: 300 draws an example made this file the
+    # slowest of the codecs' (the first is never lost: it starts the run).
+    lost = draw(st.sets(st.integers(1, 299), max_size=length // 2))
+    sent = [i for i in range(length) if i not in lost]
     twice = draw(st.lists(st.sampled_from(sent), max_size=20))
-    return start, draw(st.permutations(sent + twice))
+    arrived = sent + twice
+    draw(st.randoms(use_true_random=False)).shuffle(arrived)  # not st.permutations: as above
+    return start, arrived
 
 
 @given(arrivals())
