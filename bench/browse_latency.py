@@ -17,10 +17,21 @@ pan slider follows.
   latest pan once it has stopped (no update lost: the latest is always shown).
 - the bridge's CPU (the `browse` process, /proc) per update delivered to a page.
 
-The anchor, in the same run and browser: a bare `websockets` server in this process sends the
-same `values` messages at 62.5 Hz to PAGES blank pages and takes the same `input` messages from
-the first, every 40 ms: the floor a WebSocket between this browser and a Python process sets.
+The anchor, in the same run and browser, before the panel's pages open: a bare `websockets`
+server in a process of its own (as `browse` is) sends the same `values` messages (the stream's
+four nodes) at 62.5 Hz to PAGES blank pages, each of which sets four range inputs from them as the
+panel sets its sliders, and takes the same `input` messages from the first, every 40 ms: the
+floor that this browser, this machine and a WebSocket to a Python process set.
 The issue's goal: p99 at most one interval plus 10 ms (26 ms) each way, nothing lost.
+
+Clocks: the pages stamp with `Date.now()`, the system's wall clock that Python's `time.time()`
+reads (to the millisecond), not `performance.timeOrigin + performance.now()`, a monotonic clock
+from a wall-clock origin taken once, which drifts from it; the bench measures each page's offset
+from Python's clock (the smallest of a few bracketed evaluate round trips) and prints the largest.
+Chromium runs with `--disable-background-timer-throttling`, `--disable-renderer-backgrounding` and
+`--disable-backgrounding-occluded-windows`: with many pages open only one is in front, and
+Chromium may align a background page's timers to once a second and lower its renderer's priority,
+which would time Chromium's power saving, not the link (the first page's 40 ms inputs are timers).
 
     python bench/browse_latency.py                  # 10 pages, 10 s
     python bench/browse_latency.py --seconds 3 --pages 2
@@ -39,7 +50,8 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Coroutine, Mapping
+from collections.abc import Callable, Coroutine, Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -53,11 +65,22 @@ from rcmlconf.values import Value
 ROBOTS = Path(__file__).resolve().parents[1] / "rcmlconf" / "reference" / "robots" / "camera"
 CAMERA, PANEL = ROBOTS / "camera.rcml", ROBOTS / "camera.rxid"
 PAN = "/stream/control/pan"
+#: The stream's nodes, as a `values` message of the panel names them (the anchor sends them all).
+NODES = [f"/stream/control/{name}" for name in ("pan", "tilt", "zoom", "focus")]
 INTERVAL = 0.016
 GOAL_MS = INTERVAL * 1000 + 10
 INPUT_EVERY_MS = 40
 CHROMIUM = "/usr/bin/chromium"
-ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run"]
+#: The last three: see the module's text (background pages' timers and renderers not slowed).
+ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--no-first-run",
+    "--disable-background-timer-throttling",
+    "--disable-renderer-backgrounding",
+    "--disable-backgrounding-occluded-windows",
+]
 #: Records, in each page, every `values` message its own handler has taken (the widgets are set
 #: by then): [the page's Unix time in ms, the message's `sent` in s, its pan].
 RECORDER = """
@@ -70,8 +93,7 @@ WebSocket.prototype.addEventListener = function (type, listener, options) {
     listener(event);
     const message = JSON.parse(event.data);
     if (message.type === "values" && message.values["PAN"] !== undefined) {
-      received.push([performance.timeOrigin + performance.now(), message.sent,
-                     Number(message.values["PAN"])]);
+      received.push([Date.now(), message.sent, Number(message.values["PAN"])]);
     }
   }, options);
 };
@@ -83,39 +105,43 @@ MOVER = """([selector, every, count]) => new Promise((done) => {
   const timer = setInterval(() => {
     const value = -150 + ((i * 37) % 300);
     range.value = String(value);
-    sent.push([performance.timeOrigin + performance.now(), value]);
+    sent.push([Date.now(), value]);
     range.dispatchEvent(new Event("input"));
     if (++i >= count) { clearInterval(timer); done(sent); }
   }, every);
 })"""
-#: The anchor's page: the same messages over a bare socket.
-ANCHOR_PAGE = """([url, every, count, sends]) => { window.__anchor = new Promise((done) => {
-  const socket = new WebSocket(url), received = [], sent = [];
-  socket.onmessage = (event) => {
-    const message = JSON.parse(event.data);
-    received.push([performance.timeOrigin + performance.now(), message.sent]);
-  };
-  socket.onopen = () => {
-    if (!sends) {
-      setTimeout(() => { socket.close(); done([received, sent]); }, every * count);
-      return;
-    }
-    let i = 0;
-    const timer = setInterval(() => {
-      const t = performance.timeOrigin + performance.now();
-      sent.push(t);
-      socket.send(JSON.stringify({v: 1, type: "input", widget: "w2", value: String(i), t}));
-      if (++i >= count) {
-        clearInterval(timer);
-        setTimeout(() => { socket.close(); done([received, sent]); }, 200);
-      }
-    }, every);
-  };
-}); }"""
+#: The anchor's page: the same messages over a bare socket, shown in range inputs as the panel's
+#: sliders show them; resolves to [[received Unix ms, sent s]...] once it has run `ms`.
+ANCHOR_PAGE = """([url, nodes, every, count, sends]) => {
+  const ranges = new Map(nodes.map((node) => {
+    const range = document.createElement("input");
+    Object.assign(range, {type: "range", min: -180, max: 180});
+    document.body.append(range);
+    return [node, range];
+  }));
+  window.__anchor = new Promise((done) => {
+    const socket = new WebSocket(url), received = [];
+    socket.onmessage = (event) => {
+      const message = JSON.parse(event.data);
+      for (const [node, text] of Object.entries(message.values)) ranges.get(node).value = text;
+      received.push([Date.now(), message.sent]);
+    };
+    socket.onopen = () => {
+      let i = 0;
+      const timer = setInterval(() => {
+        if (sends) {
+          socket.send(JSON.stringify({v: 1, type: "input", widget: "w2", value: String(i),
+                                      t: Date.now()}));
+        }
+        if (++i >= count) { clearInterval(timer); socket.close(); done(received); }
+      }, every);
+    };
+  });
+}"""
 
 
 class Loop:
-    """An asyncio loop in a thread, for the robot's server and the anchor."""
+    """An asyncio loop in a thread, for the robot's server."""
 
     def __init__(self) -> None:
         self.loop = asyncio.new_event_loop()
@@ -143,22 +169,19 @@ def camera_server(loop: Loop, applied: list[tuple[float, int]]) -> ReferenceServ
     return server
 
 
-def anchor_server(loop: Loop, arrived: list[tuple[float, float]]) -> int:
-    """A bare websockets server: `values` messages at 62.5 Hz out, `input` messages in."""
+async def anchor_serve() -> None:
+    """The anchor's process: a bare websockets server; its port on stdout's first line, then,
+    once stdin ends, [[arrival Unix ms, the input's page ms]...] of the inputs taken."""
+    arrived: list[tuple[float, float]] = []
 
     async def page(connection: ServerConnection) -> None:
         async def out() -> None:
             n = 0
             while True:
                 n += 1
-                message = {
-                    "v": 1,
-                    "type": "values",
-                    "robot": "camera.rcml",
-                    "values": {PAN: str(n % 360 - 180)},
-                    "sent": time.time(),
-                }
-                await connection.send(json.dumps(message))
+                values = {node: str((n + i) % 360 - 180) for i, node in enumerate(NODES)}
+                message = {"v": 1, "type": "values", "robot": "camera.rcml", "values": values}
+                await connection.send(json.dumps({**message, "sent": time.time()}))
                 await asyncio.sleep(INTERVAL)
 
         sender = asyncio.ensure_future(out())
@@ -168,11 +191,41 @@ def anchor_server(loop: Loop, arrived: list[tuple[float, float]]) -> int:
         finally:
             sender.cancel()
 
-    async def start() -> int:
-        server = await serve(page, "127.0.0.1", 0)
-        return int(next(iter(server.sockets)).getsockname()[1])
+    loop = asyncio.get_running_loop()
+    async with serve(page, "127.0.0.1", 0, compression=None) as server:  # as browse serves
+        print(next(iter(server.sockets)).getsockname()[1], flush=True)
+        await loop.run_in_executor(None, sys.stdin.read)
+    print(json.dumps(arrived), flush=True)
 
-    return int(loop.run(start()))
+
+@contextmanager
+def anchor_process() -> Iterator[tuple[int, Callable[[], list[list[float]]]]]:
+    """(the anchor's port, a function that ends it and gives what it took)."""
+    command = [sys.executable, __file__, "--anchor-server"]
+    process = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    assert process.stdout is not None
+    try:
+        port = int(process.stdout.readline())
+
+        def finish() -> list[list[float]]:
+            out, _ = process.communicate(timeout=30)
+            return list(json.loads(out))
+
+        yield port, finish
+    finally:
+        process.kill()
+        process.wait(30)
+
+
+def clock_offset(page: Any) -> float:
+    """The page's `Date.now()` less Python's time, ms: the tightest of a few brackets."""
+    best = (float("inf"), 0.0)
+    for _ in range(5):
+        before = time.time() * 1000
+        stamp = float(page.evaluate("Date.now()"))
+        after = time.time() * 1000
+        best = min(best, (after - before, stamp + 0.5 - (before + after) / 2))
+    return best[1]
 
 
 def cpu_seconds(pid: int) -> float:
@@ -202,35 +255,53 @@ def input_latencies(inputs: list[list[float]], applied: list[tuple[float, int]])
     return found
 
 
+def run_anchor(browser: Any, pages: int, count: int) -> tuple[list[float], list[float]]:
+    """The anchor's (to the page, from the page) latencies, ms: receivers first, then the sender."""
+    with anchor_process() as (port, finish):
+        anchors = [browser.new_page() for _ in range(pages)]
+        url = f"ws://127.0.0.1:{port}/"
+        for i, page in reversed(list(enumerate(anchors))):
+            page.evaluate(ANCHOR_PAGE, [url, NODES, INPUT_EVERY_MS, count, i == 0])
+        received = [page.evaluate("window.__anchor") for page in anchors]
+        for page in anchors:
+            page.close()
+        arrived = finish()
+    to_page = [t - sent * 1000 for page in received for t, sent in page]
+    return to_page, [t - made for t, made in arrived]
+
+
+def browse_command(ready: Path, port: int) -> list[str]:
+    return [
+        sys.executable,
+        "-m",
+        "rcmlconf",
+        "browse",
+        str(PANEL),
+        "--ready-file",
+        str(ready),
+        "--connect",
+        f"camera.rcml=rctp://127.0.0.1:{port}/camera",
+    ]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pages", type=int, default=10)
     parser.add_argument("--seconds", type=float, default=10.0)
+    parser.add_argument("--anchor-server", action="store_true", help=argparse.SUPPRESS)
     options = parser.parse_args()
+    if options.anchor_server:
+        asyncio.run(anchor_serve())
+        return
     from playwright.sync_api import sync_playwright
 
     loop = Loop()
     applied: list[tuple[float, int]] = []
     server = camera_server(loop, applied)
-    arrived: list[tuple[float, float]] = []
-    anchor_port = anchor_server(loop, arrived)
     inputs_count = int(options.seconds * 1000 / INPUT_EVERY_MS)
     with tempfile.TemporaryDirectory() as directory:
         ready = Path(directory) / "ready.json"
-        browse = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "rcmlconf",
-                "browse",
-                str(PANEL),
-                "--ready-file",
-                str(ready),
-                "--connect",
-                f"camera.rcml=rctp://127.0.0.1:{server.port}/camera",
-            ],
-            stdout=subprocess.DEVNULL,
-        )
+        browse = subprocess.Popen(browse_command(ready, server.port), stdout=subprocess.DEVNULL)
         try:
             deadline = time.monotonic() + 30
             while not ready.exists():
@@ -240,6 +311,7 @@ def main() -> None:
             url = json.loads(ready.read_text())["url"]
             with sync_playwright() as playwright:
                 browser = playwright.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+                anchor_dom, anchor_in = run_anchor(browser, options.pages, inputs_count)
                 pages = []
                 for _ in range(options.pages):  # the first takes the stream's privilege
                     page = browser.new_page()
@@ -247,6 +319,7 @@ def main() -> None:
                     page.goto(url)
                     page.wait_for_selector(".state.connected[data-robot]")
                     pages.append(page)
+                offsets = [clock_offset(page) for page in pages]
                 cpu_before = cpu_seconds(browse.pid)
                 inputs = pages[0].evaluate(
                     MOVER, ["[data-rxid-id=pan] input", INPUT_EVERY_MS, inputs_count]
@@ -255,41 +328,48 @@ def main() -> None:
                 cpu = cpu_seconds(browse.pid) - cpu_before
                 received = [page.evaluate("window.__received") for page in pages]
                 shown = [page.input_value("[data-rxid-id=pan] input") for page in pages]
-                # The anchor: blank pages of the same browser, the same messages.
-                anchors = [browser.new_page() for _ in range(options.pages)]
-                anchor_url = f"ws://127.0.0.1:{anchor_port}/"
-                for i, page in enumerate(anchors):  # all at once, each in its own page
-                    page.evaluate(ANCHOR_PAGE, [anchor_url, INPUT_EVERY_MS, inputs_count, i == 0])
-                anchor_received = [page.evaluate("window.__anchor")[0] for page in anchors]
+                offsets += [clock_offset(page) for page in pages]
                 browser.close()
         finally:
             browse.terminate()
             browse.wait(30)
     loop.run(server.stop())
+    report(options, received, shown, inputs, applied, (anchor_dom, anchor_in), offsets, cpu)
 
+
+def report(
+    options: argparse.Namespace,
+    received: list[list[list[float]]],
+    shown: list[str],
+    inputs: list[list[float]],
+    applied: list[tuple[float, int]],
+    anchor: tuple[list[float], list[float]],
+    offsets: list[float],
+    cpu: float,
+) -> None:
     dom = [t - sent * 1000 for page in received for t, sent, _ in page if sent]
     gaps = [b[0] - a[0] for page in received for a, b in itertools.pairwise(page)]
     to_robot = input_latencies(inputs, applied)
-    anchor_dom = [t - sent * 1000 for page in anchor_received for t, sent in page]
-    anchor_in = [t - made for t, made in arrived]
     updates = sum(len(page) for page in received)
     last = applied[-1][1] if applied else None
     print(f"{options.pages} pages, {options.seconds:g} s, the camera's 16 ms stream")
     print(f"{'ms':24} {'p50':>7} {'p99':>7} {'max':>7}")
     print(f"{'robot -> DOM':24} {percentiles(dom)}")
     print(f"{'input -> robot':24} {percentiles(to_robot)}   ({len(inputs)} inputs)")
-    print(f"{'anchor: echo -> page':24} {percentiles(anchor_dom)}")
-    print(f"{'anchor: page -> echo':24} {percentiles(anchor_in)}")
+    print(f"{'anchor: server -> page':24} {percentiles(anchor[0])}")
+    print(f"{'anchor: page -> server':24} {percentiles(anchor[1])}")
     print(f"{'between DOM updates':24} {percentiles(gaps)}")
-    span = max((page[-1][0] - page[0][0]) / 1000 for page in received if page)
+    # Each page's own span: the pages open one after another, the first a while before the last.
+    spans = sum((page[-1][0] - page[0][0]) / 1000 for page in received if len(page) > 1)
     print(
-        f"updates: {updates} values messages to {len(received)} pages in {span:.1f} s "
-        f"({updates / len(received) / span:.1f} a second a page; the stream's 62.5)"
+        f"updates: {updates} values messages to {len(received)} pages in {spans:.1f} page-s "
+        f"({updates / max(spans, 1e-9):.1f} a second a page; the stream's 62.5)"
     )
     print(
         f"latest pan shown by every page: {set(shown) == {str(last)}} "
         f"(robot's last set point {last}, pages show {sorted(set(shown))})"
     )
+    print(f"pages' clocks (Date.now) off Python's by at most {max(map(abs, offsets)):.1f} ms")
     print(f"bridge CPU: {cpu * 1000:.0f} ms, {cpu * 1e6 / max(updates, 1):.0f} us per update")
     print(f"goal p99 <= {GOAL_MS:g} ms: robot -> DOM {_met(dom)}, input -> robot {_met(to_robot)}")
 
