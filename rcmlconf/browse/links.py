@@ -29,8 +29,8 @@ class AccessUse:
     #: A widget writes one of its nodes.
     writes: bool
     auto_start: bool
-    #: Seconds between the page's updates of its values: an RXID `readInterval` asks for a slower
-    #: pace than the RCML's (D-RXID-8); values meanwhile are merged, the newest kept.
+    #: Seconds between the page's updates of its values: an RXID `readInterval` slower than the
+    #: RCML's (D-RXID-8), values meanwhile merged, the newest kept; 0: each DATA as it comes.
     pace: float = 0.0
 
     @property
@@ -102,7 +102,11 @@ def _add_widget(
 
 
 def _from_setting(access: AccessNode, setting: AccessSetting) -> AccessUse:
-    pace = setting.read_interval or access.read_interval or 0.0
+    # D-RXID-8: only an RXID `readInterval` slower than the RCML's paces the page. The server
+    # already sends at the RCML's; pacing at it too held every DATA that came a little early
+    # until the next tick (10 ms at the median) and merged a third of them away (issue 20).
+    asked = setting.read_interval or 0.0
+    pace = asked if asked > (access.read_interval or 0.0) else 0.0
     return AccessUse(access, reads=False, writes=False, auto_start=setting.auto_start, pace=pace)
 
 

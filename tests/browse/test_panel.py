@@ -84,6 +84,9 @@ def test_links_set_up_what_the_panel_uses() -> None:
     (camera,) = robot_links(panel_of("camera")).values()
     control, lens = camera.accesses["/stream/control"], camera.accesses["/status/lens"]
     assert (control.starts, control.mode(True), control.mode(False)) == (True, "both", "read")
+    # The RXID asks no readInterval: each DATA goes to the page as it comes, not paced at the
+    # RCML's 16 ms (which held and merged values, issue 20's Speed).
+    assert control.pace == 0.0
     assert (lens.starts, lens.streams, lens.writes) == (True, False, False)
     assert camera.polled == ()
 
@@ -120,3 +123,21 @@ def test_one_panel_for_two_robots_in_two_windows(tmp_path: Path) -> None:
     assert set(links) == {"camera.rcml", "rover.rcml"}
     assert "/status/lens" in links["camera.rcml"].accesses
     assert "/drive/settings" in links["rover.rcml"].accesses
+
+
+def test_only_a_slower_rxid_read_interval_paces_the_page(tmp_path: Path) -> None:
+    """D-RXID-8: an RXID readInterval no slower than the RCML's (16 ms) asks for nothing; the
+    server already sends at that pace, and pacing the page at it too only delays values."""
+    (tmp_path / "camera.rcml").write_bytes((ROBOTS / "camera" / "camera.rcml").read_bytes())
+    paces = []
+    for interval in ("16e-3", "0.05"):
+        path = tmp_path / "paced.rxid"
+        path.write_text(
+            '<rxid version="2.0" title="Paced"><window><session href="camera.rcml"/>'
+            f'<access dataPath="/stream/control" autoStart="true" readInterval="{interval}"/>'
+            '<slider dataPath="/stream/control/zoom"/></window></rxid>'
+        )
+        sources = load_sources(str(path), 5.0)
+        panel = build_panel(sources.rxid, {h: r.model for h, r in sources.robots.items()})
+        paces.append(robot_links(panel)["camera.rcml"].accesses["/stream/control"].pace)
+    assert paces == [0.0, 0.05]
