@@ -55,6 +55,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from bisect import bisect_left
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass, field
@@ -65,7 +66,7 @@ from typing import Any, NamedTuple
 
 from children import cpu_seconds
 from hostile_attacks import ATTACKS, SOURCES, Target, attack_process
-from hostile_turns import summarise
+from hostile_turns import Traced, summarise, traced_reads
 from scale import load_average, percentile, split_cpus
 
 from rcmlconf.reference.client.adapter import Client, RctpError
@@ -245,8 +246,9 @@ class Record:
     arrivals: list[list[float]] = field(default_factory=lambda: [[] for _ in range(READERS)])
     sent: list[list[float]] = field(default_factory=lambda: [[] for _ in range(READERS)])
     waited: list[list[float]] = field(default_factory=lambda: [[] for _ in range(READERS)])
-    #: (when the READ was sent, its round trip, the CPU waits meanwhile; inf: failed)
-    reads: list[tuple[float, float, float]] = field(default_factory=list)
+    #: (when the READ was sent, its round trip, the CPU waits meanwhile of the server's loop
+    #: and of this process; inf: failed)
+    reads: list[tuple[float, float, float, float]] = field(default_factory=list)
     #: (when, what): STOP, BYE or a close from the server, a stream lost, a READ failed.
     incidents: list[tuple[float, str]] = field(default_factory=list)
     samples: list[Sample] = field(default_factory=list)
@@ -261,7 +263,12 @@ class Waits:
         self.pids = (server_pid, os.getpid())
 
     def __call__(self) -> float:
-        return sum(run_delay(pid) for pid in self.pids)
+        return sum(self.each())
+
+    def each(self) -> tuple[float, float]:
+        """The server's loop's, this process's."""
+        server, this = self.pids
+        return run_delay(server), run_delay(this)
 
 
 class Legitimate:
@@ -323,12 +330,13 @@ class Legitimate:
         loop = asyncio.get_running_loop()
         due = loop.time()
         while self.running and client.closed is None:
-            start, waited = loop.time(), self.waits()
+            start, (server, this) = loop.time(), self.waits.each()
             try:
                 await client.read(PROBED)
-                self.record.reads.append((start, loop.time() - start, self.waits() - waited))
+                took, (server_now, this_now) = loop.time() - start, self.waits.each()
+                self.record.reads.append((start, took, server_now - server, this_now - this))
             except RctpError as error:
-                self.record.reads.append((start, float("inf"), 0.0))
+                self.record.reads.append((start, float("inf"), 0.0, 0.0))
                 self.record.incidents.append((loop.time(), f"prober: {error}"))
             while (event := await client.next_event(timeout=0)) is not None:
                 self._incident("prober", event)
@@ -481,8 +489,8 @@ def _less_waits(record: Record, start: float, end: float) -> list[int]:
 
 def _reads(record: Record, start: float, end: float, less_waits: bool = False) -> list[int]:
     return sorted(
-        round(max(0.0, rtt - waited * less_waits) * 1e9) if rtt != float("inf") else 2**62
-        for sent, rtt, waited in record.reads
+        round(max(0.0, rtt - (server + this) * less_waits) * 1e9) if rtt != float("inf") else 2**62
+        for sent, rtt, server, this in record.reads
         if start <= sent < end
     )
 
@@ -598,7 +606,7 @@ class Plan:
     warm_up: float
 
 
-async def run(plan: Plan, server: Server, bench_cpu: int | None) -> list[Row]:
+async def run(plan: Plan, server: Server, bench_cpu: int | None) -> tuple[list[Row], Record]:
     loop = asyncio.get_running_loop()
     record = Record()
     running = [True]
@@ -638,7 +646,7 @@ async def run(plan: Plan, server: Server, bench_cpu: int | None) -> list[Row]:
         await legitimate.stop()
         running[0] = False
         await sampler
-    return rows
+    return rows, record
 
 
 # -- the report --------------------------------------------------------------------------------
@@ -764,6 +772,67 @@ def turns_report(rows: list[Row], profile: Path) -> None:
             print(f"  {'':<14}  {long}")
 
 
+#: A READ's round trip in parts (`reads_report`), and what each is.
+PARTS = (
+    ("to server", "sent until the server's turn that read it woke (the server busy or not run)"),
+    ("in turn", "that turn's callbacks before its connection's"),
+    ("queued", "waiting in Turns for its peer's turn"),
+    ("  of it CPU", "the server's loop working meanwhile (the rest: waiting for a CPU)"),
+    ("answered", "its slice: the request done, the answer written"),
+    ("back", "the answer written until the prober had it (this process)"),
+    ("srv waits", "the server's loop waiting for a CPU within the round trip"),
+    ("own waits", "this process waiting for a CPU within the round trip"),
+)
+
+
+def read_parts(record: Record, traced: list[Traced], start: float, end: float) -> list[tuple]:
+    """Each READ sent within [start, end) that the server traced: its round trip and parts (ms,
+    as PARTS), the slowest first."""
+    got = [t.got for t in traced]
+    found = []
+    for sent, rtt, server, this in record.reads:
+        if not start <= sent < end or rtt == float("inf"):
+            continue
+        index = bisect_left(got, sent)
+        if index == len(traced) or traced[index].got > sent + rtt:
+            continue
+        t = traced[index]
+        parts = (
+            t.woke - sent,
+            t.got - t.woke,
+            t.began - t.got,
+            t.cpu_queued,
+            t.ended - t.began,
+            sent + rtt - t.ended,
+            server,
+            this,
+        )
+        found.append((rtt * 1e3, *(part * 1e3 for part in parts)))
+    return sorted(found, reverse=True)
+
+
+def reads_report(rows: list[Row], record: Record, traced: list[Traced]) -> None:
+    """Where a READ's round trip went (--turns): the parts of the median one's and of the
+    slowest 1 %'s (means), the slowest few one by one."""
+    print("\nthe READs' round trips in parts (--turns; ms):")
+    for label, what in PARTS:
+        print(f"  {label:<12}{what}")
+    print(f"  {'':<26}{'rtt':>7}" + "".join(f"{label.strip()[:9]:>10}" for label, _ in PARTS))
+    for row in rows:
+        found = read_parts(record, traced, *row.window)
+        if not found:
+            continue
+        slowest = found[: max(1, len(found) // 100)]
+        means = [sum(column) / len(slowest) for column in zip(*slowest, strict=True)]
+        lines = [
+            (f"{row.name} median of {len(found)}", found[len(found) // 2]),
+            ("  slowest 1 %, mean", means),
+            *((f"  {rank + 1}.", parts) for rank, parts in enumerate(found[:5])),
+        ]
+        for label, parts in lines:
+            print(f"  {label:<26}" + "".join(f"{part:>10.2f}" for part in parts)[3:])
+
+
 def _ratio(value: float, anchor: float) -> str:
     return f"{value / anchor:.2f}" if anchor > 0 and value != float("inf") else "?"
 
@@ -819,12 +888,13 @@ def main() -> None:
                 f"{load_average()} at the start\n"
             )
             print(HEAD)
-            rows = asyncio.run(run(plan, server, bench_cpu))
+            rows, record = asyncio.run(run(plan, server, bench_cpu))
         finally:
             server.stop()
         report(rows, server.cap)
         if server.turns is not None:
             turns_report(rows, server.turns)
+            reads_report(rows, record, traced_reads(server.turns))
         log_summary(server.log())
     if args.json is not None:
         args.json.write_text(json.dumps([asdict(row) for row in rows], indent=1) + "\n")

@@ -30,12 +30,14 @@ from collections import defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 #: A turn this long (seconds of wall time) keeps its callbacks' times by kind.
 LONG = 0.005
 #: A select() this late (seconds) past its timeout is kept.
 LATE = 0.002
+#: The legitimate clients' address, whose READs `trace_reads` follows.
+TRACED = "127.0.0.1"
 #: Fields a turn: its start (monotonic s), wall, CPU and collector time (s), callbacks run.
 TURN = 5
 
@@ -54,6 +56,11 @@ class _Profile:
         #: Seconds of callbacks by kind, a second of monotonic time at a time.
         self.spent: dict[int, defaultdict[str, float]] = {}
         self.names: dict[tuple[Any, Any, Any], str] = {}
+        #: When the turn's select() returned (monotonic), and the traced READs (`trace_reads`):
+        #: those received and not yet done by connection, and those done.
+        self.woke = 0.0
+        self.pending: dict[int, tuple[float, float, float]] = {}
+        self.reads: list[tuple[float, ...]] = []
 
     def on_gc(self, phase: str, info: dict[str, int]) -> None:
         now = (time.perf_counter(), time.thread_time())
@@ -115,6 +122,7 @@ def install(out: Path) -> Callable[[], None]:
         found = select(self, timeout)  # type: ignore[arg-type]
         took = perf() - started
         profile.selected += took
+        profile.woke = time.monotonic()
         if not found and timeout and took - timeout > LATE:
             profile.late.append((time.monotonic(), took - timeout))
         return found
@@ -142,6 +150,7 @@ def install(out: Path) -> Callable[[], None]:
         run_handle(self)
         profile.callbacks.append((self._callback, perf() - started))  # type: ignore[attr-defined]
 
+    trace_reads(profile)
     selectors.DefaultSelector.select = timed_select  # type: ignore[method-assign]
     asyncio.base_events.BaseEventLoop._run_once = timed_run_once  # type: ignore[attr-defined]
     asyncio.events.Handle._run = timed_handle  # type: ignore[method-assign]
@@ -154,10 +163,36 @@ def install(out: Path) -> Callable[[], None]:
             "pauses": profile.pauses,
             "late": profile.late,
             "spent": profile.spent,
+            "reads": profile.reads,
         }
         out.with_suffix(".json").write_text(json.dumps(side))
 
     return write
+
+
+def trace_reads(profile: _Profile) -> None:
+    """Stamp each READ of a legitimate client (TRACED) on its way through the server: when the
+    turn that read it woke, when its connection got it, when its slice began (after a wait in
+    `Turns`) and ended (its answer written), and the loop thread's CPU time while it waited."""
+    from rcmlconf.reference.server.adapter import _Control
+
+    received, take = _Control.data_received, _Control._take_slice
+
+    def data_received(self: _Control, data: bytes) -> None:
+        if self.peer == TRACED and data.startswith(b"READ "):
+            profile.pending[id(self)] = (profile.woke, time.monotonic(), time.thread_time())
+        received(self, data)
+
+    def take_slice(self: _Control) -> None:
+        started, used = time.monotonic(), time.thread_time()
+        take(self)
+        pending = profile.pending.pop(id(self), None)
+        if pending is not None:
+            woke, got, cpu = pending
+            profile.reads.append((woke, got, started, time.monotonic(), used - cpu))
+
+    _Control.data_received = data_received  # type: ignore[method-assign]
+    _Control._take_slice = take_slice  # type: ignore[method-assign]
 
 
 # -- reading it back ---------------------------------------------------------------------------
@@ -256,6 +291,25 @@ def summarise(out: Path, start: float, end: float, longest: int = 5) -> Turns | 
         late=(len(late), round(max(late, default=0.0) * 1e3, 2)),
         longest=shown,
     )
+
+
+class Traced(NamedTuple):
+    """A READ through the server (monotonic seconds): the turn that read it woke, its connection
+    got it, its slice began and ended; and the loop's CPU seconds between got and began."""
+
+    woke: float
+    got: float
+    began: float
+    ended: float
+    cpu_queued: float
+
+
+def traced_reads(out: Path) -> list[Traced]:
+    """The READs `trace_reads` stamped, in order; none without a profile."""
+    side = out.with_suffix(".json")
+    if not side.exists():
+        return []
+    return sorted(Traced(*read) for read in json.loads(side.read_text())["reads"])
 
 
 def collect(thresholds: str) -> None:
