@@ -104,6 +104,8 @@ class RobotSession:
         self._waiting: dict[str, dict[str, str]] = {}
         self._waiting_sent: dict[str, float] = {}
         self._later: dict[str, asyncio.TimerHandle] = {}
+        #: Access path -> its data nodes by name (`_nodes_of`).
+        self._nodes: dict[str, dict[str, DataNode]] = {}
         #: Set when the user's BYE ends the session: it stays closed until a `connect` action.
         self._parked = False
         self._wake = asyncio.Event()
@@ -267,10 +269,9 @@ class RobotSession:
     ) -> None:
         """The access's values to the page; when `paced`, at most once per the access's pace
         (D-RXID-8), values meanwhile merged and the newest kept."""
-        access = self.links.model.node(access_path)
-        if not isinstance(access, AccessNode):
+        by_name = self._nodes_of(access_path)
+        if not by_name:
             return
-        by_name = {n.name: n for n in access.data}
         texts = {by_name[k].path: shown(by_name[k], v) for k, v in values.items() if k in by_name}
         use = self.links.accesses.get(access_path)
         if not paced or use is None or use.pace <= 0:
@@ -287,6 +288,16 @@ class RobotSession:
             self._flush_later(access_path)
         else:
             self._later[access_path] = loop.call_at(due, self._flush_later, access_path)
+
+    def _nodes_of(self, access_path: str) -> dict[str, DataNode]:
+        """An access's data nodes by name (none for a path that is no access): made once, not
+        at each of a stream's DATA."""
+        nodes = self._nodes.get(access_path)
+        if nodes is None:
+            access = self.links.model.node(access_path)
+            data = access.data if isinstance(access, AccessNode) else ()
+            nodes = self._nodes[access_path] = {n.name: n for n in data}
+        return nodes
 
     def _flush_later(self, access_path: str) -> None:
         self._later.pop(access_path, None)
@@ -352,9 +363,9 @@ class RobotSession:
         """A stream set up to write sends every interval from the start, or the server STOPs it
         at its write timeout (D-RCTP-23); a node the user has not moved is written as the robot
         has it, so the robot's values come first: after the first DATA when the stream reads."""
-        access = self.links.model.node(path)
         if path in self.writing or self.modes.get(path) not in ("write", "both"):
-            return
+            return  # at every DATA of a stream that writes already: nothing more to look up
+        access = self.links.model.node(path)
         assert isinstance(access, AccessNode)  # modes holds stream accesses only
         if access.readable() and path not in client.session.received:
             return  # `_show` comes back with the first values

@@ -84,6 +84,9 @@ class PanelServer:
             port,
             process_request=self._request,
             max_size=MAX_MESSAGE,
+            # permessage-deflate would squeeze messages of a hundred bytes at 62.5 Hz a page,
+            # costing both ends CPU and time for nothing on a loopback link (issue 20, Speed).
+            compression=None,
             logger=_wire_log,
             server_header=None,
         )

@@ -5,6 +5,7 @@ in words. One browser, one server and one `browse` per robot."""
 
 from __future__ import annotations
 
+import itertools
 import re
 import subprocess
 import time
@@ -207,4 +208,49 @@ def test_the_rover_s_event_nodes_both_ways_and_disconnect(
     page.locator(".actionButton", has_text="Disconnect").locator("button").click()
     page.wait_for_selector(".state.closed[data-robot]")
     assert "BYE" in page.inner_text("[data-robot]") or "closed" in page.inner_text("[data-robot]")
+    page.close()
+
+
+#: Before the page's script: every `values` message's focus text, in the order the page parses
+#: them (each is shown in the same task, right after).
+FOCUS_TEXTS = """
+window.__focus = [];
+const parse = JSON.parse;
+JSON.parse = (data, reviver) => {
+  const message = parse(data, reviver);
+  if (message && message.type === "values" && "/stream/control/focus" in message.values) {
+    window.__focus.push(message.values["/stream/control/focus"]);
+  }
+  return message;
+};
+"""
+
+
+def test_a_value_the_page_shows_already_is_not_set_again(
+    browser: Any, camera: tuple[Running, Running]
+) -> None:
+    """The stream's every DATA names every node, at 62.5 Hz a page: the page changes only the
+    widgets whose text changed (issue 20, Speed), so the focus slider's title, set from the
+    robot's value, is touched once per change of the focus, not once per message."""
+    _, panel = camera
+    page = browser.new_page()
+    page.set_default_timeout(BOUND * 1000)
+    page.add_init_script(FOCUS_TEXTS)
+    page.goto(str(panel.ready["url"]))
+    page.wait_for_function("() => window.__focus.length > 0")
+    start = page.evaluate("""() => {
+      window.__touched = 0;
+      const range = document.querySelector('[data-rxid-id=focus] input');
+      const count = (records) => { window.__touched += records.length; };
+      window.__observer = new MutationObserver(count);
+      window.__observer.observe(range, {attributes: true, attributeFilter: ["title"]});
+      return window.__focus.length;
+    }""")
+    page.wait_for_function(f"() => window.__focus.length >= {start + 30}")
+    touched, texts = page.evaluate("""() => {
+      const touched = window.__touched + window.__observer.takeRecords().length;
+      return [touched, window.__focus.slice()];
+    }""")
+    changes = sum(1 for a, b in itertools.pairwise(texts[start - 1 :]) if a != b)
+    assert touched == changes, (touched, changes)
     page.close()

@@ -26,6 +26,12 @@ function send(message) {
   }
 }
 
+// A stream's values come at up to 62.5 Hz a page, most of them unchanged: a property set to what
+// it already holds is left alone, so that Chromium has no style, layout or paint to redo for it.
+function update(node, property, text) {
+  if (node[property] !== text) node[property] = text;
+}
+
 function input(widget, value) {
   send({ type: "input", widget: widget.key, value: String(value) });
 }
@@ -50,7 +56,7 @@ const makers = {
   },
   text(w) {
     const out = el("output");
-    return [out, (text) => { out.textContent = text; }];
+    return [out, (text) => update(out, "textContent", text)];
   },
   button(w) {
     const button = el("button", null, w.caption || "");
@@ -94,7 +100,7 @@ const makers = {
     edit.readOnly = !w.writes;
     edit.addEventListener("change", () => input(w, edit.value));
     // The robot's value does not overwrite what the user is typing.
-    return [edit, (text) => { if (document.activeElement !== edit) edit.value = text; }];
+    return [edit, (text) => { if (document.activeElement !== edit) update(edit, "value", text); }];
   },
   popUpMenu(w) {
     const select = el("select");
@@ -141,7 +147,9 @@ function ranged(w) {
   range.addEventListener("pointerup", () => { dragging = false; });
   range.addEventListener("input", () => input(w, range.value));
   // D-RCTP-27: the slider must not jump back while it is dragged.
-  return [range, (text) => { if (!dragging) { range.value = text; range.title = text; } }];
+  return [range, (text) => {
+    if (!dragging) { update(range, "value", text); update(range, "title", text); }
+  }];
 }
 
 function drawWidget(w, area) {
