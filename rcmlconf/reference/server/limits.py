@@ -64,10 +64,10 @@ class ServerLimits:
     #: grows with these few, about 7.5 MiB each, not with the connections.
     large_bytes: int = 64 * 1024
     large_requests: int = 2
-    #: Seconds of the connections' work a turn of the loop; the rest waits for the next turns,
+    #: CPU seconds of the connections' work a turn of the loop; the rest waits for the next turns,
     #: shared fairly among the peer addresses (`turns`).
     turn_budget: float = 0.004
-    #: Seconds of a turn one peer address's connections take, together, before the rest of
+    #: CPU seconds of a turn one peer address's connections take, together, before the rest of
     #: their work waits for the next turns: a peer with many connections ready cannot take the
     #: turn's whole budget from another with one.
     peer_share: float = 0.001
