@@ -148,12 +148,18 @@ class Server(Command):
     """`rcmlconf serve` in a process of its own, its standard error in a file."""
 
     def __init__(
-        self, folder: Path, nofile: int, cpu: int | None, turns: bool, collect: str | None
+        self,
+        folder: Path,
+        nofile: int,
+        cpu: int | None,
+        turns: bool,
+        collect: str | None,
+        budget: float | None,
     ) -> None:
         self.cpu = cpu
         #: The profile of the loop's turns (`hostile_turns`), when asked, with other collector
-        #: settings when asked.
-        self.turns = folder / "turns.bin" if turns or collect else None
+        #: settings or another turn budget when asked.
+        self.turns = folder / "turns.bin" if turns or collect or budget else None
 
         def limit() -> None:  # in the child, before exec
             if nofile:
@@ -164,6 +170,7 @@ class Server(Command):
 
         run = ["-m", "rcmlconf"] if self.turns is None else [str(TURNS), str(self.turns)]
         run += ["--gc", collect] if collect else []
+        run += ["--budget", str(budget)] if budget else []
         command = [sys.executable, *run, "serve", str(RCML), "--port", "0", "--http-port", "0"]
         super().__init__(folder, "serve", command, limit)
         found = self.found
@@ -856,9 +863,14 @@ def main() -> None:
     parser.add_argument(
         "--gc", metavar="YOUNG,MIDDLE,OLD", help="the server's collector thresholds (and --turns)"
     )
+    parser.add_argument(
+        "--budget", type=float, metavar="SECONDS", help="the server's turn budget (and --turns)"
+    )
     args = parser.parse_args()
     if args.seconds is not None and not 1.0 <= args.seconds <= 3600.0:
         parser.error("--seconds: from 1 to 3600")
+    if args.budget is not None and not 1e-4 <= args.budget <= 0.1:
+        parser.error("--budget: from 0.0001 to 0.1 s")
     if not 2.0 <= args.recovery <= 600.0:
         parser.error("--recovery: from 2 to 600")
     if args.nofile and args.nofile <= RESERVED_FDS:
@@ -875,7 +887,7 @@ def main() -> None:
     where = f"CPU {server_cpu}" if server_cpu is not None else "any CPU"
     sources = sorted({s for group in SOURCES.values() for s in group}, key=_address)
     with tempfile.TemporaryDirectory(prefix="hostile-") as folder:
-        server = Server(Path(folder), args.nofile, server_cpu, args.turns, args.gc)
+        server = Server(Path(folder), args.nofile, server_cpu, args.turns, args.gc, args.budget)
         try:
             print(
                 f"rcmlconf serve {RCML.name} (pid {server.pid}, {where}, "

@@ -2,6 +2,7 @@
 
     python bench/hostile_turns.py OUT serve ROBOT.rcml ...   # `rcmlconf serve ...`, profiled
     python bench/hostile_turns.py OUT --gc 700,10,100 serve ...  # and other collector settings
+    python bench/hostile_turns.py OUT --budget 0.002 serve ...  # and another turn budget
 
 runs `rcmlconf` in this process with its asyncio loop instrumented, and writes at exit, to OUT
 (binary, `TURN` records) and OUT.json (the long turns and the collector's pauses), what each turn
@@ -326,12 +327,35 @@ def collect(thresholds: str) -> None:
     collector.settle = settle
 
 
+def budget(seconds: float) -> None:
+    """Make the server's turns (`Turns`) this budget instead of ServerLimits.turn_budget, to
+    measure others."""
+    from rcmlconf.reference.server.turns import Turns
+
+    made = Turns.__init__
+
+    def init(self: Turns, loop: asyncio.AbstractEventLoop, _budget: float, share: float) -> None:
+        made(self, loop, seconds, share)
+
+    Turns.__init__ = init  # type: ignore[method-assign]
+
+
+#: The settings `main` takes before rcmlconf's arguments, and what makes each.
+SETTINGS: dict[str, Callable[[str], None]] = {
+    "--gc": lambda value: collect(value),
+    "--budget": lambda value: budget(float(value)),
+}
+
+
 def main(argv: list[str]) -> None:
     if len(argv) < 2:
-        sys.exit("usage: hostile_turns.py OUT [--gc YOUNG,MIDDLE,OLD] rcmlconf-arguments...")
+        sys.exit(
+            "usage: hostile_turns.py OUT [--gc YOUNG,MIDDLE,OLD] [--budget SECONDS] "
+            "rcmlconf-arguments..."
+        )
     write = install(Path(argv.pop(0)))
-    if argv[0] == "--gc":
-        collect(argv[1])
+    while argv[0] in SETTINGS:
+        SETTINGS[argv[0]](argv[1])
         del argv[:2]
     from rcmlconf.cli import cli  # its main() ends with os._exit: no atexit
 
