@@ -228,9 +228,47 @@ def clock_offset(page: Any) -> float:
     return best[1]
 
 
+def _stat(pid: int) -> list[str]:
+    """/proc/PID/stat's fields after the command's name (the state is [0], the parent [1])."""
+    return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+
+
 def cpu_seconds(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    fields = _stat(pid)
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def cpu_by_whom(browse: int) -> dict[str, float]:
+    """CPU seconds so far: `browse`, the rest of this process's tree (Chromium, Playwright's
+    driver), this process (the camera's server and Playwright's client), and the machine's
+    every core (others' work too) and what the host took of them (steal), from /proc/stat."""
+    parents = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                parents[int(entry.name)] = int(_stat(int(entry.name))[1])
+            except (OSError, IndexError):
+                continue  # gone meanwhile
+    mine, tree = os.getpid(), 0.0
+    for pid in parents:
+        ancestor = parents.get(pid)
+        while ancestor is not None and ancestor not in (mine, browse, 0, 1):
+            ancestor = parents.get(ancestor)
+        if ancestor == mine and pid != browse:
+            try:
+                tree += cpu_seconds(pid)
+            except OSError:
+                continue
+    # user nice system idle iowait irq softirq steal (guest time is in user already)
+    ticks = [int(t) for t in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:9]]
+    hertz = os.sysconf("SC_CLK_TCK")
+    return {
+        "browse": cpu_seconds(browse),
+        "browser": tree,
+        "bench": cpu_seconds(mine),
+        "machine": (sum(ticks[:3]) + sum(ticks[5:7])) / hertz,
+        "steal": ticks[7] / hertz,
+    }
 
 
 def p99(ordered: list[float]) -> float:
@@ -320,12 +358,13 @@ def main() -> None:
                     page.wait_for_selector(".state.connected[data-robot]")
                     pages.append(page)
                 offsets = [clock_offset(page) for page in pages]
-                cpu_before = cpu_seconds(browse.pid)
+                cpu_before, wall_before = cpu_by_whom(browse.pid), time.monotonic()
                 inputs = pages[0].evaluate(
                     MOVER, ["[data-rxid-id=pan] input", INPUT_EVERY_MS, inputs_count]
                 )
                 time.sleep(4.0)  # the camera reaches its last set point (at most 300 deg / 60)
-                cpu = cpu_seconds(browse.pid) - cpu_before
+                cpu_after, wall = cpu_by_whom(browse.pid), time.monotonic() - wall_before
+                cpu = {k: (cpu_after[k] - cpu_before[k]) / wall for k in cpu_after}
                 received = [page.evaluate("window.__received") for page in pages]
                 shown = [page.input_value("[data-rxid-id=pan] input") for page in pages]
                 offsets += [clock_offset(page) for page in pages]
@@ -345,8 +384,9 @@ def report(
     applied: list[tuple[float, int]],
     anchor: tuple[list[float], list[float]],
     offsets: list[float],
-    cpu: float,
+    cpu: dict[str, float],
 ) -> None:
+    """`cpu`: the share of a core each of `cpu_by_whom` took while the pages moved the pan."""
     dom = [t - sent * 1000 for page in received for t, sent, _ in page if sent]
     gaps = [b[0] - a[0] for page in received for a, b in itertools.pairwise(page)]
     to_robot = input_latencies(inputs, applied)
@@ -370,7 +410,17 @@ def report(
         f"(robot's last set point {last}, pages show {sorted(set(shown))})"
     )
     print(f"pages' clocks (Date.now) off Python's by at most {max(map(abs, offsets)):.1f} ms")
-    print(f"bridge CPU: {cpu * 1000:.0f} ms, {cpu * 1e6 / max(updates, 1):.0f} us per update")
+    rate = updates / max(spans, 1e-9) * len(received)  # updates a second, every page
+    print(
+        f"bridge CPU: {cpu['browse'] * 1e6 / max(rate, 1e-9):.0f} us per update, "
+        f"{cpu['browse']:.0%} of a core; Chromium and its driver {cpu['browser']:.0%}, "
+        f"the camera and Playwright {cpu['bench']:.0%}"
+    )
+    cores = os.cpu_count() or 1
+    print(
+        f"the machine's {cores} cores: {cpu['machine'] / cores:.0%} busy (others' work too), "
+        f"{cpu['steal'] / cores:.0%} taken by the host (steal)"
+    )
     print(f"goal p99 <= {GOAL_MS:g} ms: robot -> DOM {_met(dom)}, input -> robot {_met(to_robot)}")
 
 
