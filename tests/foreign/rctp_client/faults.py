@@ -164,4 +164,37 @@ FAULTS: dict[str, tuple[str, str]] = {
         "R-XML-13",
         "elements in another namespace are read by their local name, as RCML elements",
     ),
+    # ---- added later (helper-FF)
+    "media-type-exact": (
+        "R-RCTP-59",
+        "Content-Type is compared exactly: Application/RCTP-Values is refused (415, not read)",
+    ),
+    "write-while-paused-taken": (
+        "R-RCTP-68",
+        "a data-change WRITE of a paused event access (ready) is answered 200 and taken",
+    ),
+    "nodes-repeat-accepted": (
+        "R-RCTP-30",
+        "a Nodes field naming a node twice in a row is accepted (> where >= belongs)",
+    ),
+    "set-interval-read-acked": (
+        "R-RCTP-46",
+        "a set-interval of the read direction (the server's value) is ACKed, not NACK 4",
+    ),
+    "timeout-min-one-interval": (
+        "R-RCTP-47",
+        "a set-timeout is refused only below one read interval, not below twice it",
+    ),
+    "broken-flow-ends-packet": (
+        "R-RCTP-53",
+        "a FLOW body shorter than its preamble makes the packet's later payloads unread",
+    ),
+    "data-partial-apply": (
+        "R-RCTP-58",
+        "a DATA payload with a bad value has the values before it applied",
+    ),
+    "event-write-no-content-type": (
+        "R-RCTP-6",
+        "the event access WRITE carries Content-Length but no Content-Type",
+    ),
 }

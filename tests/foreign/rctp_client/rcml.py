@@ -187,17 +187,23 @@ class Codec:
     def decode(self, nodes: list[Node], buf: bytes, ranged: bool = True) -> list[Any]:
         """The values of `nodes`, one after another, filling `buf` exactly; with `ranged`,
         a value outside its node's min/max is refused too (D-RCML-12)."""
-        off = 0
         out: list[Any] = []
+        off = self.decode_prefix(nodes, buf, out, ranged)
+        if off != len(buf):
+            raise BadValue(f"{len(buf) - off} bytes after the values")
+        return out
+
+    def decode_prefix(self, nodes: list[Node], buf: bytes, out: list[Any], ranged: bool) -> int:
+        """Decode `nodes` in turn, appending each value to `out`; the offset reached. A bad
+        value raises BadValue with the values before it already in `out`."""
+        off = 0
         for node in nodes:
             items = []
             for _ in range(node.count):
                 item, off = self._decode_one(node, buf, off, ranged)
                 items.append(item)
             out.append(items[0] if node.count == 1 else items)
-        if off != len(buf):
-            raise BadValue(f"{len(buf) - off} bytes after the values")
-        return out
+        return off
 
     def _encode_one(self, node: Node, v: Any) -> bytes:
         t, faults = node.dtype, self.faults

@@ -8,7 +8,7 @@ from typing import Any
 
 from rcml import BadValue, Model, Node, text, zero
 from session import Access, Closed, Session
-from wire import VALUES, Message, encode_segment
+from wire import Message, encode_segment
 
 EVENT_TIME = 1.0  # step 5
 PLAY_TIME, PAUSE_TIME, REPLAY_TIME = 1.5, 0.25, 0.5  # step 6
@@ -93,7 +93,7 @@ class Scenario:
         try:
             if nodes is None:
                 raise BadValue("no usable Nodes field")
-            if (msg.get("Content-Type") or "").lower() != VALUES:
+            if not self.s.is_values(msg.get("Content-Type")):
                 raise BadValue(f"Content-Type {msg.get('Content-Type')!r}")
             values = self.s.codec.decode(nodes, msg.body)
         except BadValue as e:

@@ -28,6 +28,7 @@ BYE_WAIT = 5.0  # R-RCTP-23
 HEARTBEAT_EVERY = 1.0  # D-RCTP-31 step 6
 FLOW_RETRY = 0.25  # D-RCTP-22
 FLOW_SENDS = 5
+_ASCII_LOWER = str.maketrans("ABCDEFGHIJKLMNOPQRSTUVWXYZ", "abcdefghijklmnopqrstuvwxyz")
 _SESSION = re.compile(r"([A-Za-z0-9$\-_.+]{8,64})(?:;[ \t]*(?i:timeout)=([0-9]{1,5}))?")
 
 
@@ -287,7 +288,12 @@ class Session:
             head.append(("User-Agent", USER_AGENT))
         head += fields or []
         if body:
-            head += [("Content-Type", wire.VALUES), ("Content-Length", str(len(body)))]
+            untyped = "event-write-no-content-type" in self.faults and any(
+                k == "Nodes" for k, _ in head
+            )  # the fault: the event WRITE's body goes untyped
+            if not untyped:
+                head.append(("Content-Type", wire.VALUES))
+            head.append(("Content-Length", str(len(body))))
         fut: asyncio.Future[Message] = asyncio.get_running_loop().create_future()
         self.pending.append((cseq, fut, on_ok or (lambda m: None)))
         eol = "User-Agent" if "bare-lf-user-agent" in self.faults else ""
@@ -381,15 +387,24 @@ class Session:
             self.poke()
             self.log(f"the server stopped {path} (Reason: {msg.get('Reason')})", always=True)
             return 200, []
-        if acc is None or acc.stream or acc.state != "playing":
+        # write-while-paused-taken: only an access in init refuses the push
+        taking = ("init",) if "write-while-paused-taken" in self.faults else ("ready", "init")
+        if acc is None or acc.stream or acc.state in taking:
             return 455, []
         return self._server_write(acc, msg), []
+
+    def is_values(self, ctype: str | None) -> bool:
+        """Whether a Content-Type is application/rctp-values, in any ASCII letter case
+        (D-RCTP-30), or exactly with the fault media-type-exact."""
+        if "media-type-exact" in self.faults:
+            return ctype == wire.VALUES
+        return (ctype or "").translate(_ASCII_LOWER) == wire.VALUES
 
     def _server_write(self, acc: Access, msg: Message) -> int:
         """A data-change event (D-RCTP-27): the values all taken, or an error status."""
         if msg.get("Content-Length") is None:
             return 411
-        if (msg.get("Content-Type") or "").lower() != wire.VALUES:
+        if not self.is_values(msg.get("Content-Type")):
             return 415
         nodes = self.nodes_field(acc.node, msg.get("Nodes"))
         if nodes is None:
@@ -422,7 +437,10 @@ class Session:
             node = access.children.get(segs[0])
             if node is None or node.kind != "data":
                 return None
-            if out and out[-1].name.encode() >= node.name.encode():
+            ahead = out and out[-1].name.encode() >= node.name.encode()
+            if "nodes-repeat-accepted" in self.faults:  # off by one: a repeat passes
+                ahead = out and out[-1].name.encode() > node.name.encode()
+            if ahead:
                 return None
             out.append(node)
         return out
@@ -643,6 +661,8 @@ class Session:
         newer = self.order.newer(packet.seq)
         answers = []
         for ptype, sid, body in packet.payloads:
+            if ptype == ds.FLOW and len(body) < 4 and "broken-flow-ends-packet" in self.faults:
+                break  # the fault: a broken FLOW body ends the packet's reading
             if ptype == ds.DATA and (newer or "apply-stale-packets" in self.faults):
                 self._on_data(sid, body)
             elif ptype == ds.FLOW:
@@ -666,6 +686,11 @@ class Session:
             ranged = "data-range-unchecked" not in self.faults
             values = self.codec.decode(acc.reads, body, ranged)
         except BadValue:
+            if "data-partial-apply" in self.faults:  # the values before the bad one are taken
+                prefix: list[Any] = []
+                with contextlib.suppress(BadValue):
+                    self.codec.decode_prefix(acc.reads, body, prefix, ranged)
+                acc.values.update((n.name, v) for n, v in zip(acc.reads, prefix, strict=False))
             return  # never apply part of a payload (R-RCTP-58)
         for node, value in zip(acc.reads, values, strict=True):
             acc.values[node.name] = value
@@ -717,15 +742,19 @@ class Session:
         else:
             (value,) = struct.unpack_from("!I", fields, 1)
             # the sender owns an interval, the receiver a timeout: ours are write, read
-            if (op == ds.SET_INTERVAL) == reading:
+            theirs = (op == ds.SET_INTERVAL) == reading
+            if theirs and not (op == ds.SET_INTERVAL and "set-interval-read-acked" in self.faults):
                 return ds.nack(op, rid, ds.NOT_PERMITTED)
-            if op == ds.SET_INTERVAL:
+            if op == ds.SET_INTERVAL and reading:
+                acc.read_interval = value  # the fault set-interval-read-acked
+            elif op == ds.SET_INTERVAL:
                 if value < ds.micros(acc.node.timing.get("writeInterval", 0.0)):
                     return ds.nack(op, rid, ds.REFUSED)
                 if "write-interval-not-applied" not in self.faults:
                     acc.write_interval = value
             else:
-                if value < 2 * acc.read_interval:
+                times = 1 if "timeout-min-one-interval" in self.faults else 2
+                if value < times * acc.read_interval:
                     return ds.nack(op, rid, ds.REFUSED)
                 acc.read_timeout = value
         if "flow-ack-no-direction" in self.faults:

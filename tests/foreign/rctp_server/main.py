@@ -105,6 +105,38 @@ FAULTS = {
         "R-RCTP-66",
         "a server STOP puts its stream in init when sent, whatever the client answers",
     ),
+    "session-id-any-case": (
+        "R-RCTP-19",
+        "a Session naming this session's ID in other letter case is taken as this session's",
+    ),
+    "acquire-above-keeps-below": (
+        "R-RCTP-35",
+        "ACQUIRE above held paths does not take them in: RELEASE of one of them is granted",
+    ),
+    "set-interval-write-acked": (
+        "R-RCTP-46",
+        "a set-interval of the write direction (the client's value) is ACKed, not NACK 4",
+    ),
+    "timeout-min-one-interval": (
+        "R-RCTP-47",
+        "a set-timeout is refused only below one write interval, not below twice it",
+    ),
+    "unknown-payload-drops-packet": (
+        "R-RCTP-51",
+        "a packet holding a payload of an unknown type is dropped whole",
+    ),
+    "start-line-limit-counts-crlf": (
+        "R-RCTP-16",
+        "the 4,096-byte start-line limit counts the CRLF: 4,095 and 4,096 bytes get 414",
+    ),
+    "client-port-first-setup-only": (
+        "R-RCTP-56",
+        "a repeated SETUP's new client_port is answered but DATA keeps going to the first",
+    ),
+    "head-length-zero": (
+        "R-RCTP-64",
+        "HTTP HEAD answers carry Content-Length: 0, not the GET's length",
+    ),
 }
 
 
@@ -175,7 +207,8 @@ def _bind(
 class Files:
     """D-RCTP-29: the RCML file, the RXID files its UserInterface links name, and an index."""
 
-    def __init__(self, rcml_path: Path, robot: Robot) -> None:
+    def __init__(self, rcml_path: Path, robot: Robot, faults: set[str] | None = None) -> None:
+        self.faults = faults or set()
         self.files: dict[str, tuple[bytes, str]] = {
             "/" + quote(rcml_path.name): (rcml_path.read_bytes(), "application/xml")
         }
@@ -211,8 +244,11 @@ class Files:
             else:
                 status, body, ctype = "404 Not Found", b"not found\n", "text/plain"
             allow = "Allow: GET, HEAD\r\n" if status.startswith("405") else ""
+            length = len(body)
+            if parts[0] == "HEAD" and "head-length-zero" in self.faults:
+                length = 0  # the fault: a HEAD answer counts the body it leaves out
             writer.write(
-                f"HTTP/1.1 {status}\r\nContent-Type: {ctype}\r\nContent-Length: {len(body)}\r\n"
+                f"HTTP/1.1 {status}\r\nContent-Type: {ctype}\r\nContent-Length: {length}\r\n"
                 f"{allow}Connection: close\r\n\r\n".encode("latin-1")
             )
             if parts[0] != "HEAD":
@@ -253,7 +289,7 @@ async def _serve(args: argparse.Namespace, robot: Robot) -> int:
         await conn.run()
 
     rctp = await asyncio.start_server(control, sock=tcp, limit=65536)
-    files = Files(args.rcml, robot)
+    files = Files(args.rcml, robot, set(args.fault))
     http = await asyncio.start_server(files.serve, sock=web, limit=16384)
     ticker = asyncio.create_task(server.ticker())
     stop = asyncio.Event()

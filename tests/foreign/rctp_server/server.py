@@ -106,7 +106,9 @@ class Connection:
         self.server = server
         self.faults = server.faults
         self.sr, self.writer = reader, writer
-        self.reader = wire.Reader()
+        # start-line-limit-counts-crlf: the 4,096 bytes are taken to include the CRLF
+        crlf = "start-line-limit-counts-crlf" in self.faults
+        self.reader = wire.Reader(wire.MAX_START_LINE - 2 if crlf else wire.MAX_START_LINE)
         peer = writer.get_extra_info("peername")
         self.peer = f"{peer[0]}:{peer[1]}" if peer else "?"
         self.peer_ip = peer[0] if peer else ""
@@ -329,9 +331,9 @@ class Connection:
         field_ = m.one("session")
         sid = wire.parse_session(field_) if field_ is not None else None
         if m.method == "CONNECT":
-            if field_ is not None and (sess is None or sid != sess.id):
+            if field_ is not None and not self.same_session(sid):
                 raise Refuse(454, "unknown session")
-        elif sess is None or sid != sess.id:
+        elif not self.same_session(sid):
             raise Refuse(454, "no session" if sess is None else "not this connection's session")
         if sess is not None:
             if sess.state != "open":
@@ -352,6 +354,16 @@ class Connection:
         handler = getattr(self, "do_" + m.method.lower())
         result: tuple[list[tuple[str, str]], bytes] = handler(sess, m, target, node)
         return result
+
+    def same_session(self, sid: str | None) -> bool:
+        """Whether a Session field names this connection's session; IDs are compared
+        exactly (D-RCTP-30), unless the fault session-id-any-case."""
+        sess = self.session
+        if sid is None or sess is None:
+            return False
+        if "session-id-any-case" in self.faults:
+            return wire.ascii_lower(sid) == wire.ascii_lower(sess.id)
+        return sid == sess.id
 
     def check_state(self, sess: Session, method: str, target: str) -> None:
         st = sess.streams.get(target)
@@ -387,6 +399,9 @@ class Connection:
                 if below or above:
                     raise Refuse(471, f"another session holds {path}")
         if not self.server.holds(sess, target):
+            # D-RCTP-16: a path above held ones takes them in; only the new path is held
+            if "acquire-above-keeps-below" not in self.faults:
+                sess.acquired = {p for p in sess.acquired if not covers(target, p)}
             sess.acquired.add(target)
         return [], b""
 
@@ -505,9 +520,12 @@ class Connection:
         st.mode = mode
         if st.state == "init":
             st.state = "ready"
-        if "client_port" in params:
-            sess.client_port = int(params["client_port"])
         port = sess.client_port or 0
+        if "client_port" in params:
+            port = int(params["client_port"])
+            # client-port-first-setup-only: a repeated SETUP's new port is answered, not used
+            if sess.client_port is None or "client-port-first-setup-only" not in self.faults:
+                sess.client_port = port
         tp = (
             f"udp;client_port={port};server_port={self.server.udp_port};tag={sess.tag:08x}"
             f";mode={mode};stream={st.sid}"
@@ -749,6 +767,10 @@ class Server:
             addr[0] != sess.peer_ip or addr[1] != sess.client_port
         ):
             return
+        if "unknown-payload-drops-packet" in self.faults and any(
+            ptype not in (dg.DATA, dg.FLOW) for ptype, _, _ in payloads
+        ):
+            return
         now = asyncio.get_running_loop().time()
         sess.last_seen = now
         window = 0 if "seq-accepts-duplicate" in self.faults else 1
@@ -823,9 +845,13 @@ class Server:
             value = st.read_timeout_us if reading else st.write_timeout_us
         else:
             (value,) = struct.unpack_from("!I", body, 5)
-            if (op == dg.SET_INTERVAL) != reading:
+            # set-interval-write-acked: the client's own write interval is taken as ours to set
+            peers = (op == dg.SET_INTERVAL) != reading
+            if peers and not (op == dg.SET_INTERVAL and "set-interval-write-acked" in self.faults):
                 return dg.flow_nack(op, rid, dg.NACK_NOT_PERMITTED)  # the peer owns that value
-            if op == dg.SET_INTERVAL:
+            if op == dg.SET_INTERVAL and not reading:
+                st.write_us = value
+            elif op == dg.SET_INTERVAL:
                 shortest = dg.micros(st.access.read_interval or 0)
                 if value < shortest and "accept-short-interval" not in self.faults:
                     return dg.flow_nack(op, rid, dg.NACK_REFUSED)
@@ -833,7 +859,8 @@ class Server:
                 st.next_send = min(st.next_send, asyncio.get_running_loop().time() + value / 1e6)
                 self.reschedule(sess)
             else:
-                if value < 2 * st.write_us:
+                times = 1 if "timeout-min-one-interval" in self.faults else 2
+                if value < times * st.write_us:
                     return dg.flow_nack(op, rid, dg.NACK_REFUSED)
                 st.write_timeout_us = value
         return dg.flow_ack(op, rid, struct.pack("!BI", direction, value))

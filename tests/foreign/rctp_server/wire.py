@@ -88,7 +88,8 @@ class Message:
 class Reader:
     """Frames messages out of a byte stream; buffers at most one message within the limits."""
 
-    def __init__(self) -> None:
+    def __init__(self, start_limit: int = MAX_START_LINE) -> None:
+        self.start_limit = start_limit  # a start line's bytes, without its CRLF
         self.buf = bytearray()
         self._head: Message | None = None
         self._need = 0
@@ -104,7 +105,7 @@ class Reader:
                 self._check_partial()
                 return None
             head = bytes(self.buf[: end + 2])
-            self._head, self._need = _parse_head(head)
+            self._head, self._need = _parse_head(head, self.start_limit)
             del self.buf[: end + 4]
         if len(self.buf) < self._need:
             return None
@@ -119,12 +120,12 @@ class Reader:
         first = buf.find(b"\n")
         response = buf.startswith(b"RCTP/")
         if first < 0:
-            if len(buf) > MAX_START_LINE + 1:
+            if len(buf) > self.start_limit + 1:
                 raise FrameError(414, "start line above 4,096 bytes", response=response)
             return
         if first == 0 or buf[first - 1] != 0x0D:
             raise FrameError(400, "a line ending in a bare LF", response=response)
-        if first - 1 > MAX_START_LINE:
+        if first - 1 > self.start_limit:
             raise FrameError(414, "start line above 4,096 bytes", response=response)
         pos, fields, total = first + 1, 0, 0
         while True:
@@ -147,13 +148,13 @@ class Reader:
             pos = nl + 1
 
 
-def _parse_head(head: bytes) -> tuple[Message, int]:
+def _parse_head(head: bytes, start_limit: int = MAX_START_LINE) -> tuple[Message, int]:
     lines = head.split(b"\r\n")[:-1]
     start = lines[0]
     response = start.startswith(b"RCTP/")
     if b"\n" in head.replace(b"\r\n", b""):
         raise FrameError(400, "a line ending in a bare LF", response=response)
-    if len(start) > MAX_START_LINE:
+    if len(start) > start_limit:
         raise FrameError(414, "start line above 4,096 bytes", response=response)
     header_lines = lines[1:]
     section = sum(len(x) + 2 for x in header_lines)
