@@ -208,16 +208,16 @@ async def transfer_encoding(ctx: Context) -> None:
 
 @case(
     "rctp/msg/start-line-limit",
-    "A request line of 4094 bytes is answered; one of 4097 is answered 414 and the connection "
-    "closed",
+    "A request line of 4096 bytes is answered (its CRLF not counted, D-RCTP-9); one of 4097 is "
+    "answered 414 and the connection closed",
     ["R-RCTP-16", "R-RCTP-8"],
 )
 async def start_line_limit(ctx: Context) -> None:
     probe = await ctx.session()
     fixed = len(f"READ / {VERSION}")
-    at = _request(probe, "READ", "/" + _filler(START_LINE - 2 - fixed))
+    at = _request(probe, "READ", "/" + _filler(START_LINE - fixed))
     await probe.send(at)
-    expect_answer(ctx, await probe.response(), 404, "READ with a 4094-byte request line")
+    expect_answer(ctx, await probe.response(), 404, "READ with a 4096-byte request line")
     over = _request(probe, "READ", "/" + _filler(START_LINE + 1 - fixed))
     await _refused_and_closed(ctx, probe, over, 414, "R-RCTP-16")
 
@@ -236,8 +236,8 @@ async def start_line_unbounded(ctx: Context) -> None:
 
 @case(
     "rctp/msg/header-line-limit",
-    "A header line of 4094 bytes is accepted; one of 4097 is answered 431 and the connection "
-    "closed",
+    "A header line of 4096 bytes is accepted (its CRLF not counted, D-RCTP-9); one of 4097 is "
+    "answered 431 and the connection closed",
     ["R-RCTP-16", "R-RCTP-8"],
 )
 async def header_line_limit(ctx: Context) -> None:
@@ -245,9 +245,9 @@ async def header_line_limit(ctx: Context) -> None:
     site = ctx.target.site_path
     name = "X-Rcmlconf-Pad"
     fixed = len(f"{name}: ")
-    at = _request(probe, "CONNECT", site, [(name, _filler(HEADER_LINE - 2 - fixed))])
+    at = _request(probe, "CONNECT", site, [(name, _filler(HEADER_LINE - fixed))])
     await probe.send(at)
-    expect_answer(ctx, await probe.response(), 200, "CONNECT with a 4094-byte header line")
+    expect_answer(ctx, await probe.response(), 200, "CONNECT with a 4096-byte header line")
     over = _request(probe, "CONNECT", site, [(name, _filler(HEADER_LINE + 1 - fixed))])
     await _refused_and_closed(ctx, probe, over, 431, "R-RCTP-16")
 
