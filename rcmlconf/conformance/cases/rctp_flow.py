@@ -177,6 +177,21 @@ async def not_owner(ctx: Context) -> None:
 
 
 @case(
+    "rctp/flow/not-owner-write-interval",
+    "Setting the write interval, which the client owns as the sender, at the server is NACK 4",
+    ["R-RCTP-46"],
+    serial=True,
+)
+async def not_owner_write_interval(ctx: Context) -> None:
+    control, probe, set_up = await set_up_writing(ctx, writable_stream(ctx), "write")
+    # Longer than the RCML's, so that only the owner's rule can refuse it (not R-RCTP-47's).
+    interval = 2 * set_up.micros(set_up.write_interval)
+    answer = await probe.ask(lambda i: IntervalSet(i, Direction.WRITE, interval), set_up.stream)
+    expect_nack(ctx, answer, Operation.SET_INTERVAL, NackReason.NOT_PERMITTED, "R-RCTP-46")
+    await release_stream(control, set_up)
+
+
+@case(
     "rctp/flow/unknown-operation",
     "A FLOW request for an operation the server does not know is answered NACK 1, echoing it",
     ["R-RCTP-53"],
