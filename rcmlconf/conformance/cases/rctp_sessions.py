@@ -77,13 +77,22 @@ async def session_before_connect(ctx: Context) -> None:
 
 @case(
     "rctp/session/wrong-session",
-    "A request naming another session, unknown or another connection's, is answered 454 and the "
-    "connection goes on",
+    "A request naming another session, unknown, another connection's or its own ID in other letter"
+    " case, is answered 454 and the connection goes on",
     ["R-RCTP-19"],
 )
 async def wrong_session(ctx: Context) -> None:
     probe = await ctx.session()
     await _foreign_sessions(ctx, probe, "READ")
+    # Session IDs are compared exactly (D-RCTP-30): the session's own ID in other letter case
+    # names another session.
+    assert probe.session is not None
+    swapped = probe.session.swapcase()
+    if swapped == probe.session:
+        ctx.cannot_check("a session ID in other letter case: the server's ID has no letter")
+    else:
+        answer = await probe.request("READ", read_target(ctx), [("Session", swapped)])
+        expect_answer(ctx, answer, 454, f"READ with Session: {swapped}, its ID in other case")
     answer = await probe.request("READ", read_target(ctx))
     expect_answer(ctx, answer, 200, "READ with the session")
 
