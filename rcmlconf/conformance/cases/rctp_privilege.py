@@ -277,6 +277,26 @@ async def release_not_acquired(ctx: Context) -> None:
 
 
 @case(
+    "rctp/priv/release-taken-in",
+    "After ACQUIRE of a node and then of its access, which takes the node in, RELEASE of the node"
+    " is 470 and of the access 200, which gives back both",
+    ["R-RCTP-35", "R-RCTP-33"],
+    serial=True,
+)
+async def release_taken_in(ctx: Context) -> None:
+    # D-RCTP-16: acquiring above held paths takes them in, so the session holds the new path
+    # alone, and RELEASE names exactly a path held: one no later ACQUIRE took in.
+    paths = _paths(ctx)
+    holder, other = await sessions(ctx, 2)
+    await acquire(ctx, holder, paths.node)
+    await acquire(ctx, holder, paths.access)
+    ctx.expect_status(await _ask(holder, "RELEASE", paths.node), 470, what=f"RELEASE {paths.node}")
+    ctx.expect_status(await _ask(other, "ACQUIRE", paths.node), 471, "R-RCTP-33")
+    ctx.expect_status(await _ask(holder, "RELEASE", paths.access), 200)
+    ctx.expect_status(await _ask(other, "ACQUIRE", paths.node), 200, "R-RCTP-33")
+
+
+@case(
     "rctp/priv/release-other",
     "RELEASE of a path another session holds is answered 470 and leaves it held",
     ["R-RCTP-35", "R-RCTP-33"],
