@@ -72,7 +72,9 @@ def send(sock: socket.socket, out: Out) -> None:
 
 def serve(args: argparse.Namespace) -> int:
     try:
-        model = load_model(args.model.read_bytes())
+        # onloss-default-zero: the reader's default for a missing onLoss is wrong
+        on_loss_default = "zero" if "onloss-default-zero" in args.fault else "hold"
+        model = load_model(args.model.read_bytes(), on_loss_default)
         psk = read_psk(args.psk_file.read_bytes()) if args.psk_file else None
     except (OSError, ModelError, ValueError) as exc:
         log(f"rsp_robot: {exc}")

@@ -300,7 +300,7 @@ def _field(element: Element) -> Field:
     return f
 
 
-def load_model(data: bytes) -> Model:
+def load_model(data: bytes, on_loss_default: str = "hold") -> Model:
     root = read_xml(data)
     a = root.attrs
     if root.tag != "robotModel" or a.get("version") != "1":
@@ -344,7 +344,7 @@ def load_model(data: bytes) -> Model:
         if len({f.name for f in device.fields}) != len(device.fields):
             raise ModelError(f"device {name} repeats a field name")
         if kind == EFFECTOR:
-            device.on_loss = attrs.get("onLoss", "hold")
+            device.on_loss = attrs.get("onLoss", on_loss_default)
             if device.on_loss not in ("hold", "zero"):
                 raise ModelError(f"effector {name}: onLoss must be hold or zero")
         if kind == MONITOR:
@@ -404,13 +404,20 @@ def decode_fields(fields: list[Field], buf: bytes, off: int) -> tuple[tuple[Any,
     return tuple(values), off
 
 
-def encode_fields(fields: list[Field], values: tuple[tuple[Any, ...], ...]) -> bytes:
+def encode_fields(
+    fields: list[Field], values: tuple[tuple[Any, ...], ...], little_arrays: bool = False
+) -> bytes:
+    """Encode one payload; `little_arrays` is the array-little-endian fault (arrays packed
+    little-endian)."""
     out = bytearray()
     for f, value in zip(fields, values, strict=True):
         if f.code is not None:
             if NUMERIC[f.type][1] == "int":
                 value = tuple(round(v) for v in value)
-            out += f.code.pack(*value)
+            code = f.code
+            if little_arrays and f.count > 1:
+                code = struct.Struct("<" + f.code.format[1:])
+            out += code.pack(*value)
             continue
         for element in value:
             if f.type == "bool":

@@ -126,6 +126,32 @@ FAULTS: dict[str, tuple[str, str]] = {
     "mac-unchecked": ("R-RSP-38", "the MAC of an encrypted HELLO is not checked"),
     "uplink-key-info": ("R-RSP-37", "the uplink key's HKDF info lacks the session ID"),
     "audio-late-played": ("R-RSP-39", "a speaker fragment older than the last played is played"),
+    "array-little-endian": (
+        "R-RSP-16",
+        "numeric arrays (count > 1) in UPLINK payloads are packed little-endian",
+    ),
+    "values-queued": (
+        "R-RSP-34",
+        "effector values are queued and applied one a control period, not collapsed to the newest",
+    ),
+    "onloss-default-zero": (
+        "R-RSP-36",
+        "an effector without onLoss is read as onLoss=zero: it stops on loss instead of holding",
+    ),
+    "audio-state-kept": (
+        "R-RSP-40",
+        "the audio processor's state outlives the session: the next one starts at the old fragment",
+    ),
+    "keepalive-6": ("R-RSP-42", "with nothing to report, an empty UPLINK every 6 periods, not 5"),
+    "ack-deferred": (
+        "R-RSP-26",
+        "ACKs wait for the robot's next UPLINK beat instead of going at once",
+    ),
+    "refused-own-model": (
+        "R-RSP-21",
+        "REFUSED carries the robot's model ID, not the HELLO's echoed",
+    ),
+    "resend-new-id": ("R-RSP-24", "a memory event sent again gets the next ID, not its own"),
 }
 
 
@@ -184,6 +210,7 @@ class Robot:
         self.verbose = verbose
         self.started = now
         self.session: Session | None = None
+        self.audio_states: dict[int, EffectorState] = {}  # for the audio-state-kept fault
 
     def note(self, message: str) -> None:
         if self.verbose:
@@ -224,7 +251,8 @@ class Robot:
 
     def refuse(self, hello: Header, reason: int, address: Address) -> Out:
         self.note(f"REFUSED {reason} to {address[0]}:{address[1]}")
-        header = Header(VERSION, hello.model_id, hello.encryption, REFUSED, 0, 0, 0, hello.seq, 0)
+        model_id = self.model.model_id if "refused-own-model" in self.faults else hello.model_id
+        header = Header(VERSION, model_id, hello.encryption, REFUSED, 0, 0, 0, hello.seq, 0)
         header.buffer = self.free_buffers()
         return [(header.pack() + bytes([reason]), address)]
 
@@ -313,6 +341,12 @@ class Session:
             for d in self.model.devices
             if d.kind == EFFECTOR
         }
+        if "audio-state-kept" in self.faults:  # the audio processor's state kept by the robot
+            for i, state in self.effectors.items():
+                if state.device.audio:
+                    self.effectors[i] = robot.audio_states.setdefault(i, state)
+        self.queued: dict[int, deque[tuple[Values, int]]] = {}  # the values-queued fault
+        self.deferred_acks: list[tuple[int, int]] = []  # the ack-deferred fault
         self.last_taken: dict[int, int] = {}
         self.buffer: deque[Job] = deque()
         self.executing: tuple[Job, float] | None = None
@@ -329,6 +363,7 @@ class Session:
         self.next_raise: dict[int, float] = {}
         self.simulated_at = now
         self.named = {d.name: d for d in self.model.devices}
+        self.little = "array-little-endian" in self.faults
         self.memory_events = [d for d in self.model.devices if d.kind == MEMORY_EVENT]
         self.odometry = [0.0, 0.0, 0.0]
         self.mic_fragment = 0
@@ -558,6 +593,9 @@ class Session:
             self.apply_states(header, parsed, now)
         if not acks:
             return []
+        if "ack-deferred" in self.faults:
+            self.deferred_acks += [item for item in acks if item not in self.deferred_acks]
+            return []
         return [(self.ack(acks, now), self.address)]
 
     def apply_states(self, header: Header, parsed: Parsed, now: float) -> None:
@@ -576,7 +614,11 @@ class Session:
                 if state.device.module == module:
                     self.stop(state)
         for i, values in parsed.values.items():
-            if self.is_active(devices[i]):
+            if not self.is_active(devices[i]):
+                continue
+            if "values-queued" in self.faults:
+                self.queued.setdefault(i, deque(maxlen=64)).append((values, header.timestamp))
+            else:
                 self.apply_effector(self.effectors[i], values, header.timestamp, now)
 
     def apply_effector(self, state: EffectorState, values: Values, stamp: int, now: float) -> None:
@@ -793,16 +835,16 @@ class Session:
         for device in self.model.devices:
             i = device.index
             if device.kind == SENSOR and self.reports(device):
-                payloads += encode_fields(device.fields, self.sample(device, now))
+                payloads += encode_fields(device.fields, self.sample(device, now), self.little)
             elif device.kind == MONITOR and self.reports(device):
                 assert device.of is not None
                 payloads += encode_fields(
-                    device.fields, self.actual(self.effectors[device.of], now)
+                    device.fields, self.actual(self.effectors[device.of], now), self.little
                 )
             elif device.kind == EVENT and i in self.events:
                 event = self.events[i]
                 payloads += event.id.to_bytes(id_length, "big")
-                payloads += encode_fields(device.fields, event.values)
+                payloads += encode_fields(device.fields, event.values, self.little)
                 event.remaining -= 1
                 if not event.remaining:
                     del self.events[i]
@@ -810,10 +852,13 @@ class Session:
                 # a retransmission backs the timer off (RFC 6298 §5.5)
                 if item.sent_at is not None and "rto-no-backoff" not in self.faults:
                     self.rto = self.clamp_rto(2 * self.rto)
+                if item.sent_at is not None and "resend-new-id" in self.faults:
+                    item.id = self.next_id.get(i, 0)
+                    self.next_id[i] = (item.id + 1) % self.model.id_space
                 item.sent_at, item.sends = now, item.sends + 1
                 item.deadline = now + self.rto
                 payloads += item.id.to_bytes(id_length, "big")
-                payloads += encode_fields(device.fields, item.values)
+                payloads += encode_fields(device.fields, item.values, self.little)
             else:
                 continue
             bits.append(i)
@@ -837,11 +882,23 @@ class Session:
         if self.lost:
             for state in self.effectors.values():
                 self.stop(state)
+        uplinks: Out = []
+        if self.deferred_acks:
+            uplinks.append((self.ack(self.deferred_acks, now), self.address))
+            self.deferred_acks = []
+        for i, queue in self.queued.items():  # the values-queued fault: one a control period
+            if queue:
+                values, stamp = queue.popleft()
+                self.apply_effector(self.effectors[i], values, stamp, now)
         self.simulate(now)
         bits, body = self.uplink_body(now)
-        uplinks: Out = []
         self.idle_ticks += 1
-        if bits or self.idle_ticks >= IDLE_PERIODS:
+        keep_alive = (
+            self.idle_ticks > IDLE_PERIODS
+            if "keepalive-6" in self.faults
+            else (self.idle_ticks >= IDLE_PERIODS)
+        )
+        if bits or keep_alive:
             self.idle_ticks = 0
             uplinks.append((self.packet(UPLINK, body, now), self.address))
         self.next_tick += self.period
