@@ -291,12 +291,13 @@ class RobotSession:
 
     def _nodes_of(self, access_path: str) -> dict[str, DataNode]:
         """An access's data nodes by name (none for a path that is no access): made once, not
-        at each of a stream's DATA."""
+        at each of a stream's DATA; only the model's accesses are kept, so nothing grows."""
         nodes = self._nodes.get(access_path)
         if nodes is None:
             access = self.links.model.node(access_path)
-            data = access.data if isinstance(access, AccessNode) else ()
-            nodes = self._nodes[access_path] = {n.name: n for n in data}
+            if not isinstance(access, AccessNode):
+                return {}
+            nodes = self._nodes[access_path] = {n.name: n for n in access.data}
         return nodes
 
     def _flush_later(self, access_path: str) -> None:
