@@ -122,6 +122,38 @@ FAULTS: dict[str, tuple[str, str]] = {
         "R-RSP-38",
         "the MAC of a WELCOME of an encrypted session is not checked",
     ),
+    "timestamp-from-welcome": (
+        "R-RSP-14",
+        "the clock restarts at WELCOME: timestamps count from it, not from the first HELLO",
+    ),
+    "lastrecv-uplink-only": (
+        "R-RSP-15",
+        "last received sequence number follows the robot's UPLINKs only, not its ACKs or WELCOME",
+    ),
+    "ack-event-bits": (
+        "R-RSP-17",
+        "events are acknowledged too: ACKs set event bits, which D-RSP-14 never allows",
+    ),
+    "id-little-endian": (
+        "R-RSP-16",
+        "2-byte occurrence IDs in DOWNLINKs are written little-endian (ACKs read big-endian)",
+    ),
+    "ids-shared-counter": (
+        "R-RSP-24",
+        "one occurrence counter for all devices, not one per device",
+    ),
+    "taken-per-kind": (
+        "R-RSP-25",
+        "the last taken ID is kept per kind (event, memory event), not per device",
+    ),
+    "rto-no-ceiling": (
+        "R-RSP-28",
+        "the doubled retransmission timeout is not capped at 2 s (only the first one is)",
+    ),
+    "period-old-value": (
+        "R-RSP-43",
+        "PERIOD carries the T in force before the change, not the new one",
+    ),
 }
 
 SESSION_TIMEOUT = 10.0
@@ -243,6 +275,8 @@ class Run:
         )
         self.estimator = IndexEstimator()
         self.last_arrived = 0
+        self.last_uplink = 0  # the lastrecv-uplink-only fault
+        self.shared_next_id = 0  # the ids-shared-counter fault
         self.tx: Any = None
         self.rx: Any = None
 
@@ -256,6 +290,8 @@ class Run:
             stamp = int((now - self.t0) * 1000) & 0xFFFFFFFF
         newest = self.window.newest or 0
         last = self.last_arrived if "lastrecv-arrival" in self.faults else newest
+        if "lastrecv-uplink-only" in self.faults:
+            last = self.last_uplink
         header = Header(
             1,
             self.model.model_id,
@@ -352,6 +388,8 @@ class Run:
             return None
         echo, robot_nonce, period = fields
         self.session = h.session
+        if "timestamp-from-welcome" in self.faults:
+            self.t0 = time.monotonic()
         self.window.take(h.seq)
         self.estimator.update(h.seq)
         self.last_arrived = h.seq
@@ -382,8 +420,9 @@ class Run:
         self.quiet_ticks = 0
         self.force_downlink = False
         self.period_left = 0
+        self.told_ms: int | None = None
         self.deferred_acks: dict[int, bytes] = {}
-        self.taken: dict[int, int] = {}
+        self.taken: dict[int | str, int] = {}
         self.values: dict[str, list[Any]] = {}
         self.srtt: float | None = None
         self.rttvar = 0.0
@@ -432,7 +471,8 @@ class Run:
             self.send(ACK, encode_map(self.model, self.deferred_acks))
             self.deferred_acks = {}
         if self.period_left:
-            self.send(PERIOD, struct.pack(">H", self.period_ms))
+            told = self.told_ms or self.period_ms  # the period-old-value fault: the old T
+            self.send(PERIOD, struct.pack(">H", told))
             self.period_left -= 1
         items = self.downlink_items(now)
         limit = 10 if "heartbeat-10" in self.faults else HEARTBEAT_PERIODS
@@ -467,6 +507,9 @@ class Run:
         return items
 
     def new_occurrence(self, box: Outbox) -> Occurrence:
+        if "ids-shared-counter" in self.faults:
+            box.next_id = self.shared_next_id
+            self.shared_next_id = (self.shared_next_id + 1) % self.id_space
         occurrence = Occurrence(box.next_id, box.queue.popleft())
         box.next_id = (box.next_id + 1) % self.id_space
         box.inflight.append(occurrence)
@@ -477,6 +520,9 @@ class Run:
         if occurrence.sends == 1:
             occurrence.first_sent = now
         occurrence.due = now + self.rto(occurrence.sends)
+        if "id-little-endian" in self.faults:
+            ident = occurrence.ident.to_bytes(self.model.id_length, "little")
+            return ident + occurrence.fields
         return encode_id(self.model, occurrence.ident) + occurrence.fields
 
     def next_command(self, box: Outbox, now: float) -> bytes | None:
@@ -513,6 +559,8 @@ class Run:
         ceiling = max(2.0, 2 * self.period)
         base = 10 * self.period if self.srtt is None else self.srtt + 4 * self.rttvar
         base = min(max(base, 2 * self.period), ceiling)
+        if "rto-no-ceiling" in self.faults:
+            return base * 2 ** (sends - 1)
         return min(base * 2 ** (sends - 1), ceiling)
 
     def sample(self, rtt: float) -> None:
@@ -568,6 +616,8 @@ class Run:
             self.estimator.update(index)
         self.last_arrived = h.seq
         self.last_rx = now
+        if h.type == UPLINK and verdict == NEWER:
+            self.last_uplink = h.seq
         newer = verdict == NEWER or "late-states" in self.faults
         if newer:
             self.free_buffers = h.buffer
@@ -594,11 +644,14 @@ class Run:
 
     def take(self, item: Item) -> bool:
         """D-RSP-16: an occurrence is new when its ID is 1 to half the ID space ahead."""
-        last = self.taken.get(item.device)
+        key: int | str = item.device
+        if "taken-per-kind" in self.faults:
+            key = self.model.devices[item.device].kind
+        last = self.taken.get(key)
         assert item.ident is not None
         if last is not None and not 1 <= (item.ident - last) % self.id_space <= self.id_space // 2:
             return False
-        self.taken[item.device] = item.ident
+        self.taken[key] = item.ident
         return True
 
     def on_uplink(self, items: list[Item], newer: bool, now: float) -> None:
@@ -610,6 +663,8 @@ class Run:
                 if newer:
                     self.values[dev.name] = item.values
             elif dev.kind == "event":
+                if "ack-event-bits" in self.faults:  # "every occurrence is acknowledged"
+                    acks[item.device] = encode_id(self.model, item.ident or 0)
                 if self.take(item) or "event-no-dedup" in self.faults:
                     log(self.verbose, f"<- event {dev.name} #{item.ident} {item.values}")
                     self.echo()
@@ -637,6 +692,7 @@ class Run:
     def go_idle(self, now: float) -> None:
         """D-RSP-24 step 4: stop using the robot and double T, told with PERIOD."""
         self.using = False
+        self.told_ms = self.period_ms if "period-old-value" in self.faults else None
         self.period_ms = min(2 * self.period_ms, 10000)
         self.period_left = 1 if "period-once" in self.faults else 3
         self.next_tick = now
