@@ -160,6 +160,30 @@ FAULTS = {
         "rctp/client/stream-broken-flow-beside-data",
         "R-RCTP-53",
     ),
+    # A server WRITE taken while its access is paused, not only while it plays (D-RCTP-26).
+    "push-while-paused-taken": (
+        "rctp/states.py",
+        "PUSH_STATES = frozenset({_T.PLAYING})",
+        "PUSH_STATES = frozenset({_T.PLAYING, _T.READY})",
+        "rctp/client/event-push-paused",
+        "R-RCTP-68",
+    ),
+    # Nodes checked for their order alone: a name twice in a row passes (R-RCTP-30: each once).
+    "nodes-repeat-unchecked": (
+        "rctp/fields.py",
+        "    if list(names) != sorted(set(names)):",
+        "    if list(names) != sorted(names):",
+        "rctp/client/event-push-nodes-repeated",
+        "R-RCTP-30",
+    ),
+    # A set of the interval taken whoever owns it (D-RCTP-22: its sender, else NACK 4).
+    "interval-set-of-either-direction": (
+        "rctp/datastream/endpoint.py",
+        "            if request.direction is not self.sends:",
+        "            if False:",
+        "rctp/client/flow-answers",
+        "R-RCTP-46",
+    ),
 }
 #: The line of another module some faults change too: (module, the line, as the fault reads).
 ALSO = {

@@ -1,15 +1,14 @@
 """rctp/client, the scenario's requests: what an RCTP/2.0 client under test sends while it runs
 D-RCTP-31's scenario against the server the harness plays (`probes.played`): its numbering, its
-session, its targets, and the values it reads, writes and takes from the server's pushes, of
-every data type of the harness's robot (R-RCTP-3, R-RCTP-4, R-RCTP-19, R-RCTP-30, R-RCTP-60,
-R-RCTP-61, R-RCML-29, R-RCML-30)."""
+session, its targets, and the values it reads and writes, of every data type of the harness's
+robot (R-RCTP-3, R-RCTP-4, R-RCTP-19, R-RCTP-30, R-RCTP-60, R-RCML-29, R-RCML-30); the server's
+pushes are judged in `rctp_client_pushes`."""
 
 from __future__ import annotations
 
 import math
 import struct
 from collections.abc import Callable
-from dataclasses import dataclass
 
 from rcmlconf.conformance.cases.rctp_client import client_case
 from rcmlconf.conformance.context import Context
@@ -28,7 +27,7 @@ from rcmlconf.conformance.verdicts import Failed, Inconclusive
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, Permission
 from rcmlconf.rctp.bodies import ValuesCodec
 from rcmlconf.rctp.fields import format_nodes
-from rcmlconf.rctp.messages import Request, Response
+from rcmlconf.rctp.messages import Request
 from rcmlconf.rctp.targets import format_target
 from rcmlconf.values import Kind, Scalar, Value
 from rcmlconf.values.binary import encode_value
@@ -232,7 +231,7 @@ async def bye_unanswered_closes(ctx: Context) -> None:
     ["R-RCTP-12"],
 )
 async def answer_to_nothing(ctx: Context) -> None:
-    server, access, go = await _until_event_go(ctx)
+    server, access, go = await until_event_go(ctx)
     # D-RCTP-10: an answer to no outstanding request cannot be answered; the receiver closes
     # (within 1 s, D-RCTP-31). The client asks nothing for a second after its GO (step 5).
     await server.probe.send(server.probe.response_bytes(go.request))
@@ -266,7 +265,7 @@ async def answer_and_request_together(ctx: Context) -> None:
 
         return own
 
-    server, _, _ = await _until_event_go(ctx, together)
+    server, _, _ = await until_event_go(ctx, together)
     try:
         answer = await server.answer()
     except Failed as failed:  # an answer that never comes: the WRITE was not read
@@ -496,164 +495,7 @@ async def event_write_nodes(ctx: Context) -> None:
     ctx.expect(first.body == body, f"body {body.hex(' ')}", first.body.hex(" "), "R-RCML-30")
 
 
-@scenario_case(
-    "rctp/client/event-push-taken",
-    "A data-change WRITE of the server's is answered 200 and its values are the client's newest"
-    " (the scenario writes them back, step 5)",
-    ["R-RCTP-61", "R-RCTP-24", "R-RCTP-3"],
-)
-async def event_push_taken(ctx: Context) -> None:
-    push = await _push(ctx, lambda pushed, codec: codec.encode(pushed))
-    ctx.expect_status(push.answer, 200, "R-RCTP-24")
-    push.written_back(ctx, push.pushed, "the pushed values written back")
-
-
-@scenario_case(
-    "rctp/client/event-push-refused",
-    "A data-change WRITE whose body does not decode is refused (400 or 422) and not taken",
-    ["R-RCTP-61", "R-RCTP-24", "R-RCTP-3"],
-)
-async def event_push_refused(ctx: Context) -> None:
-    push = await _push(ctx, lambda pushed, codec: codec.encode(pushed)[:-1])
-    answer = push.answer
-    ctx.expect(
-        answer.status in (400, 422),
-        "400 or 422: the body is one byte short",
-        f"{answer.status} {answer.reason}",
-        "R-RCTP-24",
-    )
-    push.written_back(ctx, push.before, "the values it had before: the refused push not taken")
-
-
-@scenario_case(
-    "rctp/client/event-push-out-of-range",
-    "A data-change WRITE holding a value outside its node's range is not taken if refused (422),"
-    " and taken if answered 200",
-    ["R-RCTP-61", "R-RCTP-3"],
-)
-async def event_push_out_of_range(ctx: Context) -> None:
-    ranged = [n for n in event_access(ctx).writable() if n.maximum is not None]
-    if not ranged:
-        raise Inconclusive(f"{event_access(ctx).path} has no writable node with a max")
-    node = ranged[0]
-    assert node.maximum is not None
-    over = node.maximum * 2 + 1
-
-    def beyond(pushed: dict[str, Value], codec: ValuesCodec[DataNode]) -> bytes:
-        pushed[node.name] = over
-        return codec.encode(pushed)
-
-    push = await _push(ctx, beyond)
-    # 422 is the status for a value outside a node's range (D-RCTP-8's table); R-RCTP-61 binds
-    # the client to what it answered either way.
-    if push.answer.status == 200:
-        push.written_back(ctx, push.pushed, f"{node.name}={over:g} taken, as answered 200")
-    else:
-        push.written_back(
-            ctx,
-            push.before,
-            f"the values it had before: {node.name}={over:g}"
-            f" refused ({push.answer.status}), not taken",
-        )
-
-
-@scenario_case(
-    "rctp/client/event-push-unknown-node",
-    "A data-change WRITE whose Nodes names a node its access lacks is refused with 400 and not"
-    " taken",
-    ["R-RCTP-30", "R-RCTP-61", "R-RCTP-24", "R-RCTP-3"],
-)
-async def event_push_unknown_node(ctx: Context) -> None:
-    # `ghost` is no node of the access: a client that decodes by position alone takes it.
-    push = await _push(ctx, lambda pushed, codec: codec.encode(pushed) + b"\x00", extra="ghost")
-    answer = push.answer
-    # D-RCTP-25: the Nodes check comes before the body's; a receiver answers 400 (R-RCTP-30).
-    ctx.expect(
-        answer.status == 400,
-        "400: Nodes names ghost, which the access lacks",
-        f"{answer.status} {answer.reason}",
-        "R-RCTP-30",
-    )
-    push.written_back(ctx, push.before, "the values it had before: the refused push not taken")
-
-
-@scenario_case(
-    "rctp/client/event-push-one-node",
-    "A data-change WRITE that lists one node of its access (the one changed) is answered 200,"
-    " and that node's value alone is the client's newest",
-    ["R-RCTP-61", "R-RCTP-24"],
-)
-async def event_push_one_node(ctx: Context) -> None:
-    push = await _push(ctx, lambda pushed, codec: codec.encode(pushed), one_node=True)
-    ctx.expect_status(push.answer, 200, "R-RCTP-24", what="a push of one node of the access")
-    push.written_back(ctx, push.pushed, "the one pushed value with the others it had")
-
-
-@scenario_case(
-    "rctp/client/event-push-nodes-backwards",
-    "A data-change WRITE whose Nodes lists its nodes out of canonical order (its body in"
-    " canonical order) is refused with 400 and not taken",
-    ["R-RCTP-30", "R-RCTP-61"],
-)
-async def event_push_nodes_backwards(ctx: Context) -> None:
-    # A client that sorts the names it is given, as a decoder of canonical bodies does, takes it.
-    push = await _push(ctx, lambda pushed, codec: codec.encode(pushed), backwards=True)
-    ctx.expect_status(push.answer, 400, "R-RCTP-30", what="Nodes out of canonical order")
-    push.written_back(ctx, push.before, "the values it had before: the refused push not taken")
-
-
-@dataclass
-class _Push:
-    """What step 5 gave with a data-change WRITE: the values the client had before it and those
-    pushed, its answer, and the WRITE of the access that followed the client's PAUSE."""
-
-    before: dict[str, Value]
-    pushed: dict[str, Value]
-    answer: Response
-    after: Seen
-    codec: ValuesCodec[DataNode]
-
-    def written_back(self, ctx: Context, values: dict[str, Value], meaning: str) -> None:
-        body = self.codec.encode(values)
-        found = self.after.request.body
-        ctx.expect(found == body, f"{meaning}: {body.hex(' ')}", found.hex(" "), "R-RCTP-61")
-
-
-async def _push(
-    ctx: Context,
-    body: Callable[[dict[str, Value], ValuesCodec[DataNode]], bytes],
-    extra: str | None = None,
-    one_node: bool = False,
-    backwards: bool = False,
-) -> _Push:
-    """Step 5 with a data-change WRITE of the event access once it plays, its body made by
-    `body` from values at the high edge of each node it lists (every writable node, or with
-    `one_node` the middle one in canonical order; its `Nodes` naming `extra` too, if given, and
-    listing them `backwards` if told); the scenario is then run to its BYE."""
-    server, access, _ = await _until_event_go(ctx)
-    codec = ValuesCodec(access.writable(), access.path, "R-RCTP-28")
-    before = {n.name: server.values[n.path] for n in codec.nodes}
-    listed = codec
-    if one_node:  # D-RCTP-27: a push lists the nodes changed, and only those
-        listed = ValuesCodec([codec.nodes[len(codec.nodes) // 2]], access.path, "R-RCTP-28")
-    pushed = {**before, **{n.name: edge(n, high=True) for n in listed.nodes}}
-    values = pushed if listed is codec else {name: pushed[name] for name in listed.names}
-    names = sorted([*listed.names, *([extra] if extra else [])])  # canonical order, D-RCML-4
-    if backwards:
-        names.reverse()
-    answer = await server.push(access, names, body(values, listed))
-    # Mid-scenario the client's own CSeq is well past the server's: an answer numbered by the
-    # client's counter shows here (R-RCTP-3).
-    cseq, sent = answer.headers.get("CSeq"), str(server.probe.cseq)
-    ctx.expect(cseq == sent, f"CSeq: {sent}, the WRITE's", f"CSeq: {cseq}", "R-RCTP-3")
-    after = await server.reach("WRITE", access.path)
-    if after is None:
-        raise Inconclusive(f"the client did not WRITE {access.path} after its PAUSE (step 5)")
-    await server.reach("BYE")
-    return _Push(before, pushed, answer, after, codec)
-
-
-async def _until_event_go(
+async def until_event_go(
     ctx: Context, own: Callable[[PlayedServer, AccessNode], Own] | None = None
 ) -> tuple[PlayedServer, AccessNode, Seen]:
     """The scenario up to the GO of the event access of step 5, answered (by the answers `own`

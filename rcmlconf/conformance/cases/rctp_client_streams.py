@@ -375,9 +375,9 @@ async def _slower(ctx: Context, stream: PlayedStream, access: AccessNode) -> tup
     "rctp/client/flow-answers",
     "The client answers FLOW requests: get interval with its write interval, a set below the"
     " RCML's with NACK 3, a repeated id with the answer already given (after the interval"
-    " changed), a read timeout below twice the read interval with NACK 3, a get interval with a"
-    " byte too many with NACK 5, an unknown operation with NACK 1, a stream not set up with"
-    " NACK 2",
+    " changed), a read timeout below twice the read interval with NACK 3, a set of the read"
+    " interval (the server's) with NACK 4, a get interval with a byte too many with NACK 5, an"
+    " unknown operation with NACK 1, a stream not set up with NACK 2",
     ["R-RCTP-46", "R-RCTP-47", "R-RCTP-53", "R-RCTP-52"],
 )
 async def flow_answers(ctx: Context) -> None:
@@ -427,6 +427,7 @@ async def flow_answers(ctx: Context) -> None:
         flow_text(refused),
         "R-RCTP-47",
     )
+    await _read_interval_not_owned(ctx, stream, 2 * reads)
     # D-RCTP-22: a get request's fields are its direction, one byte; one more does not fit.
     extra = probe.next_request_id()
     malformed = await stream.ask_broken(
@@ -460,6 +461,25 @@ async def flow_answers(ctx: Context) -> None:
         "R-RCTP-46",
     )
     await server.reach("BYE")
+
+
+async def _read_interval_not_owned(ctx: Context, stream: PlayedStream, interval: int) -> None:
+    """D-RCTP-22: the read interval belongs to its sender, the server: a set request of it to the
+    client is NACK 4. `interval` is above the RCML's, so only the owner is wrong (not NACK 3)."""
+    if stream.mode == "write":  # no read direction: NACK 2, whoever owns the interval
+        ctx.cannot_check("NACK 4 to a set of the read interval: the client's stream only writes")
+        return
+    ask = IntervalSet(stream.probe.next_request_id(), Direction.READ, interval)
+    answer = await stream.ask(ask, STREAM_ID)
+    ctx.expect(
+        isinstance(answer, Nack)
+        and answer.reason is NackReason.NOT_PERMITTED
+        and answer.operation == Operation.SET_INTERVAL,
+        f"NACK 4 (not permitted) of operation {Operation.SET_INTERVAL}: a set of the read"
+        f" interval to {interval} us, which the server owns as its sender",
+        flow_text(answer),
+        "R-RCTP-46",
+    )
 
 
 @scenario_case(
