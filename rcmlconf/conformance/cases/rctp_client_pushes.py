@@ -15,11 +15,11 @@ from rcmlconf.conformance.cases.rctp_client_scenario import (
     until_event_go,
 )
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.played import Seen
+from rcmlconf.conformance.probes.played import PlayedServer, Seen, path_of
 from rcmlconf.conformance.verdicts import Inconclusive
-from rcmlconf.rcml.model import DataNode
+from rcmlconf.rcml.model import AccessNode, DataNode
 from rcmlconf.rctp.bodies import ValuesCodec
-from rcmlconf.rctp.messages import Response
+from rcmlconf.rctp.messages import Request, Response
 from rcmlconf.values import Value
 
 #: The `Nodes` a push lists, from the names of the nodes it carries in canonical order (D-RCML-4).
@@ -208,8 +208,6 @@ async def _push(
     order), its `Nodes` made by `listing` from their names; the scenario is then run to its
     BYE."""
     server, access, _ = await until_event_go(ctx)
-    if paused and await server.reach("PAUSE", access.path) is None:
-        raise Inconclusive(f"the client did not PAUSE {access.path} (D-RCTP-31 step 5)")
     codec = ValuesCodec(access.writable(), access.path, "R-RCTP-28")
     before = {n.name: server.values[n.path] for n in codec.nodes}
     listed = codec
@@ -217,8 +215,13 @@ async def _push(
         listed = ValuesCodec([codec.nodes[len(codec.nodes) // 2]], access.path, "R-RCTP-28")
     pushed = {**before, **{n.name: edge(n, high=True) for n in listed.nodes}}
     values = pushed if listed is codec else {name: pushed[name] for name in listed.names}
+    write = server.push(access, listing(list(listed.names)), body(values, listed))
     since = len(server.seen)
-    answer = await server.push(access, listing(list(listed.names)), body(values, listed))
+    if paused:
+        await _after_pause(server, access, write)
+    else:
+        await server.probe.send(write)
+    answer = await server.answer()
     # Mid-scenario the client's own CSeq is well past the server's: an answer numbered by the
     # client's counter shows here (R-RCTP-3).
     cseq, sent = answer.headers.get("CSeq"), str(server.probe.cseq)
@@ -230,3 +233,20 @@ async def _push(
         raise Inconclusive(f"the client did not WRITE {access.path} after its PAUSE (step 5)")
     await server.reach("BYE")
     return _Push(before, pushed, answer, after, codec, written_after_answer=early is None)
+
+
+async def _after_pause(server: PlayedServer, access: AccessNode, write: bytes) -> None:
+    """Send `write` in the segment of the answer to the client's PAUSE of `access` (step 5): a
+    client that reads its segments whole takes the push before it builds its WRITE of the
+    access, which then shows whether it took it."""
+
+    def own(request: Request) -> bytes | None:
+        if not (request.method == "PAUSE" and path_of(request) == access.path):
+            return None
+        return server.probe.response_bytes(request) + write
+
+    server.own = own
+    pause = await server.reach("PAUSE", access.path)
+    server.own = None
+    if pause is None:
+        raise Inconclusive(f"the client did not PAUSE {access.path} (D-RCTP-31 step 5)")

@@ -318,15 +318,12 @@ class PlayedServer:
 
     # -- the server's own requests ------------------------------------------------------------
 
-    async def push(self, access: AccessNode, names: Sequence[str], body: bytes) -> Response:
+    def push(self, access: AccessNode, names: Sequence[str], body: bytes) -> bytes:
         """A data-change WRITE of `access` (D-RCTP-27) listing `names` in their order (a case may
-        break D-RCTP-17's canonical order), with `body`, and the client's answer; its own
-        requests meanwhile are served."""
+        break D-RCTP-17's canonical order), with `body`: its bytes, numbered, for the case to
+        send when it chooses and then take its `answer`."""
         fields = [("Nodes", ", ".join(format_nodes([name]) for name in names))]
-        await self.probe.send(
-            self.probe.request_bytes("WRITE", format_target(access.path), fields, body)
-        )
-        return await self.answer()
+        return self.probe.request_bytes("WRITE", format_target(access.path), fields, body)
 
     async def answer(self) -> Response:
         """The client's answer to the played server's latest request; the client's requests
