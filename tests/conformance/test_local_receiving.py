@@ -1,7 +1,9 @@
 """What an RSP local system does with what it receives (rcmlconf.conformance.cases.
 rsp_local_receiving): the cases pass the embedded reference's local system and an independent one
 (tests/foreign/rsp_local, written from specs/ alone), and each fails that independent one when it
-is told to make the fault the case is aimed at, naming the requirement the fault breaks. A local
+is told to make the fault the case is aimed at, naming the requirement the fault breaks (and so do
+the cases of its header, of taking events per device and of resending, rsp_local_header,
+rsp_local and rsp_local_sending's, aimed at faults of the same system). A local
 system that goes on with its session after the robot's BYE fails rsp/local/bye-ends, and the case
 after it still has a session of its own (`LocalListener.settled`), where it had been inconclusive
 ("no local system sent a HELLO"). Real processes on loopback: `rcmlconf run --role local` and the
@@ -49,6 +51,11 @@ AIMED = {
     "rsp/local/outside-window-dropped": ("window-65", "R-RSP-18"),
     "rsp/local/late-buffer-ignored": ("late-states", "R-RSP-19"),
     "rsp/local/ack-at-once": ("ack-deferred", "R-RSP-26"),
+    # Its header, how it takes occurrences and resends, as it receives the robot's packets:
+    "rsp/local/stamps-since-first-hello": ("timestamp-from-welcome", "R-RSP-14"),
+    "rsp/local/last-received-ack": ("lastrecv-uplink-only", "R-RSP-15"),
+    "rsp/local/events-taken-per-device": ("taken-per-kind", "R-RSP-25"),
+    "rsp/local/memory-command-resent": ("rto-no-ceiling", "R-RSP-28"),
 }
 #: Cases no fault of the independent local system is aimed at: each fails the embedded
 #: reference made to make its fault in a copy (`mutated`).

@@ -56,10 +56,12 @@ async def session(
     withheld: Iterable[Device] = (),
     beating: bool = True,
     used: bool = True,
+    repeats: int = 0,
 ) -> LocalProbe:
-    """The next run's session, its HELLO answered with WELCOME (D-RSP-24 step 1); `free` buffers
-    announced from WELCOME on, the occurrences of `withheld` not acknowledged, T `slower` times
-    the HELLO's; `used`: returned once the scenario uses the robot (`running`, step 2)."""
+    """The next run's session, its HELLO answered with WELCOME (D-RSP-24 step 1), or its
+    `repeats`-th repeat (D-RSP-12); `free` buffers announced from WELCOME on, the occurrences of
+    `withheld` not acknowledged, T `slower` times the HELLO's; `used`: returned once the scenario
+    uses the robot (`running`, step 2)."""
     probe = await ctx.local()
     if probe.encryption is not Encryption.NONE and probe.psk is None:
         probe.refuse(RefusedReason.ENCRYPTION_NOT_OFFERED)
@@ -71,6 +73,12 @@ async def session(
         probe.free = free
     probe.withheld = {d.position for d in withheld}
     probe.beating = beating
+    if repeats:
+        repeated = await probe.next(
+            PacketType.HELLO, after=0, where=lambda _: len(probe.hellos) > repeats
+        )
+        if repeated is None:
+            raise Inconclusive(f"the HELLO not repeated {repeats} times unanswered (D-RSP-12)")
     asked = probe.hello.body
     assert isinstance(asked, Hello)
     probe.welcome(min(slower * asked.period_ms, MAX_PERIOD_MS))
@@ -207,10 +215,10 @@ async def hello_retries(ctx: Context) -> None:
         f"at most {HELLO_RETRIES} repeats (D-RSP-12)",
         f"{len(hellos) - 1} repeats",
     )
-    _stamped_since(ctx, start, hellos, 0)
+    stamped_since(ctx, start, hellos, 0)
 
 
-def _stamped_since(ctx: Context, start: Datagram, found: Iterable[Datagram], base: int) -> None:
+def stamped_since(ctx: Context, start: Datagram, found: Iterable[Datagram], base: int) -> None:
     """Each of `found` is stamped `base` and the milliseconds since `start`, the local system's
     first HELLO, as the harness's clock shows them within D-RSP-26's 5 % and 50 ms (a timing
     check: it reads the arrivals off the harness's clock). A stamp behind its arrival is a packet
@@ -292,7 +300,7 @@ async def downlink_header(ctx: Context) -> None:
             f"{int(header.encryption)} in {found.type.name} #{header.sequence}",
             "R-RSP-13",
         )
-    _stamped_since(ctx, first_hello, session_packets, first_hello.header.timestamp)
+    stamped_since(ctx, first_hello, session_packets, first_hello.header.timestamp)
     sequence_high = int.from_bytes(high[5:7])
     lasts = [(d.at, d.header.last_received) for d in session_packets]
     ctx.expect(
@@ -345,13 +353,7 @@ async def event_taken_once(ctx: Context) -> None:
     event = first(model, DeviceKind.EVENT)
     probe = await session(ctx)
     period = probe.period
-    start = await probe.next(PacketType.DOWNLINK, after=0, where=carries(command))
-    if start is None:
-        raise Inconclusive(f"no {command.name} command issued (D-RSP-24 step 2)")
-    item = start.item(command.position)
-    assert item is not None
-    assert item.id is not None
-    before = item.id
+    before = await _first_command(probe, command)
     for _ in range(4):  # the three of R-RSP-30, and a late copy
         probe.uplink([occurrence(event, 0)])
         await probe.listen(period)
@@ -370,6 +372,54 @@ async def event_taken_once(ctx: Context) -> None:
     ctx.expect(
         len(issued) == 1,
         f"{event.name} #0 taken once: one {command.name} for it",
+        f"{len(issued)} commands: {numbered(command, issued)}",
+    )
+
+
+async def _first_command(probe: LocalProbe, command: Device) -> int:
+    """The ID of the command the scenario issues on its own (D-RSP-24 step 2): the commands
+    after it are echoes of events taken (step 3)."""
+    start = await probe.next(PacketType.DOWNLINK, after=0, where=carries(command))
+    if start is None:
+        raise Inconclusive(f"no {command.name} command issued (D-RSP-24 step 2)")
+    item = start.item(command.position)
+    assert item is not None
+    assert item.id is not None
+    return item.id
+
+
+@local_case(
+    "rsp/local/events-taken-per-device",
+    "Events of two devices with the same ID are each taken: each issues a command",
+    ["R-RSP-25"],
+)
+async def events_taken_per_device(ctx: Context) -> None:
+    model = played_model(ctx)
+    command = first(model, DeviceKind.COMMAND)
+    events = of_kind(model, DeviceKind.EVENT)
+    if len(events) < 2:
+        # Occurrence IDs are per device (R-RSP-24): only two devices of a kind with the same ID
+        # show a receiver that keeps its last taken ID per kind; taken memory events all look
+        # alike on the wire (one PERIOD, D-RSP-24 step 4), so events alone can show it.
+        raise NotApplicable(f"the model {model.name} has fewer than two event devices")
+    one, other = events[:2]
+    probe = await session(ctx)
+    period = probe.period
+    before = await _first_command(probe, command)
+    for _ in range(3):  # R-RSP-30's three UPLINKs, both events #0 in each
+        probe.uplink([occurrence(one, 0), occurrence(other, 0)])
+        await probe.listen(period)
+
+    def echoes() -> list[int]:
+        return [i for i in ids(probe.packets(PacketType.DOWNLINK), command) if i != before]
+
+    if await probe.next(PacketType.DOWNLINK, after=0, where=lambda _: len(echoes()) >= 2):
+        await probe.listen(4 * period)  # and no third
+    issued = echoes()
+    ctx.expect(
+        len(issued) == 2,
+        f"{one.name} #0 and {other.name} #0 each taken once (IDs are per device, R-RSP-24):"
+        f" two {command.name} commands for them (D-RSP-24 step 3)",
         f"{len(issued)} commands: {numbered(command, issued)}",
     )
 
