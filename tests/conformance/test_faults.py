@@ -104,6 +104,10 @@ def summary(outcomes: dict[Fault, list[Result]]) -> str:
     return "\n".join(lines)
 
 
+#: One worker runs both tests, so that the module's fixture (every fault's run, 24 s) is made once.
+pytestmark = pytest.mark.xdist_group("faults")
+
+
 @pytest.fixture(scope="module")
 def outcomes() -> dict[Fault, list[Result]]:
     return asyncio.run(asyncio.wait_for(run_faults(Fault), BOUND))
