@@ -89,9 +89,10 @@ def _catchers(
     aimed = [c.id for c in cases if fault.requirement in c.requirements]
     if aimed:
         found = implementation.run_suite(tmp, [fault.name], aimed)
-        if not found.having("fail") and found.having("inconclusive"):
+        if not found.having("fail") and (found.having("inconclusive") or not found.results):
             # A case that could not judge (a timing check on a loaded machine, the harness's
-            # loop held) may judge on a second try: as a user would run it again.
+            # loop held), or a run that gave no verdict at all (its stderr says why; CI saw one
+            # once), may judge on a second try: as a user would run it again.
             found = implementation.run_suite(tmp, [fault.name], aimed)
         if found.having("fail") or role is Role.CLIENT:
             # Every client requirement has cases of its own (`cases --matrix`): a client fault
@@ -102,6 +103,8 @@ def _catchers(
 
 
 def _unpassed(found: Verdicts) -> dict[str, str]:
+    if not found.results:
+        return {"(no verdicts)": f"exit {found.status}: {found.err[-600:]}"}
     return {
         case: f"{verdict}: {why}"
         for case, (verdict, why) in sorted(found.results.items())
