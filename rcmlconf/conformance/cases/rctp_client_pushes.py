@@ -35,7 +35,7 @@ NOT_TAKEN = "the values it had before: the refused push not taken"
     ["R-RCTP-61", "R-RCTP-24", "R-RCTP-3"],
 )
 async def event_push_taken(ctx: Context) -> None:
-    push = await _push(ctx, lambda pushed, codec: codec.encode(pushed))
+    push = await _push(ctx)
     ctx.expect_status(push.answer, 200, "R-RCTP-24")
     push.written_back(ctx, push.pushed, "the pushed values written back")
 
@@ -113,7 +113,7 @@ async def event_push_unknown_node(ctx: Context) -> None:
     ["R-RCTP-61", "R-RCTP-24"],
 )
 async def event_push_one_node(ctx: Context) -> None:
-    push = await _push(ctx, lambda pushed, codec: codec.encode(pushed), one_node=True)
+    push = await _push(ctx, one_node=True)
     ctx.expect_status(push.answer, 200, "R-RCTP-24", what="a push of one node of the access")
     push.written_back(ctx, push.pushed, "the one pushed value with the others it had")
 
@@ -126,7 +126,7 @@ async def event_push_one_node(ctx: Context) -> None:
 )
 async def event_push_nodes_backwards(ctx: Context) -> None:
     # A client that sorts the names it is given, as a decoder of canonical bodies does, takes it.
-    push = await _push(ctx, lambda pushed, codec: codec.encode(pushed), listing=_backwards)
+    push = await _push(ctx, listing=_backwards)
     push.refused(ctx, 400, "R-RCTP-30", "Nodes out of canonical order")
 
 
@@ -156,7 +156,7 @@ async def event_push_nodes_repeated(ctx: Context) -> None:
 async def event_push_paused(ctx: Context) -> None:
     # D-RCTP-14: PAUSE answered 200 leaves the access `ready`; D-RCTP-26: a server WRITE of an
     # access not playing on the client's side is 455. Step 5 pauses the access before its WRITE.
-    push = await _push(ctx, lambda pushed, codec: codec.encode(pushed), paused=True)
+    push = await _push(ctx, paused=True)
     ctx.expect_status(push.answer, 455, "R-RCTP-68", what="a push of the paused access")
     if push.written_after_answer:
         push.written_back(ctx, push.before, NOT_TAKEN)
@@ -195,9 +195,14 @@ def _backwards(names: list[str]) -> list[str]:
     return names[::-1]
 
 
+def _canonical(pushed: dict[str, Value], codec: ValuesCodec[DataNode]) -> bytes:
+    """A push's body as its Nodes list it: the values in canonical order (D-RCTP-20)."""
+    return codec.encode(pushed)
+
+
 async def _push(
     ctx: Context,
-    body: Callable[[dict[str, Value], ValuesCodec[DataNode]], bytes],
+    body: Callable[[dict[str, Value], ValuesCodec[DataNode]], bytes] = _canonical,
     listing: Listing = list,
     one_node: bool = False,
     paused: bool = False,
