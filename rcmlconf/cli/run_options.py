@@ -15,18 +15,19 @@ import re
 import stat
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, NoReturn, TypeVar
+from typing import TYPE_CHECKING, Any, NoReturn, TypeVar
 
 import click
 
-from rcmlconf.cli.console import Output
 from rcmlconf.conformance.files import shown
-from rcmlconf.conformance.registry import Case
-from rcmlconf.conformance.reports.baseline import unknown_ids
 from rcmlconf.diagnostics import Severity
 from rcmlconf.errors import RcmlconfError
-from rcmlconf.validate.validator import InvalidRobot
 from rcmlconf.wording import one_line, plural, quoted
+
+if TYPE_CHECKING:  # `rcmlconf run`'s options are declared with this module's helpers: it stays
+    # light, as the declaring module does (rcmlconf.cli.run)
+    from rcmlconf.cli.console import Output
+    from rcmlconf.conformance.registry import Case
 
 T = TypeVar("T")
 V = TypeVar("V")
@@ -61,6 +62,8 @@ def loaded(option: str, load: Callable[[V], T], value: V) -> T:
 def robot_file(option: str, load: Callable[[Path], T], path: Path) -> T:
     """A robot's file (--rcml, --model) as `load` reads it, or a usage error that says its first
     error, where `loaded` would only say that it is not valid."""
+    from rcmlconf.validate.validator import InvalidRobot
+
     try:
         return load(path)
     except InvalidRobot as error:
@@ -134,6 +137,8 @@ def warn_unknown(
     output: Output, baseline: Path, known: frozenset[str], registry: dict[str, Case]
 ) -> None:
     """A baseline's IDs that name no case (renamed since, or misspelt): the run goes on."""
+    from rcmlconf.conformance.reports.baseline import unknown_ids
+
     unknown = unknown_ids(known, registry)
     if not unknown:
         return

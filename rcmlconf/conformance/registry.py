@@ -39,6 +39,9 @@ Served = Callable[[bytes, str], bytes]
 #: The longest session timeout (D-RCTP-11) the cases that wait one out wait for, by default
 #: (`run --session-wait`): a server that announces longer makes them inconclusive.
 SESSION_WAIT = 5.0
+#: How long a client or local system started for a case has to connect, by default (`run
+#: --connect-timeout`).
+CONNECT_TIMEOUT = 10.0
 
 
 @dataclass(frozen=True, slots=True)

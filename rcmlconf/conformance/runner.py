@@ -12,7 +12,7 @@ from pathlib import Path
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.loopwatch import LoopWatch
-from rcmlconf.conformance.registry import SESSION_WAIT, Case, Role
+from rcmlconf.conformance.registry import CONNECT_TIMEOUT, SESSION_WAIT, Case, Role
 from rcmlconf.conformance.targets import Target
 from rcmlconf.conformance.transcript import Address, Entry
 from rcmlconf.conformance.verdicts import CaseStop, Failed, Result, Verdict
@@ -24,8 +24,6 @@ PARTLY = "checked in part; not checked: "
 #: Lines of the exchange kept with a result, at most (--json has them all; a longer exchange
 #: keeps its last lines, after one that says how many were cut).
 EXCHANGE_LINES = 2000
-#: --connect-timeout's default: a client started per case has this long to connect.
-CONNECT_TIMEOUT = 10.0
 
 
 @dataclass(frozen=True, slots=True)
