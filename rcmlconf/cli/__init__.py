@@ -201,4 +201,8 @@ def _leave(code: str | int | None, quiet_stdout: bool = False) -> NoReturn:
             code = 2
     with contextlib.suppress(OSError):
         sys.stderr.flush()
+    if sys.getprofile() is not None or sys.gettrace() is not None:
+        # Under a profiler or tracer (`python -m cProfile -o F -m rcmlconf ...`, coverage), the
+        # interpreter's shutdown is what writes its results: end the usual way.
+        raise SystemExit(code or 0)
     os._exit(code or 0)
