@@ -68,6 +68,9 @@ def test_every_fault_is_caught(name: str, tmp_path: Path) -> None:
     faults = implementation.faults()
     assert len(faults) >= 10
     assert set(KNOWN_MISSED[name]) <= {f.name for f in faults}
+    # A known miss runs every case of its role (a minute), the others mostly only their aimed
+    # cases (seconds): started first, it shares the pool's time with them instead of ending last.
+    faults.sort(key=lambda fault: fault.name not in KNOWN_MISSED[name])
     with ThreadPoolExecutor(CONCURRENT) as pool:
         caught = dict(pool.map(lambda f: (f.name, _catchers(implementation, f, tmp_path)), faults))
     missed = {fault for fault, (cases, _) in caught.items() if not cases}

@@ -345,7 +345,10 @@ async def every_period(ctx: Context) -> None:
 @local_case(
     "rsp/local/event-taken-once",
     "An event that rides four UPLINKs is taken once: it issues one command (D-RSP-24 step 3)",
-    ["R-RSP-25"],
+    # R-RSP-17: every packet the local system sends is read against D-RSP-14's table, and an
+    # ACK after an UPLINK of an event is where an implementation that acknowledges events
+    # sets a bit it may not.
+    ["R-RSP-25", "R-RSP-17"],
 )
 async def event_taken_once(ctx: Context) -> None:
     model = played_model(ctx)

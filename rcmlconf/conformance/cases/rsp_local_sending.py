@@ -197,7 +197,9 @@ async def next_waits_for_ack(ctx: Context) -> None:
 @local_case(
     "rsp/local/occurrence-ids",
     "The local system numbers each device's occurrences 0, 1, 2, ...: commands and memory commands",
-    ["R-RSP-24"],
+    # R-RSP-16: an ID is read as D-RSP-11 writes it (network byte order); one written the other
+    # way round reads #0, #256, ...
+    ["R-RSP-24", "R-RSP-16"],
 )
 async def occurrence_ids(ctx: Context) -> None:
     model = played_model(ctx)
