@@ -9,10 +9,9 @@ from __future__ import annotations
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.rsp_datagram import sequence_of
 from rcmlconf.conformance.probes.rsp_devices import flags, reported
-from rcmlconf.conformance.probes.rsp_exchanges import raw_session, taken
+from rcmlconf.conformance.probes.rsp_exchanges import raw_session, taken, uplinks_within
 from rcmlconf.conformance.registry import Role, case
 from rcmlconf.conformance.verdicts import Inconclusive
-from rcmlconf.rsp.codec import PacketType
 
 #: Periods the case watches the UPLINKs after the late DOWNLINK: one for the robot to take it,
 #: the rest to report what it then holds (an UPLINK every T while a sensor is requested).
@@ -36,9 +35,7 @@ async def late_request_ignored(ctx: Context) -> None:
     raw.rewind(top - 3)
     late = raw.downlink(flags(model, other))
     raw.rewind(top + 1)
-    uplinks = await probe.received_within(WATCH * raw.period, PacketType.UPLINK)
-    if not uplinks:
-        raise Inconclusive(f"no UPLINK in the {WATCH} periods after the late DOWNLINK")
+    uplinks = await uplinks_within(probe, WATCH, raw.period, "the late DOWNLINK")
     wrong = [d for d in uplinks if d.devices(model) != {asked.name}]
     ctx.expect(
         not wrong,
