@@ -14,6 +14,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import dataclasses
+import functools
 from collections.abc import AsyncIterator, Iterable
 
 import pytest
@@ -104,13 +105,20 @@ def summary(outcomes: dict[Fault, list[Result]]) -> str:
     return "\n".join(lines)
 
 
-#: One worker runs both tests, so that the module's fixture (every fault's run, 24 s) is made once.
+#: One worker runs both tests, so that every fault's run (24 s) is made once in its process.
 pytestmark = pytest.mark.xdist_group("faults")
 
 
-@pytest.fixture(scope="module")
-def outcomes() -> dict[Fault, list[Result]]:
+@functools.cache
+def every_fault_run() -> dict[Fault, list[Result]]:
+    # Cached for the worker's process, not a module-scoped fixture: pytest-xdist may hand the
+    # worker another module's test between the two, and a module fixture is then made again.
     return asyncio.run(asyncio.wait_for(run_faults(Fault), BOUND))
+
+
+@pytest.fixture
+def outcomes() -> dict[Fault, list[Result]]:
+    return every_fault_run()
 
 
 def test_some_case_fails_on_every_fault(outcomes: dict[Fault, list[Result]]) -> None:
