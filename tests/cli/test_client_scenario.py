@@ -128,6 +128,9 @@ def test_a_list_that_cannot_be_fetched_is_one_line_and_status_2() -> None:
         ),
         (b"#" * (1024 * 1024 + 1), "/cases is larger than it may be (1,048,576 bytes)"),
     ],
+    # Short IDs: a test's ID is in each child's environment (PYTEST_CURRENT_TEST), and one made
+    # of a megabyte listing is past the kernel's bound on an environment string (E2BIG).
+    ids=["not-a-url", "blank", "not-utf-8", "too-many", "too-large"],
 )
 def test_a_bad_case_list_is_one_line_and_status_2(listing: bytes, said: str) -> None:
     with http_files({"/cases": (listing, "text/plain")}) as http:
