@@ -239,6 +239,10 @@ async def no_free_buffer(ctx: Context) -> None:
     probe = await session(ctx, free=0, withheld=[memory])
     period = probe.period
     await probe.listen(8 * period)
+    if not probe.packets(PacketType.DOWNLINK):
+        # D-RSP-13: one every T; a local system that sent none sent no memory command either,
+        # which shows nothing of R-RSP-32.
+        raise Inconclusive(f"no DOWNLINK in {8 * period:.2f} s: nothing it withheld to see")
     early = [d for d in probe.packets(PacketType.DOWNLINK) if carries(memory)(d)]
     ctx.expect(
         not early,
@@ -257,6 +261,8 @@ async def no_free_buffer(ctx: Context) -> None:
     probe.uplink()
     probe.ack([item])
     later = await probe.received_within(8 * period, PacketType.DOWNLINK)
+    if not later:
+        raise Inconclusive(f"no DOWNLINK in {8 * period:.2f} s after the ACK")
     more = [i for i in ids(later, memory) if i != item.id]
     ctx.expect(
         not more,
