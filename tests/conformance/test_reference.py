@@ -62,21 +62,16 @@ def _run(
     return done, json.loads(report.read_text())["results"]
 
 
-#: How a case says it could not judge because the harness's own event loop was held (its
-#: process kept waiting for a CPU: the machine's doing, not the target's).
-HARNESS_HELD = "the harness's event loop was held"
-
-
 @SWEEPS
 def test_every_case_passes_on_the_reference_twice_with_the_same_verdicts(tmp_path: Path) -> None:
     cases = all_cases()
     done, results = _run(tmp_path, "--repeat", "2")
     stopped = _not_passing(results, cases)
-    if stopped and all(
-        r["verdict"] == Verdict.INCONCLUSIVE.value and HARNESS_HELD in r["reason"] for r in stopped
-    ):
-        # The other tests' processes beside this one kept the harness from judging some timing:
-        # the run is made once more, and must pass as a whole.
+    if stopped and all(r["verdict"] == Verdict.INCONCLUSIVE.value for r in stopped):
+        # The other tests' processes beside this one kept the harness from judging some
+        # timing ("the harness's event loop was held") or the robot from showing it (an ACK so
+        # late that the event went again first: no round trip to measure, Karn's rule): the run
+        # is made once more, and must pass as a whole. A fail is never run again.
         done, results = _run(tmp_path, "--repeat", "2")
         stopped = _not_passing(results, cases)
     assert {r["case"] for r in results} == set(cases), done.stderr

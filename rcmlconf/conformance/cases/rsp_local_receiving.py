@@ -100,13 +100,22 @@ async def dropped_then_taken(
 async def taken(
     ctx: Context, probe: LocalProbe, memory: Device, send: Callable[[], object], what: str
 ) -> None:
-    """`send` sends `memory` #0 as a robot may (`what`): its ACK must come (R-RSP-26)."""
-    ack = await probe.answer_to(send, PacketType.ACK, where=acks(memory, 0), wait=silence(probe))
+    """`send` sends `memory` #0 as a robot may (`what`): its ACK must come (R-RSP-26), within
+    `silence`: a timing check, which the harness's holds excuse as far as they add up to how
+    late the ACK came (none at all in as long again: any hold, D-RSP-26)."""
+    start, at, bound = probe.mark(), probe.now, silence(probe)
+    ack = await probe.answer_to(send, PacketType.ACK, where=acks(memory, 0), wait=bound)
+    if ack is not None:
+        return
+    late = await probe.next(PacketType.ACK, after=start, where=acks(memory, 0), wait=bound)
     ctx.expect(
-        ack is not None,
+        False,
         f"{what} acknowledged (R-RSP-26: a memory event, new or repeated)",
-        f"no ACK of {memory.name} #0 within {silence(probe) * 1000:.0f} ms",
+        f"no ACK of {memory.name} #0 within {bound * 1000:.0f} ms"
+        + (f" (one {(late.at - at) * 1000:.0f} ms after)" if late is not None else ""),
         "R-RSP-26",
+        timing=True,
+        by=late.at - at - bound if late is not None else None,
     )
 
 
