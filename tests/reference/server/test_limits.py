@@ -428,16 +428,12 @@ async def test_a_closed_connection_and_its_session_are_freed_without_the_collect
         gc.enable()
 
 
-async def _connected(
-    server_port: int, rcvbuf: int = 0, source: str = "127.0.0.1"
-) -> tuple[socket.socket, str]:
-    """A blocking client socket with a session (and a small receive buffer when asked), from
-    `source`."""
+async def _connected(server_port: int, rcvbuf: int = 0) -> tuple[socket.socket, str]:
+    """A blocking client socket with a session (and a small receive buffer when asked)."""
     sock = socket.socket()
     if rcvbuf:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
     sock.settimeout(5.0)
-    sock.bind((source, 0))
     sock.connect(("127.0.0.1", server_port))
     sock.sendall(b"CONNECT / RCTP/2.0\r\nCSeq: 1\r\n\r\n")
     answer = b""
@@ -596,44 +592,3 @@ async def test_a_peer_with_costly_work_gets_a_fair_share_of_time_not_of_turns() 
             other.close()
         await sending
         sock.close()
-
-
-@run
-async def test_work_done_while_no_one_waits_does_not_count_against_its_peer() -> None:
-    """D-RCTP-32: a peer's requests answered at once while no one waited are no debt of its
-    peer: once another peer's burst waits, its request that has to wait is served in turn,
-    after a slice or two of the burst. (Counted, the 3,000 READs of a quiet while put it behind
-    as much of the burst, some 1,300 READs here.) A turn's budget and a peer's share of a
-    microsecond: every request beyond a turn's first waits, so the queues' order decides."""
-    count = 3000
-    limits = ServerLimits(turn_budget=1e-6, peer_share=1e-6)
-    loop = asyncio.get_running_loop()
-    async with serving(limits=limits) as server:
-        quiet = [await _connected(server.port) for _ in range(2)]
-        for cseq in range(2, 1502):  # one at a time: each done at once
-            for sock, session in quiet:
-                sock.sendall(_reads(session, 1, first=cseq))
-                assert (await loop.run_in_executor(None, sock.recv, 4096)).startswith(ANSWER)
-        sock, session = await _connected(server.port, rcvbuf=1 << 20, source="127.0.0.2")
-        burst = _reads(session, count)
-        sock.setblocking(False)
-        sent = sock.send(burst)
-        sending = asyncio.ensure_future(loop.sock_sendall(sock, burst[sent:]))
-        assert await until(lambda: _has_data(sock))  # the burst is under way, and waits
-        before = sock.recv(1 << 22, socket.MSG_PEEK).count(ANSWER)
-        for quiet_sock, quiet_session in quiet:  # together: one of them waits
-            quiet_sock.sendall(_reads(quiet_session, 1, first=1502))
-
-        def burst_answered_by_then() -> int:
-            """The burst's answers once both quiet ones came, counted in the thread that took
-            them: a loaded machine's delay in handing them to the loop would count the burst's
-            later answers too (CI saw 421)."""
-            for quiet_sock, _ in quiet:
-                assert quiet_sock.recv(4096).startswith(ANSWER)
-            return sock.recv(1 << 22, socket.MSG_PEEK).count(ANSWER)
-
-        meanwhile = await loop.run_in_executor(None, burst_answered_by_then) - before
-        assert meanwhile < count // 10, meanwhile
-        await sending
-        for each in (sock, *(quiet_sock for quiet_sock, _ in quiet)):
-            each.close()

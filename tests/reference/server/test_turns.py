@@ -116,3 +116,35 @@ async def test_a_piece_is_charged_the_cpu_time_it_took_not_the_wall_time() -> No
     turns.later("127.0.0.2", lambda: done.append("127.0.0.2 next"))
     assert await until(lambda: turns.waiting == 0)
     assert done[:3] == ["127.0.0.2 asleep", "127.0.0.3 0", "127.0.0.2 next"]
+
+
+@run
+async def test_work_done_while_no_one_waits_is_no_debt_later() -> None:
+    """D-RCTP-32: a peer's work done at once while no one waited (a quiet while's requests) is
+    no debt of its peer: once another peer's burst waits, the peer's next piece is served after
+    a piece of the burst, not after as much time as it had. (Counted, a legitimate client's
+    quiet minute made its READ wait until a flood had had as much: 240 ms in
+    bench/hostile_load.py --turns.) Each piece burns 0.2 ms of CPU; a budget and a share of a
+    microsecond: a turn does one piece at once, or none."""
+    loop = asyncio.get_running_loop()
+    turns = Turns(loop, budget=1e-6, share=1e-6)
+    done: list[str] = []
+
+    def burn(label: str) -> None:
+        until_cpu = time.thread_time() + 0.0002
+        while time.thread_time() < until_cpu:
+            pass
+        done.append(label)
+
+    at_once: list[bool] = []
+    for index in range(50):  # the quiet while: 10 ms of CPU, each piece in a turn of its own
+        at_once.append(turns.run("127.0.0.1", lambda index=index: burn(f"quiet {index}")))
+        await asyncio.sleep(0)
+    assert await until(lambda: turns.waiting == 0)
+    done.clear()
+    for index in range(100):  # the burst: 20 ms of CPU
+        turns.later("127.0.0.2", lambda index=index: burn(f"burst {index}"))
+    turns.later("127.0.0.1", lambda: burn("quiet again"))
+    assert await until(lambda: turns.waiting == 0)
+    assert done.index("quiet again") <= 2, done[:60]
+    assert all(at_once)
