@@ -9,8 +9,9 @@ over (the simulacrum), whose codec is generic: nothing per robot runs below this
 
 The text is deterministic (a model and a source name give one text) and ASCII but for identifiers
 of other scripts; it is `mypy --strict`- and `ruff check`-clean, and laid out as `ruff format`
-lays it out (100 columns) for names of up to 50 characters: `_Writer` splits lines the way ruff
-does for the shapes the module has, and a line longer names make too long gets `# noqa: E501`.
+lays it out (100 columns) for names of up to 50 characters: `python_text.Writer` splits lines the
+way ruff does for the shapes the module has, and a line longer names make too long gets
+`# noqa: E501`.
 XML Names become Python identifiers deterministically: `-`, `.`, `_`,
 `:` and characters no identifier may hold separate words, camelCase splits words too; devices and
 fields become snake_case (`leftWheel` -> `left_wheel`), classes PascalCase (`irFire` ->
@@ -23,18 +24,24 @@ from __future__ import annotations
 
 import keyword
 import re
-import textwrap
 import unicodedata
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 from rcmlconf.errors import RcmlconfError
 from rcmlconf.rsp.model import Device, DeviceKind, Field, OnLoss, RobotModel
+from rcmlconf.rsp.python_text import (
+    LINE_LENGTH,
+    STEP,
+    Call,
+    Writer,
+    call,
+    escape,
+    prose,
+    string_literal,
+    wrap,
+)
 from rcmlconf.values import Kind
-
-#: The project's line length (pyproject.toml), which `ruff format` and `ruff check` apply.
-LINE_LENGTH = 100
-_STEP = 4
 
 
 class NameClash(RcmlconfError):
@@ -248,176 +255,6 @@ def _first_words(text: str, limit: int = 40) -> str:
     return " ".join(kept)
 
 
-# -- text -----------------------------------------------------------------------------------------
-
-
-def _escape(text: str) -> str:
-    """Text as it may stand in a string literal, docstring or comment: printable ASCII, with
-    escapes for the rest (so that no lint finds a confusable character) and for `"` and `\\`."""
-    out = []
-    for char in text:
-        code = ord(char)
-        if char == "\\":
-            out.append("\\\\")
-        elif char == '"':
-            out.append("\\x22")
-        elif 0x20 <= code < 0x7F:
-            out.append(char)
-        elif code < 0x100:
-            out.append(f"\\x{code:02x}")
-        elif code < 0x10000:
-            out.append(f"\\u{code:04x}")
-        else:
-            out.append(f"\\U{code:08x}")
-    return "".join(out)
-
-
-def _prose(text: str) -> str:
-    """Free text of the model (a title, a description) for a docstring or comment: one line."""
-    return _escape(" ".join(text.split()))
-
-
-def _literal(text: str) -> str:
-    return f'"{_escape(text)}"'
-
-
-def _width(text: str) -> int:
-    """Columns, as ruff counts them: East Asian wide characters take two, combining ones none."""
-    total = 0
-    for char in text:
-        if unicodedata.combining(char):
-            continue
-        total += 2 if unicodedata.east_asian_width(char) in ("W", "F") else 1
-    return total
-
-
-@dataclass(frozen=True)
-class _Call:
-    """Something in brackets that may be split one item a line, as `ruff format` splits it when
-    it does not fit: the trailing comma then keeps it split (the magic trailing comma)."""
-
-    open: str
-    items: tuple[tuple[str, _Expr], ...]
-    close: str
-
-    def flat(self) -> str:
-        return self.open + ", ".join(p + _flat(e) for p, e in self.items) + self.close
-
-
-_Expr = str | _Call
-
-
-def _flat(expr: _Expr) -> str:
-    return expr if isinstance(expr, str) else expr.flat()
-
-
-def _call(open_: str, *args: _Expr, close: str = ")") -> _Call:
-    return _Call(open_, tuple(("", a) for a in args), close)
-
-
-class _Writer:
-    def __init__(self) -> None:
-        self.lines: list[str] = []
-
-    def blank(self, count: int = 1) -> None:
-        self.lines.extend([""] * count)
-
-    def line(self, indent: int, text: str) -> None:
-        """A line of code. One too long, which only names too long for any line make, gets a
-        `# noqa: E501` (which ruff format does not count) unless ruff's E501 allows it anyway,
-        as it does a line of one word."""
-        text = " " * indent + text if text else ""
-        if not self.fits(0, text) and len(text.split()) > 1:
-            text += "  # noqa: E501"
-        self.lines.append(text)
-
-    def stmt(
-        self, indent: int, prefix: str, expr: _Expr, suffix: str = "", *, parens: bool = False
-    ) -> None:
-        """`prefix`, `expr` and `suffix` on one line if they fit, else split as `ruff format`
-        splits them. `parens`: the statement is an assignment or a `return`, whose value ruff
-        puts in parentheses when that is what makes it fit."""
-        flat = prefix + _flat(expr) + suffix
-        if self.fits(indent, flat):
-            self.line(indent, flat)
-            return
-        inner = indent + _STEP
-        splits = isinstance(expr, _Call) and bool(expr.items)
-        head = prefix + expr.open if isinstance(expr, _Call) and splits else flat
-        # In parentheses when its own brackets cannot help and the parentheses can.
-        if (
-            parens
-            and self.fits(indent, prefix + "(")
-            and not (splits and self.fits(indent, head))
-            and self.fits(inner, expr.open if isinstance(expr, _Call) and splits else _flat(expr))
-        ):
-            self.line(indent, prefix + "(")
-            self.stmt(inner, "", expr)
-            self.line(indent, ")" + suffix)
-            return
-        if not isinstance(expr, _Call) or not splits:
-            self.line(indent, flat)  # nothing to split: ruff leaves it too long too
-            return
-        self.line(indent, head)
-        for item_prefix, item in expr.items:
-            self.stmt(inner, item_prefix, item, ",")
-        self.line(indent, expr.close + suffix)
-
-    @staticmethod
-    def fits(indent: int, text: str) -> bool:
-        return indent + _width(text) <= LINE_LENGTH
-
-    def doc(self, indent: int, *paragraphs: str | Sequence[str]) -> None:
-        """A docstring: a paragraph of (escaped) text is wrapped, a sequence of lines is kept.
-        Its closing quotes have a line of their own unless the docstring is one line of text,
-        where ruff puts them on that line however long it is."""
-        pad = " " * indent
-        paragraphs = tuple(p for p in paragraphs if p)
-        first = paragraphs[0]
-        if len(paragraphs) == 1 and isinstance(first, str):
-            lines = _wrap(f'"""{first}"""', pad, pad)
-            if len(lines) == 1:
-                self.lines.extend(lines)
-                return
-            # Two lines at least, so that the closing quotes stay on their own.
-            lines = _wrap(first, pad + '"""', pad, LINE_LENGTH - 3)
-            if len(lines) == 1:
-                self.lines.append(lines[0] + '"""')
-                return
-            self.lines.extend(lines)
-            self.lines.append(pad + '"""')
-            return
-        for index, paragraph in enumerate(paragraphs):
-            start = pad + '"""' if index == 0 else pad
-            if index:
-                self.blank()
-            if isinstance(paragraph, str):
-                self.lines.extend(_wrap(paragraph, start, pad))
-                continue
-            for number, line in enumerate(paragraph):
-                self.lines.append((start if number == 0 else pad) + line if line else "")
-        self.lines.append(pad + '"""')
-
-    def comment(self, text: str) -> None:
-        self.lines.extend(_wrap(text, "# ", "# "))
-
-    def text(self) -> str:
-        return "\n".join(self.lines).rstrip("\n") + "\n"
-
-
-def _wrap(text: str, first: str, rest: str, width: int = LINE_LENGTH) -> list[str]:
-    """Lines of at most `width` columns, but for a word too long for any (which ruff allows
-    alone on its line)."""
-    return textwrap.wrap(
-        text,
-        width,
-        initial_indent=first,
-        subsequent_indent=rest,
-        break_long_words=False,
-        break_on_hyphens=False,
-    )
-
-
 # -- the module -----------------------------------------------------------------------------------
 
 #: Kinds whose values the application reads back (a monitor reads its effector's).
@@ -474,7 +311,7 @@ def _field_doc(field: Field) -> str:
     elif field.maximum is not None:
         parts.append(f"{each}at most {_number(field.maximum)}")
     if field.unit:
-        parts.append(f"in {_prose(field.unit)}")
+        parts.append(f"in {prose(field.unit)}")
     text = ", ".join(parts) + "."
     description = _description(field.meta)
     return f"{text} {_sentences(description)}" if description else text
@@ -490,7 +327,7 @@ def _example(field: Field) -> str:
 
 
 def _description(meta: Iterable[tuple[str, str]]) -> str:
-    return next((_prose(content) for name, content in meta if name == "description"), "")
+    return next((prose(content) for name, content in meta if name == "description"), "")
 
 
 def _sentences(*texts: str) -> str:
@@ -503,7 +340,7 @@ class _Module:
         self.model = model
         self.source = source
         self.names = _names(model)
-        self.out = _Writer()
+        self.out = Writer()
         self.helpers = self._helpers_used()
         #: Effector -> its monitors.
         self.monitors: dict[str, list[str]] = {}
@@ -541,38 +378,38 @@ class _Module:
         """MODEL_NAME, a string split in parts at spaces when it is too long for a line (ruff
         keeps them apart as long as they would not fit joined)."""
         out = self.out
-        literal = _literal(self.model.name)
+        literal = string_literal(self.model.name)
         prefix = "MODEL_NAME: Final = "
-        if out.fits(0, prefix + literal) or out.fits(_STEP, literal):
+        if out.fits(0, prefix + literal) or out.fits(STEP, literal):
             out.stmt(0, prefix, literal, parens=True)
             return
         words = re.findall(r"\S*\s*", self.model.name)
         out.line(0, prefix + "(")
         part = ""
         for word in words:
-            if part and not out.fits(_STEP, _literal(part + word)):
-                out.line(_STEP, _literal(part))
+            if part and not out.fits(STEP, string_literal(part + word)):
+                out.line(STEP, string_literal(part))
                 part = ""
             part += word
         if part:
-            out.line(_STEP, _literal(part))
+            out.line(STEP, string_literal(part))
         out.line(0, ")")
 
     def _header(self) -> None:
         model = self.model
         out = self.out
         out.comment(
-            f"Generated by `rcmlconf rsp generate` from {_prose(self.source)}: do not edit, "
+            f"Generated by `rcmlconf rsp generate` from {prose(self.source)}: do not edit, "
             "generate it again when the model changes."
         )
         out.comment(
-            f"Robot model {_prose(model.name)}, model ID {model.model_id}, "
+            f"Robot model {prose(model.name)}, model ID {model.model_id}, "
             f"{len(model.devices)} devices (specs/rsp.md section 1)."
         )
-        title = f" ({_prose(model.title)})" if model.title else ""
+        title = f" ({prose(model.title)})" if model.title else ""
         out.doc(
             0,
-            f"The Robot API of {_prose(model.name)}{title}: a class per device (paper Fig. 4) "
+            f"The Robot API of {prose(model.name)}{title}: a class per device (paper Fig. 4) "
             "over a `rcmlconf.rsp.api.DeviceAccess` such as the simulacrum, which sends and "
             "receives everything. The classes name the devices and fields, and type the values.",
             self._usage(),
@@ -599,7 +436,7 @@ class _Module:
         if command is not None:
             lines.append(f"occurrence = {var}.{command.attr}.issue({arguments(command)})")
         # A line too long to read is left out of the example.
-        kept = ["    " + _escape(line) for line in lines]
+        kept = ["    " + escape(line) for line in lines]
         return ["For example:", ""] + [line for line in kept if len(line) <= 90]
 
     def _imports(self) -> None:
@@ -659,7 +496,7 @@ class _Module:
         also = f" and of its monitor {_list(monitors)}" if monitors else ""
         out.doc(
             4,
-            f"A value of {_KIND_WORDS[device.kind]} {_escape(device.name)}{also}: its fields "
+            f"A value of {_KIND_WORDS[device.kind]} {escape(device.name)}{also}: its fields "
             "in model order.",
         )
         out.blank()
@@ -674,14 +511,14 @@ class _Module:
         out.stmt(
             0,
             "",
-            _call(f"def {names.reader}(", "values: Values", close=f") -> {names.values}"),
+            call(f"def {names.reader}(", "values: Values", close=f") -> {names.values}"),
             ":",
         )
         items = tuple(
-            (f"{f.ident}=", _call(f"{f.converter}(", f"values[{_literal(f.field.name)}]"))
+            (f"{f.ident}=", call(f"{f.converter}(", f"values[{string_literal(f.field.name)}]"))
             for f in names.fields
         )
-        out.stmt(4, "return ", _Call(f"{names.values}(", items, ")"), parens=True)
+        out.stmt(4, "return ", Call(f"{names.values}(", items, ")"), parens=True)
 
     def _device(self, names: _DeviceNames) -> None:
         out = self.out
@@ -689,7 +526,7 @@ class _Module:
         out.line(0, f"class {names.cls}:")
         out.doc(4, self._device_doc(names))
         out.blank()
-        out.stmt(4, "NAME: Final = ", _literal(device.name), parens=True)
+        out.stmt(4, "NAME: Final = ", string_literal(device.name), parens=True)
         out.blank()
         out.line(4, "def __init__(self, access: DeviceAccess) -> None:")
         out.line(8, "self._access = access")
@@ -697,7 +534,7 @@ class _Module:
             for member in self.model.members(device.name):
                 mine = self.names.of(member.name)
                 out.stmt(
-                    8, f"self.{mine.attr}: Final = ", _call(f"{mine.cls}(", "access"), parens=True
+                    8, f"self.{mine.attr}: Final = ", call(f"{mine.cls}(", "access"), parens=True
                 )
         for method in _METHODS[device.kind]:
             out.blank()
@@ -705,9 +542,9 @@ class _Module:
 
     def _device_doc(self, names: _DeviceNames) -> str:
         device = names.device
-        where = f", in module {_escape(device.module)}" if device.module else ""
+        where = f", in module {escape(device.module)}" if device.module else ""
         head = (
-            f"{_KIND_WORDS[device.kind].capitalize()} {_escape(device.name)}: bit "
+            f"{_KIND_WORDS[device.kind].capitalize()} {escape(device.name)}: bit "
             f"{device.position} of the Device Map{where}"
         )
         what = _KIND_DOCS.get(device.kind, "")
@@ -716,7 +553,7 @@ class _Module:
             holds = f"it holds {_list(members)}" if members else "it holds no device"
             return _sentences(head, holds, what, _description(device.meta))
         if device.kind is DeviceKind.MONITOR:
-            what = f"what effector {_escape(device.of or '')} does, as the robot reports it"
+            what = f"what effector {escape(device.of or '')} does, as the robot reports it"
         elif device.kind is DeviceKind.EFFECTOR:
             what += (
                 " it goes to zero" if device.on_loss is OnLoss.ZERO else " it holds its value"
@@ -726,22 +563,22 @@ class _Module:
     # -- methods
 
     def _signature(self, name: str, *params: str, returns: str) -> None:
-        self.out.stmt(4, "", _call(f"def {name}(", "self", *params, close=f") -> {returns}"), ":")
+        self.out.stmt(4, "", call(f"def {name}(", "self", *params, close=f") -> {returns}"), ":")
 
     def _keywords(self, names: _DeviceNames) -> list[str]:
         return ["*", *(f"{f.ident}: {f.annotation}" for f in names.fields)] if names.fields else []
 
-    def _arguments(self, names: _DeviceNames) -> _Call:
-        return _Call(
+    def _arguments(self, names: _DeviceNames) -> Call:
+        return Call(
             "{",
-            tuple((f"{_literal(f.field.name)}: ", f.ident) for f in names.fields),
+            tuple((f"{string_literal(f.field.name)}: ", f.ident) for f in names.fields),
             "}",
         )
 
     def _field_lines(self, names: _DeviceNames) -> list[str]:
         lines: list[str] = []
         for f in names.fields:
-            lines.extend(_wrap(f"{f.ident}: {_field_doc(f.field)}", "", "    ", LINE_LENGTH - 8))
+            lines.extend(wrap(f"{f.ident}: {_field_doc(f.field)}", "", "    ", LINE_LENGTH - 8))
         return lines
 
     def _write(self, names: _DeviceNames) -> None:
@@ -752,7 +589,7 @@ class _Module:
             "(D-RSP-18).",
             self._field_lines(names),
         )
-        self.out.stmt(8, "", _call("self._access.write(", "self.NAME", self._arguments(names)))
+        self.out.stmt(8, "", call("self._access.write(", "self.NAME", self._arguments(names)))
 
     def _issue(self, names: _DeviceNames) -> None:
         self._signature("issue", *self._keywords(names), returns="int")
@@ -771,7 +608,7 @@ class _Module:
         self.out.stmt(
             8,
             "return ",
-            _call("self._access.issue(", "self.NAME", self._arguments(names)),
+            call("self._access.issue(", "self.NAME", self._arguments(names)),
             parens=True,
         )
 
@@ -783,7 +620,7 @@ class _Module:
         out.line(8, "values = self._access.latest(self.NAME)")
         out.line(8, "if values is None:")
         out.line(12, 'raise LookupError(f"{self.NAME}: nothing written yet")')
-        out.stmt(8, "return ", _call(f"{names.reader}(", "values"), parens=True)
+        out.stmt(8, "return ", call(f"{names.reader}(", "values"), parens=True)
 
     def _read_next(self, names: _DeviceNames) -> None:
         assert names.reader is not None
@@ -798,7 +635,7 @@ class _Module:
         self.out.stmt(
             8,
             "return ",
-            _call(f"{names.reader}(", _call("self._access.read(", "self.NAME", "timeout")),
+            call(f"{names.reader}(", call("self._access.read(", "self.NAME", "timeout")),
             parens=True,
         )
 
@@ -810,16 +647,16 @@ class _Module:
         out.line(8, "values = self._access.latest(self.NAME)")
         out.line(8, "if values is None:")
         out.line(12, "return None")
-        out.stmt(8, "return ", _call(f"{names.reader}(", "values"), parens=True)
+        out.stmt(8, "return ", call(f"{names.reader}(", "values"), parens=True)
 
     def _listen(self, names: _DeviceNames) -> None:
         assert names.reader is not None
         what = "occurrence" if names.device.kind.occurrence else "new value"
-        callback = _call("callback: Callable[", f"[{names.values}]", "None", close="]")
+        callback = call("callback: Callable[", f"[{names.values}]", "None", close="]")
         self.out.stmt(
             4,
             "",
-            _call("def listen(", "self", callback, close=") -> Callable[[], None]"),
+            call("def listen(", "self", callback, close=") -> Callable[[], None]"),
             ":",
         )
         self.out.doc(
@@ -827,8 +664,8 @@ class _Module:
             f"Call `callback` with each {what}, from the middleware's thread; returns the "
             "function that stops it.",
         )
-        convert = _call("callback(", _call(f"{names.reader}(", "values"))
-        lambda_ = _Call(
+        convert = call("callback(", call(f"{names.reader}(", "values"))
+        lambda_ = Call(
             "self._access.listen(", (("", "self.NAME"), ("lambda values: ", convert)), ")"
         )
         self.out.stmt(8, "return ", lambda_, parens=True)
@@ -845,11 +682,11 @@ class _Module:
         model = self.model
         names = self.names
         out.line(0, f"class {names.model_cls}:")
-        title = _sentences(_prose(model.title)) if model.title else ""
+        title = _sentences(prose(model.title)) if model.title else ""
         out.doc(
             4,
             _sentences(
-                f"Robot {_prose(model.name)}, model ID {model.model_id}",
+                f"Robot {prose(model.name)}, model ID {model.model_id}",
                 title,
                 _description(model.meta),
                 "An attribute per device, in model order; a module's devices are its attributes "
@@ -861,14 +698,14 @@ class _Module:
         for device in names.devices:
             prefix = f"self.{device.attr}: Final = "
             if device.device.module is None:
-                out.stmt(8, prefix, _call(f"{device.cls}(", "access"), parens=True)
+                out.stmt(8, prefix, call(f"{device.cls}(", "access"), parens=True)
             else:
                 module = names.of(device.device.module)
                 out.stmt(8, prefix, f"self.{module.attr}.{device.attr}", parens=True)
 
 
 def _list(items: Sequence[str]) -> str:
-    escaped = [_escape(i) for i in items]
+    escaped = [escape(i) for i in items]
     return escaped[0] if len(escaped) == 1 else ", ".join(escaped[:-1]) + " and " + escaped[-1]
 
 
