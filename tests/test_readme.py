@@ -251,6 +251,29 @@ def test_readme_shows_examples() -> None:
     assert {"dissect", "generate"} <= verbs
 
 
+#: How many more times an example runs when it missed a line README shows and its own summary
+#: says some case was inconclusive: the tests run on two workers beside it, and a case starved of
+#: CPU honestly says inconclusive, where README shows a quiet machine's run. A miss without an
+#: inconclusive, or inconclusive every time, still fails.
+RERUNS_WHEN_INCONCLUSIVE = 2
+
+_SOME_INCONCLUSIVE = re.compile(r" results: .*\b[1-9][0-9]* inconclusive\b")
+
+
+def what_is_wrong(example: Example, done: subprocess.CompletedProcess[str]) -> str | None:
+    """What README's example did not do as shown, or None."""
+    printed = done.stdout + done.stderr
+    where = f"README line {example.line}: {example.command}"
+    expected = 1 if example.refuses else 0
+    if done.returncode != expected:
+        return f"{where}: exit {done.returncode}, not {expected}:\n{printed}"
+    if "Traceback" in printed or "bug in rcmlconf" in printed:
+        return f"{where}: an internal error:\n{printed}"
+    if missing := shown_in_order(example.shown, done.stdout, done.stderr):
+        return f"{where}: README shows lines it did not print: {missing}\n{printed}"
+    return None
+
+
 def test_every_tour_example_works_as_shown(tour: Path) -> None:
     player = Tour(tour)
     failures: list[str] = []
@@ -260,15 +283,14 @@ def test_every_tour_example_works_as_shown(tour: Path) -> None:
                 player.start(example)
                 continue
             done = player.run(example)
-            printed = done.stdout + done.stderr
-            where = f"README line {example.line}: {example.command}"
-            expected = 1 if example.refuses else 0
-            if done.returncode != expected:
-                failures.append(f"{where}: exit {done.returncode}, not {expected}:\n{printed}")
-            elif "Traceback" in printed or "bug in rcmlconf" in printed:
-                failures.append(f"{where}: an internal error:\n{printed}")
-            elif missing := shown_in_order(example.shown, done.stdout, done.stderr):
-                failures.append(f"{where}: README shows lines it did not print: {missing}")
+            wrong = what_is_wrong(example, done)
+            for _ in range(RERUNS_WHEN_INCONCLUSIVE):
+                if wrong is None or not _SOME_INCONCLUSIVE.search(done.stdout + done.stderr):
+                    break
+                done = player.run(example)
+                wrong = what_is_wrong(example, done)
+            if wrong is not None:
+                failures.append(wrong)
     finally:
         player.stop()
     assert not failures, "\n\n".join(failures)
