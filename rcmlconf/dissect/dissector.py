@@ -14,7 +14,8 @@ from typing import Any
 
 from rcmlconf.dissect.classify import FlowKey, Pending, reverse
 from rcmlconf.dissect.context import Context, Options
-from rcmlconf.dissect.control import ControlConnection, ControlReport
+from rcmlconf.dissect.control import ControlConnection
+from rcmlconf.dissect.control_results import ControlReport
 from rcmlconf.dissect.datastream import DataFlow, DataStreamDecoder, HeartbeatReport, stream_label
 from rcmlconf.dissect.records import (
     RCTP,

@@ -19,7 +19,7 @@ from collections.abc import Callable, Iterator
 from functools import cache
 from typing import Any
 
-from rcmlconf.dissect.control import Answer, BodyValues, ControlReport
+from rcmlconf.dissect.control_results import Answer, BodyValues, ControlReport
 from rcmlconf.dissect.datastream import DataValues, HeartbeatReport
 from rcmlconf.dissect.dissector import Analysis
 from rcmlconf.dissect.records import LABELS, RCTP, RCTP_DATA, RSP, Finding, Record, Severity

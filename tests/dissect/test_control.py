@@ -14,7 +14,7 @@ import pytest
 from support.pcaps import TCP_ACK, TCP_PSH, TCP_SYN, TcpFlow, dissect, ipv4_tcp, ipv4_udp, pcap
 
 from rcmlconf.dissect import RCTP, RCTP_DATA, Options, Severity
-from rcmlconf.dissect.control import Answer
+from rcmlconf.dissect.control_results import Answer
 
 TRANSCRIPTS = sorted(
     (Path(__file__).parents[2] / "vectors" / "rctp" / "transcripts").glob("*.json")
@@ -339,7 +339,7 @@ def test_fin_closes_the_session() -> None:
 
 
 def test_bodies_are_decoded_with_the_rcml() -> None:
-    from rcmlconf.dissect.control import BodyValues
+    from rcmlconf.dissect.control_results import BodyValues
     from rcmlconf.rcml.model import AccessNode, DataNode
     from rcmlconf.rctp.bodies import ValuesCodec
     from rcmlconf.validate.validator import load_robot
