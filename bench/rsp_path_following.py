@@ -18,6 +18,8 @@ from pathlib import Path
 
 from rcmlconf.experiments import path_following as pf
 from rcmlconf.experiments import plots
+from rcmlconf.experiments.path_report import report
+from rcmlconf.experiments.path_run import setting
 from rcmlconf.experiments.simulation import cubo_model
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -39,13 +41,13 @@ def main() -> None:
     model = cubo_model()
     began = time.perf_counter()
     if args.quick:
-        figure_settings = [pf.setting(0.1, 0.01), pf.setting(0.1, 0.1)]
+        figure_settings = [setting(0.1, 0.01), setting(0.1, 0.1)]
         experiment = pf.run_sweep(
             model, delays=(0.1,), losses=(0.01, 0.1), duration=5.0, seed=args.seed,
             bandwidth=args.bandwidth,
         )  # fmt: skip
     else:
-        figure_settings = [pf.setting(*s) for s in pf.FIGURE_SETTINGS]
+        figure_settings = [setting(*s) for s in pf.FIGURE_SETTINGS]
         experiment = pf.run_sweep(
             model, duration=args.duration, seed=args.seed, bandwidth=args.bandwidth
         )
@@ -56,7 +58,7 @@ def main() -> None:
     report_path: Path = args.report or out / "rsp_path_following.md"
     report_path.parent.mkdir(parents=True, exist_ok=True)
     link = _relative(figure, report_path.parent)
-    report_path.write_text(pf.report(experiment, model, link), encoding="utf-8")
+    report_path.write_text(report(experiment, model, link), encoding="utf-8")
     data = {"experiment": "path following (paper Fig. 11)", **experiment.summary()}
     (out / "rsp_path_following.json").write_text(json.dumps(data, indent=1), encoding="utf-8")
     print(f"{'delay':>6} {'loss':>5}  " + "  ".join(f"{t:>16}" for t in pf.TRANSPORTS))

@@ -15,7 +15,9 @@ from rcmlconf.experiments.packet_size import (
     PAPER_MUSIC_SIZE,
     PacketSizeRun,
 )
-from rcmlconf.experiments.path_following import PathExperiment, ReferencePath, Setting
+from rcmlconf.experiments.path_following import PathExperiment
+from rcmlconf.experiments.path_reference import ReferencePath
+from rcmlconf.experiments.path_run import Setting
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

@@ -3,38 +3,23 @@ on short runs; and the TCP model it compares with."""
 
 from __future__ import annotations
 
-import math
 from functools import cache
-from pathlib import Path
 
 import pytest
 from support.rsp_models import robot_model
 
 from rcmlconf.experiments import path_following as pf
-from rcmlconf.experiments.plots import path_figure
+from rcmlconf.experiments.path_run import PathRun, setting
 from rcmlconf.experiments.tcp import TcpSettings, TcpSimulation
 from rcmlconf.impair import Impairment
 
-PNG = b"\x89PNG\r\n\x1a\n"
 #: Seconds of lap after the warm-up: about a third of it.
 DURATION = 8.0
 
 
 @cache
-def run(transport: str, delay: float, loss: float, seed: int = 0) -> pf.PathRun:
-    return pf.run_path(
-        robot_model(), transport, pf.setting(delay, loss), duration=DURATION, seed=seed
-    )
-
-
-def test_the_reference_path() -> None:
-    path = pf.ReferencePath()
-    assert path.length == pytest.approx(2 * 1.4 + 2 * 0.4 + 2 * math.pi * 0.3, abs=1e-3)
-    assert max(path.distance(p.x, p.y) for p in path.points) < 1e-9
-    assert path.distance(0.0, 0.0) == pytest.approx(0.5)
-    assert path.distance(1.2, 0.0) == pytest.approx(0.2)
-    corner = 0.7 + 0.3 / math.sqrt(2), 0.2 + 0.3 / math.sqrt(2)
-    assert path.distance(corner[0] + 0.1, corner[1] + 0.1) == pytest.approx(0.1 * math.sqrt(2))
+def run(transport: str, delay: float, loss: float, seed: int = 0) -> PathRun:
+    return pf.run_path(robot_model(), transport, setting(delay, loss), duration=DURATION, seed=seed)
 
 
 def test_rsp_follows_the_path_where_fixed_size_tcp_falls_behind() -> None:
@@ -72,18 +57,9 @@ def test_without_loss_the_transports_follow_alike() -> None:
 
 @pytest.mark.parametrize("transport", ["rsp", "tcp"])
 def test_the_same_seed_gives_the_same_run(transport: str) -> None:
-    again = pf.run_path(robot_model(), transport, pf.setting(0.1, 0.1), duration=DURATION)
+    again = pf.run_path(robot_model(), transport, setting(0.1, 0.1), duration=DURATION)
     first = run(transport, 0.1, 0.1)
     assert (again.xs, again.ys, again.errors) == (first.xs, first.ys, first.errors)
-
-
-def test_the_figure(tmp_path: Path) -> None:
-    runs = [run("rsp", 0.1, 0.01), run("tcp", 0.1, 0.01)]
-    experiment = pf.PathExperiment(runs, DURATION, pf.DEFAULT_BANDWIDTH, 0)
-    out = path_figure(experiment, [pf.setting(0.1, 0.01)], tmp_path / "fig11.png")
-    assert out.read_bytes().startswith(PNG)
-    text = pf.report(experiment, robot_model(), "fig11.png")
-    assert "| 100 ± 20 ms | 1 % |" in text
 
 
 # -- the TCP model ------------------------------------------------------------------------------
