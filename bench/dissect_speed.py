@@ -47,7 +47,8 @@ from pathlib import Path
 from rcmlconf.cli.console import Output
 from rcmlconf.cli.dissect import RecordLines
 from rcmlconf.dissect import Dissector, Options
-from rcmlconf.dissect.output import analysis_json, analysis_lines
+from rcmlconf.dissect.output.analysis_json import analysis_json
+from rcmlconf.dissect.output.analysis_text import analysis_lines
 from rcmlconf.pcap.reader import Capture
 from rcmlconf.pcap.writer import Payload, PcapWriter
 

@@ -15,7 +15,10 @@ from rcmlconf.cli.stdin import standard_input
 from rcmlconf.diagnostics import Diagnostic
 from rcmlconf.dissect import Dissector, Options, Record, Severity
 from rcmlconf.dissect.classify import parse_decode_as
-from rcmlconf.dissect.output import JsonFormat, TextFormat, analysis_json, analysis_lines
+from rcmlconf.dissect.output.analysis_json import analysis_json
+from rcmlconf.dissect.output.analysis_text import analysis_lines
+from rcmlconf.dissect.output.record_json import JsonFormat
+from rcmlconf.dissect.output.record_text import TextFormat
 from rcmlconf.pcap.reader import Capture, CaptureError
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rsp.model import RobotModel

@@ -11,7 +11,10 @@ from hypothesis import strategies as st
 from support.pcaps import TcpFlow, dissect, epb, idb, ipv4_udp, pcap, shb
 
 from rcmlconf.dissect import Dissector, Options
-from rcmlconf.dissect.output import JsonFormat, TextFormat, analysis_json, analysis_lines
+from rcmlconf.dissect.output.analysis_json import analysis_json
+from rcmlconf.dissect.output.analysis_text import analysis_lines
+from rcmlconf.dissect.output.record_json import JsonFormat
+from rcmlconf.dissect.output.record_text import TextFormat
 from rcmlconf.pcap.reader import Capture, CaptureError
 from rcmlconf.scapy_layers import capture as layers
 

@@ -13,7 +13,8 @@ import pytest
 from support.pcaps import TcpFlow, dissect, ipv4_udp, pcap
 
 from rcmlconf.dissect import RCTP_DATA, RSP, Options, Severity
-from rcmlconf.dissect.output import JsonFormat, packet_json, record_json, rsp_json
+from rcmlconf.dissect.output.fields_json import packet_json, rsp_json
+from rcmlconf.dissect.output.record_json import JsonFormat, record_json
 from rcmlconf.errors import ProtocolError
 from rcmlconf.rctp.datastream.packets import MalformedFlowPayload, pull_packet
 from rcmlconf.rsp.codec import RspCodec
