@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from rcmlconf.conformance.context import Context
+    from rcmlconf.conformance.probes.clients import Served
 
 _ID = re.compile(r"^(rctp|rsp)/[a-z0-9-]+/[a-z0-9-]+$")
 
@@ -34,8 +35,6 @@ class Role(enum.Enum):
 
 
 CaseFunction = Callable[["Context"], Awaitable[None]]
-#: A client case's RCML from its robot's RCML and the case's files URL (`Case.served`).
-Served = Callable[[bytes, str], bytes]
 #: The longest session timeout (D-RCTP-11) the cases that wait one out wait for, by default
 #: (`run --session-wait`): a server that announces longer makes them inconclusive.
 SESSION_WAIT = 5.0

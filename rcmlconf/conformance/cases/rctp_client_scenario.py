@@ -13,7 +13,7 @@ from collections.abc import Callable
 from rcmlconf.conformance.cases.rctp_client import client_case
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.flaws import Flaw, flawed
-from rcmlconf.conformance.probes.clients import case_path
+from rcmlconf.conformance.probes.clients import Served, case_path
 from rcmlconf.conformance.probes.played import (
     SCENARIO_TIME,
     Own,
@@ -22,7 +22,7 @@ from rcmlconf.conformance.probes.played import (
     path_of,
     played,
 )
-from rcmlconf.conformance.registry import CaseFunction, Served
+from rcmlconf.conformance.registry import CaseFunction
 from rcmlconf.conformance.verdicts import Failed, Inconclusive
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, Permission
 from rcmlconf.rctp.bodies import ValuesCodec

@@ -20,7 +20,7 @@ import re
 from collections import Counter
 from collections.abc import Awaitable, Callable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, cast
+from typing import cast
 from urllib.parse import quote, unquote
 
 from rcmlconf.conformance.probes.control import ControlProbe
@@ -30,10 +30,10 @@ from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rctp.url import http_base
 from rcmlconf.reference.server.files import INDEX_TYPE, XML_TYPE, Document, FileServer, index_page
 
-if TYPE_CHECKING:
-    from rcmlconf.conformance.registry import Served
-
 Summon = Callable[[str], Awaitable[None]]
+#: A client case's RCML from its robot's RCML and the case's files URL (`registry.Case.served`):
+#: what the played server's files serve that case.
+Served = Callable[[bytes, str], bytes]
 
 #: The robot the harness plays to clients (D-RCTP-31's last paragraph).
 HARNESS_RCML = Path(__file__).resolve().parent.parent / "robot" / "harness.rcml"

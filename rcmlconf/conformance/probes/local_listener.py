@@ -249,8 +249,12 @@ class LocalListener:
                 await asyncio.wait_for(self._hello.wait(), remaining)
             busy = [e for e in busy if not e.over]
 
-    def _ending(self, ended: Ended) -> None:
+    def released(self, probe: LocalProbe, ended: Ended) -> None:
+        """A case is done with `probe` (`LocalProbe.close`): its session as the case left it is
+        noted for the next case (`_went_on`), and its source's datagrams go to no probe."""
         self._ended.append(ended)
+        if self._bound.get(probe.peer) is probe:
+            del self._bound[probe.peer]
 
     def _went_on(self, transcript: Transcript) -> None:
         """Note what the sessions the cases before ended sent after their BYE (R-RSP-22)."""
@@ -310,10 +314,6 @@ class LocalListener:
         for at, data in entry.datagrams:
             probe._arrived(data, at)
         return probe
-
-    def _unbind(self, probe: LocalProbe) -> None:
-        if self._bound.get(probe.peer) is probe:
-            del self._bound[probe.peer]
 
     async def close(self) -> None:
         for task in list(self._tasks):

@@ -18,7 +18,7 @@ import asyncio
 import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from rcmlconf.conformance.probes.datagrams import DatagramLog
 from rcmlconf.conformance.probes.impaired import ImpairedPath
@@ -49,19 +49,16 @@ from rcmlconf.rsp.codec import (
     PacketType,
     Refused,
     RefusedReason,
+    RspCodec,
     Welcome,
     pull_header,
     push_header,
 )
 from rcmlconf.rsp.codec.bodies import MAX_PERIOD_MS, Body
 from rcmlconf.rsp.layout import HEADER_SIZE, MAC_SIZE, NONCE_SIZE
-from rcmlconf.rsp.model import DeviceKind
+from rcmlconf.rsp.model import DeviceKind, RobotModel
 from rcmlconf.rsp.security import Direction, Sealer, session_key
 from rcmlconf.rsp.session.wire import SessionWire
-
-if TYPE_CHECKING:
-    from rcmlconf.conformance.probes.local_listener import LocalListener
-
 
 #: A HELLO not repeated for this long is one its local system gave up on (D-RSP-12).
 STALE = HELLO_INTERVAL + 0.1
@@ -111,12 +108,32 @@ class Ended:
         return False
 
 
+class PlayedRobot(Protocol):
+    """The robot the harness plays, as each of its probes needs it
+    (`local_listener.LocalListener`): the model, codec and key the probe reads and seals with,
+    the robot's clock and socket, and to be told when the probe's session is over."""
+
+    model: RobotModel
+    codec: RspCodec
+    psk: bytes | None
+
+    @property
+    def address(self) -> Address: ...
+
+    @property
+    def now(self) -> float: ...
+
+    def sendto(self, data: bytes, peer: Address) -> None: ...
+
+    def released(self, probe: LocalProbe, ended: Ended) -> None: ...
+
+
 class LocalProbe(DatagramLog):
     """One local system's session, from the robot the harness plays (`LocalListener.accept`)."""
 
     def __init__(
         self,
-        listener: LocalListener,
+        listener: PlayedRobot,
         peer: Address,
         nonce: bytes,
         transcript: Transcript,
@@ -458,12 +475,12 @@ class LocalProbe(DatagramLog):
             self.bye_sequence = sequence_of(data)
         elif self.state == "hello" and self.hellos:
             self.refuse(RefusedReason.BUSY)
-        self.listener._ending(self._record())
+        ended = self._record()
         self.closed = True
         if self._beat is not None:
             self._beat.cancel()
             self._beat = None
-        self.listener._unbind(self)
+        self.listener.released(self, ended)
 
     def _record(self) -> Ended:
         """The session as the case leaves it. The local system's run is over 10 s after WELCOME

@@ -333,7 +333,7 @@ class ReferenceServer:
         #: Every open control connection, by its session.
         self.controls: dict[ServerSession, _Control] = {}
         self._loop: asyncio.AbstractEventLoop | None = None
-        self._robot: Robot | None = None
+        self._robot: Robot[ServerSession] | None = None
         self._tcp: asyncio.Server | None = None
         self._http: asyncio.Server | None = None
         self._udp: DataSocket | None = None
@@ -371,7 +371,7 @@ class ReferenceServer:
         return self._turns
 
     @property
-    def robot(self) -> Robot:
+    def robot(self) -> Robot[ServerSession]:
         assert self._robot is not None, "start() first"
         return self._robot
 

@@ -11,10 +11,11 @@ from __future__ import annotations
 import os
 from collections import Counter
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from typing import TYPE_CHECKING
+from typing import Generic, Protocol, TypeVar
 
 from rcmlconf.rcml.model import AccessNode, DataNode, RcmlDocument
 from rcmlconf.rctp.bodies import ValuesCodec
+from rcmlconf.rctp.datastream.endpoint import Address
 from rcmlconf.rctp.datastream.flow import Direction
 from rcmlconf.rctp.datastream.values import stream_codec
 from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
@@ -24,9 +25,6 @@ from rcmlconf.reference.server.limits import DEFAULT_LIMITS, ServerLimits
 from rcmlconf.reference.server.privileges import Privileges
 from rcmlconf.values import Value
 
-if TYPE_CHECKING:
-    from rcmlconf.reference.server.session import ServerSession
-
 #: D-RCTP-27: how often the reference server moves the driver on and looks for changes.
 TICK = 0.01
 #: READ and WRITE codecs kept at most (`Robot.codec`).
@@ -35,7 +33,21 @@ _CODECS_KEPT = 4096
 _ID_BYTES = 16
 
 
-class Robot:
+class Watcher(Protocol):
+    """What the robot needs of a session (`session.ServerSession`): the peer address that counts
+    against D-RCTP-32's cap, and to be handed the changes of the event accesses it watches."""
+
+    @property
+    def peer(self) -> Address: ...
+
+    def note_changes(self, access: str, names: Iterable[str], now: float) -> None: ...
+
+
+#: The sessions a robot holds: the robot hands them back (`touched`, `by_tag`) as they are.
+S = TypeVar("S", bound=Watcher)
+
+
+class Robot(Generic[S]):
     def __init__(
         self,
         model: RcmlDocument,
@@ -64,19 +76,19 @@ class Robot:
         self.faults = faults
         self.privileges = Privileges(faults)
         #: Open sessions by ID, and by their data-stream tag (the adapter's demultiplexer).
-        self.sessions: dict[str, ServerSession] = {}
+        self.sessions: dict[str, S] = {}
         self.limits = limits
         #: Open sessions by peer address (D-RCTP-32's cap).
         self._per_peer: Counter[str] = Counter()
-        self.by_tag: dict[int, ServerSession] = {}
+        self.by_tag: dict[int, S] = {}
         #: Event access path -> the sessions where it plays.
-        self._watchers: dict[str, set[ServerSession]] = {}
+        self._watchers: dict[str, set[S]] = {}
         #: Encoded DATA bodies of this tick, shared by every session that streams the access.
         self._bodies: dict[tuple[str, Direction], bytes] = {}
         self._stream_codecs: dict[tuple[str, Direction], ValuesCodec[DataNode]] = {}
         self._codecs: dict[tuple[str, tuple[str, ...]], ValuesCodec[DataNode]] = {}
         #: Sessions given something to send by another's doing: the adapter flushes them.
-        self._touched: set[ServerSession] = set()
+        self._touched: set[S] = set()
         self._next_tick = now
         driver.start(model, now, seed)
 
@@ -114,13 +126,13 @@ class Robot:
             )  # the core's ValuesCodec without faults
         return codec
 
-    def command(self, by: ServerSession, values: Mapping[str, Value], now: float) -> None:
+    def command(self, by: S, values: Mapping[str, Value], now: float) -> None:
         """Values a session wrote, checked already, applied together (R-RCTP-29)."""
         self._changed(self.driver.command(values, now), by, now)
 
     # -- sessions ----------------------------------------------------------------------------
 
-    def open_session(self, session: ServerSession) -> str | None:
+    def open_session(self, session: S) -> str | None:
         """A new session's ID, or None when its peer address has as many as it may
         (D-RCTP-32: the CONNECT is answered 503)."""
         peer = session.peer[0]
@@ -133,7 +145,7 @@ class Robot:
                 self.sessions[session_id] = session
                 return session_id
 
-    def new_tag(self, session: ServerSession) -> int:
+    def new_tag(self, session: S) -> int:
         """An unguessable data-stream tag no other session has (D-RCTP-18)."""
         while True:
             tag = int.from_bytes(self.random_bytes(4), "big")
@@ -141,9 +153,7 @@ class Robot:
                 self.by_tag[tag] = session
                 return tag
 
-    def close_session(
-        self, session: ServerSession, session_id: str | None, tag: int | None
-    ) -> None:
+    def close_session(self, session: S, session_id: str | None, tag: int | None) -> None:
         """The session is over: its privileges go (R-RCTP-36), its watches and tag too."""
         if session_id is not None and self.sessions.pop(session_id, None) is not None:
             peer = session.peer[0]
@@ -157,10 +167,10 @@ class Robot:
         for watchers in self._watchers.values():
             watchers.discard(session)
 
-    def watch(self, session: ServerSession, access: str) -> None:
+    def watch(self, session: S, access: str) -> None:
         self._watchers.setdefault(access, set()).add(session)
 
-    def unwatch(self, session: ServerSession, access: str) -> None:
+    def unwatch(self, session: S, access: str) -> None:
         self._watchers.get(access, set()).discard(session)
 
     # -- time --------------------------------------------------------------------------------
@@ -177,7 +187,7 @@ class Robot:
             self._next_tick = now + TICK
         self._changed(self.driver.advance(now), None, now)
 
-    def _changed(self, paths: Iterable[str], by: ServerSession | None, now: float) -> None:
+    def _changed(self, paths: Iterable[str], by: S | None, now: float) -> None:
         """Hand changes to the sessions watching them, except the one that made them (R-RCTP-54)."""
         by_access: dict[str, list[str]] = {}
         for path in paths:
@@ -193,7 +203,7 @@ class Robot:
                     session.note_changes(access, names, now)
                     self._touched.add(session)
 
-    def touched(self) -> set[ServerSession]:
+    def touched(self) -> set[S]:
         """The sessions that may have something to send since the last call."""
         touched, self._touched = self._touched, set()
         return touched

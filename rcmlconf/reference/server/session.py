@@ -83,7 +83,7 @@ class _StreamSetUp:
 
 
 class ServerSession(SessionEnd):
-    def __init__(self, robot: Robot, peer: Address, now: float) -> None:
+    def __init__(self, robot: Robot[ServerSession], peer: Address, now: float) -> None:
         super().__init__(Role.SERVER, now)
         self.robot = robot
         self.peer = peer
