@@ -42,8 +42,12 @@ from children import cpu_seconds
 from hostile_load import Command, rss_mib, udp_drops
 from scale import percentile
 
+# The flood's spoofed packets are the test's (tests/reference/test_rsp_hostile.py): one recipe.
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+from support.rsp_flood import spoofed
+
 from rcmlconf.reference.rsp.simulacrum import Simulacrum
-from rcmlconf.rsp.codec.header import HEADER, PacketType
+from rcmlconf.rsp.codec.header import TYPE_AT, PacketType
 from rcmlconf.validate.validator import load_robot_model
 from rcmlconf.values import Value
 
@@ -55,8 +59,6 @@ NICE = 10
 #: The flood is sent in batches this often (s); the session's own replays, a batch this often.
 TICK = 0.01
 OWN_REPLAYS_EVERY = 0.05
-#: Where a header's type and sequence number are (D-RSP-10).
-TYPE_AT, SEQUENCE_AT = 4, 5
 
 
 class Robot(Command):
@@ -69,14 +71,6 @@ class Robot(Command):
 
 
 # -- the flood, in a process of its own --------------------------------------------------------
-
-
-def _spoofed(packet: bytes, ahead: int) -> bytes:
-    """`packet` with its sequence number `ahead` of its own."""
-    sequence = HEADER.unpack_from(packet)[4]
-    data = bytearray(packet)
-    data[SEQUENCE_AT : SEQUENCE_AT + 2] = ((sequence + ahead) & 0xFFFF).to_bytes(2, "big")
-    return bytes(data)
 
 
 def flood(
@@ -98,7 +92,7 @@ def flood(
                 data = (
                     random.randbytes(random.randrange(1, 200))
                     if kind == 0
-                    else _spoofed(replay, 1 + sent)
+                    else spoofed(replay, 1 + sent)
                     if kind == 1
                     else replay
                 )
@@ -156,24 +150,18 @@ async def open_session(robot: Robot) -> Session:
     model = load_robot_model(MODEL)
     local = Simulacrum(model, robot.address)
     await asyncio.wait_for(local.open(), 10)
-    transport = local._transport
-    assert transport is not None
-    send = transport.sendto
+    own = local._transport  # the local system's own socket, for the replays from its address
+    assert own is not None
     sent: list[bytes] = []
-
-    def keep(data: bytes, addr: object = None) -> None:
-        sent.append(bytes(data))
-        send(data)
-
-    transport.sendto = keep  # type: ignore[method-assign]
+    local.tap = sent.append
     local.set_active("armActual", True)
     local.write("arm", OLD)
     await _heard_value(local, OLD)
-    transport.sendto = send  # type: ignore[method-assign]
+    local.tap = None
     old = [data for data in sent if data[TYPE_AT] == PacketType.DOWNLINK][-50:]
     local.write("arm", NEW)
     await _heard_value(local, NEW)
-    return Session(local, old, send)
+    return Session(local, old, own.sendto)
 
 
 async def _heard_value(local: Simulacrum, value: Mapping[str, Value]) -> None:

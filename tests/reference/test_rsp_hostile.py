@@ -18,13 +18,11 @@ from support.waits import until
 
 from rcmlconf.reference.rsp.robot import ReferenceRobot, RobotSettings
 from rcmlconf.reference.rsp.simulacrum import Simulacrum
-from rcmlconf.rsp.codec.header import PacketType
+from rcmlconf.rsp.codec.header import TYPE_AT, PacketType
 from rcmlconf.rsp.session import events
 
 OLD = {"shoulder": 10, "elbow": 20, "grip": True}
 NEW = {"shoulder": -30, "elbow": 45, "grip": False}
-#: Where a header's type is (D-RSP-10).
-TYPE_AT = 4
 #: The model's period for this test (its own is 5 ms): the local system takes the link for lost
 #: after 25 silent periods (D-RSP-13), and a loaded CI machine can hold this process's loop 125
 #: ms; the flood is the same, and what the robot does with it.
@@ -41,19 +39,12 @@ def test_a_flood_of_hostile_datagrams_is_refused_and_the_session_loses_nothing()
         session = robot.endpoint.session
         assert session is not None
         # What the local system sends, kept to be replayed: DOWNLINKs carrying OLD.
-        transport = local._transport
-        assert transport is not None
-        send = transport.sendto
         sent: list[bytes] = []
-
-        def keep(data: bytes, addr: object = None) -> None:
-            sent.append(bytes(data))
-            send(data)
-
-        transport.sendto = keep  # type: ignore[method-assign]
+        local.tap = sent.append
         local.set_active("armActual", True)
         local.write("arm", OLD)
         assert await until(lambda: local.latest("armActual") == OLD)
+        local.tap = None
         old = [data for data in sent if data[TYPE_AT] == PacketType.DOWNLINK][-20:]
         assert old
         local.write("arm", NEW)
@@ -67,9 +58,11 @@ def test_a_flood_of_hostile_datagrams_is_refused_and_the_session_loses_nothing()
             target=flood, args=(robot.address, old), daemon=True
         )
         attacker.start()
+        own = local._transport  # the local system's own socket, for the replays from its address
+        assert own is not None
         while attacker.is_alive():  # and the same replays from the local system's own address
             for data in old:
-                send(data)
+                own.sendto(data)
             await asyncio.sleep(0.005)
         attacker.join(10)
         assert attacker.exitcode == 0

@@ -6,18 +6,17 @@ import random
 import socket
 import time
 
-from rcmlconf.rsp.codec.header import HEADER
+from rcmlconf.rsp.codec.header import HEADER, SEQUENCE_AT
 
 #: Hostile datagrams of each kind, and of each kind in a burst every PACE seconds: about 10,000
 #: datagrams a second, bench/hostile_load.py's garbage UDP.
 EACH = 3000
 BURST, PACE = 10, 0.003
-#: Where a header's sequence number is (D-RSP-10).
-SEQUENCE_AT = 5
 
 
 def spoofed(packet: bytes, ahead: int) -> bytes:
-    """`packet` with its sequence number `ahead` of its own: newer, were it the session's."""
+    """`packet` with its sequence number `ahead` of its own: newer, were it the session's (and
+    bench/hostile_rsp.py's flood's)."""
     (sequence,) = HEADER.unpack_from(packet)[4:5]
     data = bytearray(packet)
     data[SEQUENCE_AT : SEQUENCE_AT + 2] = ((sequence + ahead) & 0xFFFF).to_bytes(2, "big")

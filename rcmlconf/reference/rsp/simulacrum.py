@@ -86,6 +86,9 @@ class Simulacrum:
         self.closed: events.SessionClosed | events.SessionRefused | None = None
         #: Every event except states, for those who watch the session (bounded).
         self.history: deque[events.Event] = deque(maxlen=10_000)
+        #: Told every datagram the session sends, as it goes (under the session's lock: keep it
+        #: short): a recording of what crossed the wire, e.g. packets to replay at a robot.
+        self.tap: Callable[[bytes], None] | None = None
         self._thread: threading.Thread | None = None
 
     # -- lifetime ------------------------------------------------------------------------------
@@ -293,8 +296,11 @@ class Simulacrum:
         endpoint = self.endpoint
         transport = self._transport
         if transport is not None and not transport.is_closing():
+            tap = self.tap
             for data in endpoint.datagrams_to_send(now):
                 transport.sendto(data)
+                if tap is not None:
+                    tap(data)
         event = endpoint.next_event()
         if event is not None:
             while event is not None:

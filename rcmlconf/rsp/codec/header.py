@@ -31,6 +31,10 @@ MAX_FREE_BUFFERS = 0x7F
 #: version, model ID, encryption, type, sequence number, timestamp, the session ID's high 16 and
 #: low 32 bits, last received sequence number, buffer.
 HEADER = struct.Struct(">BHBBHIHIHB")
+#: Where each field of `HEADER` starts: what a fault is reported at, and what those who patch a
+#: packet's bytes (the conformance cases' malformed packets, a flood's spoofed ones) patch.
+VERSION_AT, MODEL_AT, ENCRYPTION_AT, TYPE_AT, SEQUENCE_AT = 0, 1, 3, 4, 5
+TIMESTAMP_AT, SESSION_AT, LAST_AT, BUFFER_AT = 7, 11, 17, 19
 _unpack_from = HEADER.unpack_from
 _pack = HEADER.pack
 _new = tuple.__new__
@@ -80,8 +84,6 @@ WITHOUT_SESSION = frozenset({PacketType.HELLO, PacketType.REFUSED})
 #: Wire values to members, so that decoding a byte is a dict lookup and an unknown one is None.
 _TYPES = {int(member): member for member in PacketType}
 _ENCRYPTIONS = {int(member): member for member in Encryption}
-#: Offsets of the fields a fault is reported at.
-_MODEL_ID, _ENCRYPTION, _TYPE, _SESSION, _BUFFER = 1, 3, 4, 11, 19
 
 
 class Header(NamedTuple):
@@ -149,22 +151,25 @@ class HeaderRules:
         `pull` and `push` check the same with one expression and ask here only for the reason.
         """
         if header.version != VERSION:
-            return f"version {header.version}, not {VERSION}", 0
+            return f"version {header.version}, not {VERSION}", VERSION_AT
         if header.model_id not in self._model_ids:
             if self.model_id is None:
-                return f"model ID {header.model_id} is no model's (1 to {MAX_MODEL_ID})", _MODEL_ID
-            return f"model ID {header.model_id}, not this model's {self.model_id}", _MODEL_ID
+                return f"model ID {header.model_id} is no model's (1 to {MAX_MODEL_ID})", MODEL_AT
+            return f"model ID {header.model_id}, not this model's {self.model_id}", MODEL_AT
         if header.encryption not in _ENCRYPTIONS:
-            return f"encryption {header.encryption} is none of {sorted(_ENCRYPTIONS)}", _ENCRYPTION
+            return (
+                f"encryption {header.encryption} is none of {sorted(_ENCRYPTIONS)}",
+                ENCRYPTION_AT,
+            )
         sender = SENDERS.get(header.type)
         if sender is None:
-            return f"packet type {header.type} is none of 1 to {len(SENDERS)}", _TYPE
+            return f"packet type {header.type} is none of 1 to {len(SENDERS)}", TYPE_AT
         name = _TYPES[header.type].name
         if (header.session_id == 0) != (header.type in WITHOUT_SESSION):
             needed = "0" if header.type in WITHOUT_SESSION else "not 0"
-            return f"the session ID of {name} is {needed}, not {header.session_id}", _SESSION
+            return f"the session ID of {name} is {needed}, not {header.session_id}", SESSION_AT
         if header.buffer not in self._buffers[sender]:
-            return f"buffer byte 0x{header.buffer:02x} is not one {name}'s sender gives", _BUFFER
+            return f"buffer byte 0x{header.buffer:02x} is not one {name}'s sender gives", BUFFER_AT
         return None
 
     def pull(self, data: bytes | bytearray | memoryview) -> Header:

@@ -12,7 +12,7 @@ from rcmlconf.errors import ProtocolError
 from rcmlconf.rctp.datastream.order import Arrival, SequenceTracker
 from rcmlconf.rsp.codec import Encryption, Header, Packet, PacketType, RspCodec
 from rcmlconf.rsp.codec.bodies import Body
-from rcmlconf.rsp.codec.header import WITHOUT_SESSION
+from rcmlconf.rsp.codec.header import SEQUENCE_AT, SESSION_AT, TYPE_AT, WITHOUT_SESSION
 from rcmlconf.rsp.layout import HEADER_SIZE, MAC_SIZE
 from rcmlconf.rsp.security import Direction, Sealer, mac, mac_matches, session_key
 from rcmlconf.wording import indefinite
@@ -25,14 +25,12 @@ SENT_TO_ROBOT = frozenset(
 SENT_TO_LOCAL = frozenset(
     {PacketType.WELCOME, PacketType.REFUSED, PacketType.UPLINK, PacketType.ACK, PacketType.BYE}
 )
-_TYPE_AT = 4
 #: D-RSP-15: a packet further behind the newest than this is dropped unread.
 REPLAY_WINDOW = 64
 #: Sent in the clear with a MAC in an encrypted session: there is no key yet (D-RSP-21).
 SIGNED = frozenset({PacketType.HELLO, PacketType.WELCOME})
 _STAMP = 1 << 32
 _SEQUENCE = 1 << 16
-_SESSION_AT, _SEQUENCE_AT = 11, 5
 _new = tuple.__new__
 
 
@@ -40,12 +38,10 @@ def drop_unsent(data: bytes, sent: frozenset[PacketType], receiver: str) -> None
     """Raise the R-RSP-18 ProtocolError for a packet of a type `receiver` is not sent, before
     anything of it is read: it restores no link, moves no window, gives no buffer count. A type
     no packet has is left to the codec, which calls it malformed."""
-    if len(data) > _TYPE_AT and data[_TYPE_AT] in _KNOWN:
-        kind = PacketType(data[_TYPE_AT])
+    if len(data) > TYPE_AT and data[TYPE_AT] in _KNOWN:
+        kind = PacketType(data[TYPE_AT])
         if kind not in sent:
-            raise ProtocolError(
-                f"{indefinite(kind.name)} is not sent to {receiver}", _TYPE_AT, DROP
-            )
+            raise ProtocolError(f"{indefinite(kind.name)} is not sent to {receiver}", TYPE_AT, DROP)
 
 
 _KNOWN = frozenset(int(kind) for kind in PacketType)
@@ -131,7 +127,7 @@ class SessionWire:
             data = bytes(data)
         header = self.codec.pull_header(data)
         if header.session_id != self.session_id:
-            raise ProtocolError("a packet of another session", _SESSION_AT, DROP)
+            raise ProtocolError("a packet of another session", SESSION_AT, DROP)
         if header.encryption is not self.encryption:
             raise ProtocolError(
                 f"encryption {header.encryption.name}, not the session's {self.encryption.name}",
@@ -139,9 +135,7 @@ class SessionWire:
                 DROP,
             )
         if self.tracker.replayed(header.sequence, REPLAY_WINDOW):
-            raise ProtocolError(
-                "seen before, or more than 64 behind the newest", _SEQUENCE_AT, DROP
-            )
+            raise ProtocolError("seen before, or more than 64 behind the newest", SEQUENCE_AT, DROP)
         body = self._body(header, data, psk)
         return _new(Packet, (header, body)), self.tracker.see(header.sequence)
 
