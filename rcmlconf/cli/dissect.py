@@ -19,7 +19,8 @@ from rcmlconf.dissect.output.analysis_json import analysis_json
 from rcmlconf.dissect.output.analysis_text import analysis_lines
 from rcmlconf.dissect.output.record_json import JsonFormat
 from rcmlconf.dissect.output.record_text import TextFormat
-from rcmlconf.pcap.reader import Capture, CaptureError
+from rcmlconf.pcap.reader import Capture
+from rcmlconf.pcap.records import CaptureError
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rsp.model import RobotModel
 from rcmlconf.validate.validator import InvalidRobot, Validator

@@ -200,7 +200,7 @@ def _linktype(layer: Any, data: bytes) -> int:
     gives frames with an Ethernet header of zeros)."""
     from scapy.config import conf
 
-    from rcmlconf.pcap.reader import LINKTYPE_ETHERNET, LINKTYPE_RAW
+    from rcmlconf.pcap.frames import LINKTYPE_ETHERNET, LINKTYPE_RAW
 
     known = conf.l2types.layer2num.get(layer)
     if known is not None:

@@ -28,17 +28,10 @@ from rcmlconf.dissect.records import (
 )
 from rcmlconf.dissect.rsp import RspDecoder, RspFlow, RspSessionReport
 from rcmlconf.dissect.streams import Stream, StreamReport
-from rcmlconf.pcap.reader import (
-    LINKTYPE_IPV4,
-    LINKTYPE_RAW,
-    TCP,
-    UDP,
-    Capture,
-    CaptureError,
-    FrameDecoder,
-    FrameError,
-    endpoint_text,
-)
+from rcmlconf.pcap.addresses import endpoint_text
+from rcmlconf.pcap.frames import LINKTYPE_IPV4, LINKTYPE_RAW, TCP, UDP, FrameDecoder
+from rcmlconf.pcap.reader import Capture
+from rcmlconf.pcap.records import CaptureError, FrameError
 
 #: Frame problems kept; the rest are counted.
 PROBLEMS_KEPT = 100

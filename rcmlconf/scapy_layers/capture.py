@@ -33,7 +33,10 @@ from rcmlconf.dissect.records import RCTP as RCTP
 from rcmlconf.dissect.records import RCTP_DATA, RSP
 from rcmlconf.dissect.tcp import SYN, Piece, TcpStream
 from rcmlconf.errors import ValueTextError
-from rcmlconf.pcap.reader import UDP, Capture, CaptureError, FrameDecoder, FrameError, address_text
+from rcmlconf.pcap.addresses import address_text
+from rcmlconf.pcap.frames import UDP, FrameDecoder
+from rcmlconf.pcap.reader import Capture
+from rcmlconf.pcap.records import CaptureError, FrameError
 from rcmlconf.rctp.fields import Transport, parse_transport
 from rcmlconf.scapy_layers import rctp, rsp
 

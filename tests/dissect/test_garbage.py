@@ -15,7 +15,8 @@ from rcmlconf.dissect.output.analysis_json import analysis_json
 from rcmlconf.dissect.output.analysis_text import analysis_lines
 from rcmlconf.dissect.output.record_json import JsonFormat
 from rcmlconf.dissect.output.record_text import TextFormat
-from rcmlconf.pcap.reader import Capture, CaptureError
+from rcmlconf.pcap.reader import Capture
+from rcmlconf.pcap.records import CaptureError
 from rcmlconf.scapy_layers import capture as layers
 
 PORTS = st.sampled_from([7330, 7340, 9999])

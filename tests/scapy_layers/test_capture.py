@@ -28,7 +28,8 @@ from support.rsp_models import robot_model
 from support.scapy_layers import core_messages, layer_message
 
 from rcmlconf.dissect import Dissector, Options, Record
-from rcmlconf.pcap.reader import Capture, CaptureError
+from rcmlconf.pcap.reader import Capture
+from rcmlconf.pcap.records import CaptureError
 from rcmlconf.pcap.writer import Payload, PcapWriter
 from rcmlconf.scapy_layers import capture, rctp, rsp
 
