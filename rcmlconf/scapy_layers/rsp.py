@@ -9,7 +9,8 @@ RSP runs over UDP port 7340 (D-RSP-9). Every packet starts with the 20-byte head
 The Device Map of DOWNLINK, UPLINK and ACK is one bit per device of the robot model, and what
 follows a set bit depends on the device's kind and the packet (D-RSP-14): the map's size and the
 payloads are known only with the model. Give it once, and the map bodies are decoded device by
-device; without it they stay raw bytes::
+device (`rsp_model` reads the model for the layers, `rsp_device_map` the map and its payloads);
+without it they stay raw bytes::
 
     >>> from rcmlconf.scapy_layers import rsp
     >>> rsp.use_model("rcmlconf/reference/robots/cubo/cubo.rmodel")
@@ -29,9 +30,8 @@ scapy's ``Raw``; a value the rules refuse (out of its range, a period too short)
 from __future__ import annotations
 
 import os
-import struct
-from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any, NamedTuple
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 from scapy.config import conf
 from scapy.fields import (
@@ -46,6 +46,16 @@ from scapy.fields import (
 )
 from scapy.layers.inet import UDP
 from scapy.packet import Packet, bind_bottom_up, bind_layers
+
+# Payloads built by hand are lists of rsp.RSPItem, as scapy users know it.
+from rcmlconf.scapy_layers.rsp_device_map import RSPItem as RSPItem
+from rcmlconf.scapy_layers.rsp_device_map import (
+    read_payloads,
+    set_bits,
+    show_item,
+    write_payloads,
+)
+from rcmlconf.scapy_layers.rsp_model import ModelLayout
 
 if TYPE_CHECKING:
     from rcmlconf.rsp.model import RobotModel
@@ -86,147 +96,8 @@ _FROM_ROBOT = frozenset({2, 3, 5})
 #: Bodies sent before a session has keys: never sealed (D-RSP-21).
 _NEVER_SEALED = frozenset({1, 2, 3})
 
-#: D-RSP-14: what a set bit brings, by device kind, in DOWNLINK, UPLINK and ACK. "flag": nothing
-#: (a request, a module's activation); "state": the fields; "occurrence": an ID then the fields;
-#: "id": an acknowledged occurrence's ID; None: the bit is never set.
-RSP_BITS: dict[str, tuple[str | None, str | None, str | None]] = {
-    "effector": ("state", None, None),
-    "sensor": ("flag", "state", None),
-    "monitor": ("flag", "state", None),
-    "module": ("flag", None, None),
-    "command": ("occurrence", None, "id"),
-    "event": ("flag", "occurrence", None),
-    "memoryCommand": ("occurrence", None, "id"),
-    "memoryEvent": ("flag", "occurrence", "id"),
-}
-_COLUMNS = ("DOWNLINK", "UPLINK", "ACK")
 
-#: D-RCML-9: the struct code of each fixed-size type; string and bytes are a 16-bit length and
-#: that many bytes.
-RSP_VALUE_CODES = {
-    "bool": "B",
-    "int8": "b",
-    "uint8": "B",
-    "int16": "h",
-    "uint16": "H",
-    "int32": "i",
-    "uint32": "I",
-    "int64": "q",
-    "uint64": "Q",
-    "float32": "f",
-    "float64": "d",
-}
-
-
-# -- the robot model, as the layer reads it -------------------------------------------------------
-
-
-class _CutShort(Exception):
-    pass
-
-
-#: (datagram, position) -> (value, position after it).
-_Decode = Callable[[bytes, int], tuple[Any, int]]
-#: value -> its bytes.
-_Encode = Callable[[Any], bytes]
-
-
-def _bool(byte: int) -> bool | int:
-    # 0x00 and 0x01 only (R-RCML-30): any other byte is shown as the number it is.
-    return {0: False, 1: True}.get(byte, byte)
-
-
-def _value_codec(type_name: str, count: int) -> tuple[_Decode, _Encode]:
-    """How one field's value is read and written (D-RCML-10, D-RCML-11)."""
-    if type_name in ("string", "bytes"):
-        text = type_name == "string"
-
-        def decode_sized(data: bytes, pos: int) -> tuple[Any, int]:
-            items: list[Any] = []
-            for _ in range(count):
-                if pos + 2 > len(data):
-                    raise _CutShort
-                length = int.from_bytes(data[pos : pos + 2], "big")
-                pos += 2
-                if pos + length > len(data):
-                    raise _CutShort
-                raw = data[pos : pos + length]
-                pos += length
-                if text:
-                    try:
-                        items.append(raw.decode("utf-8"))
-                    except UnicodeDecodeError:
-                        items.append(raw)  # not UTF-8 (R-RCML-30): the bytes as they are
-                else:
-                    items.append(raw)
-            return (items[0] if count == 1 else tuple(items)), pos
-
-        def encode_sized(value: Any) -> bytes:
-            out = b""
-            for item in (value,) if count == 1 else value:
-                raw = item.encode("utf-8") if isinstance(item, str) else bytes(item)
-                out += struct.pack("!H", len(raw)) + raw
-            return out
-
-        return decode_sized, encode_sized
-    code = RSP_VALUE_CODES[type_name]
-    layout = struct.Struct(f"!{count}{code}")
-    is_bool = type_name == "bool"
-
-    def decode_fixed(data: bytes, pos: int) -> tuple[Any, int]:
-        if pos + layout.size > len(data):
-            raise _CutShort
-        values = layout.unpack_from(data, pos)
-        if is_bool:
-            values = tuple(_bool(v) for v in values)
-        return (values[0] if count == 1 else values), pos + layout.size
-
-    def encode_fixed(value: Any) -> bytes:
-        return layout.pack(*((value,) if count == 1 else value))
-
-    return decode_fixed, encode_fixed
-
-
-class _FieldLayout(NamedTuple):
-    name: str
-    decode: _Decode
-    encode: _Encode
-
-
-class _DeviceLayout(NamedTuple):
-    position: int
-    name: str
-    kind: str
-    fields: tuple[_FieldLayout, ...]
-    #: What a set bit brings in DOWNLINK, UPLINK, ACK (RSP_BITS).
-    bits: tuple[str | None, str | None, str | None]
-
-
-class ModelLayout(NamedTuple):
-    """What the layer needs of a robot model: its ID, ID length, and devices in model order."""
-
-    name: str
-    model_id: int
-    id_length: int
-    devices: tuple[_DeviceLayout, ...]
-
-    @property
-    def map_size(self) -> int:
-        return (len(self.devices) + 7) // 8
-
-    @classmethod
-    def of(cls, model: RobotModel) -> ModelLayout:
-        devices = []
-        for device in model.devices:
-            fields = tuple(
-                _FieldLayout(f.name, *_value_codec(f.type.base.name, f.type.count))
-                for f in device.fields
-            )
-            kind = device.kind.value
-            bits = RSP_BITS[kind]
-            devices.append(_DeviceLayout(device.position, device.name, kind, fields, bits))
-        return cls(model.name, model.model_id, model.id_length, tuple(devices))
-
+# -- the robot model in use (`rsp_model` reads it, `rsp_device_map` its maps) ------------------
 
 _layout: ModelLayout | None = None
 _model: RobotModel | None = None
@@ -250,20 +121,6 @@ def use_model(model: RobotModel | str | os.PathLike[str] | None) -> RobotModel |
 
 def current_model() -> RobotModel | None:
     return _model
-
-
-class RSPItem(NamedTuple):
-    """What one set bit of a Device Map brings (D-RSP-14)."""
-
-    position: int
-    #: The device's name; "bit N" for a bit past the model's last device.
-    device: str
-    #: An occurrence's ID, or the ID an ACK acknowledges; else None.
-    id: int | None = None
-    #: A state's or an occurrence's fields by name; else None.
-    values: dict[str, Any] | None = None
-    #: Why the payloads stop here: what follows is left undecoded (``Raw``).
-    note: str | None = None
 
 
 # -- fields ---------------------------------------------------------------------------------------
@@ -364,32 +221,6 @@ class _DeviceMapField(Field[int, bytes]):
         return f"0x{x:0{2 * size}x} ({', '.join(names) or 'no bit set'})"
 
 
-def set_bits(number: int, size: int) -> list[int]:
-    """The set bits of a Device Map of `size` bytes, as device positions in model order."""
-    width = 8 * size
-    return [width - 1 - bit for bit in range(width - 1, -1, -1) if number >> bit & 1]
-
-
-def _show_value(value: Any) -> str:
-    if isinstance(value, bytes):
-        shown = value[:16].hex()
-        return f"0x{shown}..({len(value)} bytes)" if len(value) > 16 else f"0x{shown}"
-    if isinstance(value, tuple):
-        return "[" + ", ".join(_show_value(v) for v in value) + "]"
-    return repr(value)
-
-
-def _show_item(item: RSPItem) -> str:
-    text = item.device
-    if item.id is not None:
-        text += f" #{item.id}"
-    if item.values is not None:
-        text += ": " + " ".join(f"{k}={_show_value(v)}" for k, v in item.values.items())
-    if item.note is not None:
-        text += f" [{item.note}]"
-    return text
-
-
 class _PayloadsField(Field[list[RSPItem], bytes]):
     """The payloads of the set bits, in model order, with nothing between them (D-RSP-14)."""
 
@@ -403,54 +234,13 @@ class _PayloadsField(Field[list[RSPItem], bytes]):
         layout = _layout_of(pkt)
         if layout is None:
             return s, []
-        column = pkt.column
-        items: list[RSPItem] = []
-        pos = 0
-        ident_size = layout.id_length
-        for position in set_bits(pkt.device_map or 0, layout.map_size):
-            if position >= len(layout.devices):
-                items.append(RSPItem(position, f"bit {position}", note="no such device"))
-                break
-            device = layout.devices[position]
-            meaning = device.bits[column]
-            if meaning is None:
-                note = f"never set in {_COLUMNS[column]} (D-RSP-14)"
-                items.append(RSPItem(position, device.name, note=note))
-                break
-            start = pos
-            try:
-                ident = None
-                if meaning in ("occurrence", "id"):
-                    if pos + ident_size > len(s):
-                        raise _CutShort
-                    ident = int.from_bytes(s[pos : pos + ident_size], "big")
-                    pos += ident_size
-                values = None
-                if meaning in ("state", "occurrence"):
-                    values = {}
-                    for field in device.fields:
-                        values[field.name], pos = field.decode(s, pos)
-            except _CutShort:
-                pos = start
-                items.append(RSPItem(position, device.name, note="cut short"))
-                break
-            items.append(RSPItem(position, device.name, ident, values))
-        return s[pos:], items
+        return read_payloads(layout, pkt.column, pkt.device_map or 0, s)
 
     def addfield(self, pkt: Packet, s: bytes, val: list[RSPItem] | None) -> bytes:
         layout = _layout_of(pkt)
         if layout is None:
             return s
-        out = [s]
-        for item in val or []:
-            if item.note is not None or item.position >= len(layout.devices):
-                continue
-            device = layout.devices[item.position]
-            if item.id is not None:
-                out.append(item.id.to_bytes(layout.id_length, "big"))
-            if item.values is not None:
-                out.extend(field.encode(item.values[field.name]) for field in device.fields)
-        return b"".join(out)
+        return s + write_payloads(layout, val)
 
     def i2len(self, pkt: Packet, x: Any) -> int:
         return len(self.addfield(pkt, b"", x))
@@ -458,7 +248,7 @@ class _PayloadsField(Field[list[RSPItem], bytes]):
     def i2repr(self, pkt: Packet | None, x: list[RSPItem] | None) -> str:
         if not x:
             return "(none)"
-        lines = [_show_item(item) for item in x]
+        lines = [show_item(item) for item in x]
         return ("\n" + " " * max(0, 10 - len(self.name))).join(lines)
 
     def do_copy(self, x: list[RSPItem]) -> list[RSPItem]:

@@ -1,9 +1,10 @@
 """The scapy RSP layers against the core codec: every vector of vectors/rsp/packets.json decodes to
 the same header, body, Device Map items and values both ways.
 
-rcmlconf/scapy_layers/rsp.py imports nothing of rcmlconf.rsp.codec: it is a second reading of the
-wire format. Where the core refuses a packet, the layer must not raise: what does not fit the
-layout is left to Raw (or the item list says where it stops); a value the rules refuse is shown.
+rcmlconf/scapy_layers/rsp.py (with its rsp_model and rsp_device_map) imports nothing of
+rcmlconf.rsp.codec: it is a second reading of the wire format. Where the core refuses a packet, the
+layer must not raise: what does not fit the layout is left to Raw (or the item list says where it
+stops); a value the rules refuse is shown.
 """
 
 from __future__ import annotations
