@@ -1,25 +1,25 @@
 """What the receiver of an RCTP/2.0 request must answer on its own, and what answers change.
 
 The states are the core's (`rctp.states`: the session's, D-RCTP-13, and each access's stream,
-D-RCTP-14), judged in the order of `Connection._check_request` (D-RCTP-25): a request is judged in
-the states its sender's earlier requests' answers left, and the answer that came is compared with
-the one due.
+D-RCTP-14), and so are the checks: a request is judged by `rctp.request_checks` (D-RCTP-25), as
+the core's `Connection` judges it, in the states its sender's earlier requests' answers left, and
+the answer that came is compared with the one due.
 """
 
 from __future__ import annotations
 
 from rcmlconf.dissect.context import Findings
-from rcmlconf.dissect.control_sides import CLIENT, SERVER, Sent
+from rcmlconf.dissect.control_sides import CLIENT, Sent
 from rcmlconf.dissect.records import Severity
 from rcmlconf.errors import ValueTextError
-from rcmlconf.rctp.connection import SINGLE_FIELDS
 from rcmlconf.rctp.fields import SessionField, parse_session
-from rcmlconf.rctp.messages import METHODS, SERVER_METHODS, VERSION, Response
+from rcmlconf.rctp.messages import Response
+from rcmlconf.rctp.request_checks import Refusal, first_refusal
 from rcmlconf.rctp.states import (
-    PUSH_STATES,
     SESSION_TRANSITIONS,
     STREAM_METHODS,
     STREAM_TRANSITIONS,
+    Role,
     SessionEvent,
     SessionState,
     StreamState,
@@ -54,8 +54,8 @@ class ControlStates:
         due = self._due(role, sent)
         if due is None:
             return
-        sent.due = due
-        status, why, rule = due
+        status, why, rule = due.status, due.reason, due.rule
+        sent.due = (status, why, rule)
         self.refused.append((sent.number, status, rule))
         answer = f"answered {status}" if status is not None else "dropped unanswered"
         if status is None or status in (454, 455):
@@ -74,59 +74,18 @@ class ControlStates:
             )
         self.findings.add(severity, rule, text, sent.frame, sent.time, sent.number)
 
-    def _due(self, role: str | None, sent: Sent) -> tuple[int | None, str, str] | None:
-        """What the receiver of a request must answer on its own, per D-RCTP-25's first checks
-        and the states (`Connection._check_request`'s order); None when the request passes."""
+    def _due(self, role: str | None, sent: Sent) -> Refusal | None:
+        """What the receiver of a request of the `role` must answer on its own: the core's own
+        checks (D-RCTP-25) in the states the earlier answers left; None when it passes them."""
+        # ControlConnection gives both sides their roles before it reads a message.
+        assert role is not None
+        receiver = Role.SERVER if role == CLIENT else Role.CLIENT
+        # `sent.expected` is None where the CSeq came in order, or the order is not known.
         request = sent.request
-        cseq = sent.cseq
-        method = request.method
-        state = self.session_state
-        if state is SessionState.CLOSED:
-            return None, "the session is over (D-RCTP-13: nothing is sent in closed)", "R-RCTP-23"
-        if method not in METHODS:
-            return 501, f"{method} is not an RCTP/2.0 method", "R-RCTP-9"
-        if request.version != VERSION:
-            return 505, f"{request.version} is not RCTP/2.0", "R-RCTP-10"
-        if cseq is None:
-            return 400, "no valid CSeq", "R-RCTP-11"
-        names = [name.lower() for name, _ in request.headers]
-        for name in SINGLE_FIELDS:
-            if names.count(name.lower()) > 1:
-                return 400, f"{name} appears more than once", "R-RCTP-11"
-        if sent.expected is not None:
-            return 400, f"CSeq {cseq}, where {sent.expected} was next", "R-RCTP-4"
-        if role == SERVER and method not in SERVER_METHODS:
-            return 405, f"a server does not send {method}", "R-RCTP-25"
-        try:
-            path = parse_target(request.target).path
-        except ValueTextError as exc:
-            return 400, f"target: {exc}", "R-RCTP-15"
-        if state is SessionState.CLOSING:
-            return 455, "the session is ending (BYE)", "R-RCTP-20"
-        given = request.headers.get("Session")
-        if state is SessionState.IDLE:
-            if method == "CONNECT" and role == CLIENT:
-                return None
-            return 454, "no session yet: CONNECT first", "R-RCTP-17"
-        session = self.session
-        if given is None:
-            if method == "CONNECT":
-                return 455, "this connection has a session already", "R-RCTP-20"
-            return 454, "the request does not name the session", "R-RCTP-19"
-        try:
-            named = parse_session(given).id
-        except ValueTextError:
-            named = None
-        if session is not None and named != session.id:
-            return 454, "the request names another session", "R-RCTP-19"
-        stream = self.streams.get(path, StreamState.INIT)
-        if method in STREAM_METHODS and (stream, method) not in STREAM_TRANSITIONS:
-            return 455, f"{method} of a stream in state {stream.value} (D-RCTP-14)", "R-RCTP-20"
-        if role == SERVER and method == "WRITE" and stream not in PUSH_STATES:
-            return 455, f"a data-change WRITE of an access in state {stream.value}", "R-RCTP-20"
-        if method == "BYE" and path == "*":
-            self.event(SessionEvent.BYE)
-        return None
+        due = first_refusal(request, receiver, sent.expected, self)
+        if due is None and request.method == "BYE" and parse_target(request.target).is_session:
+            self.event(SessionEvent.BYE)  # D-RCTP-13: a valid BYE received
+        return due
 
     # -- answers ---------------------------------------------------------------------------------
 

@@ -4,13 +4,14 @@ Bytes and a `now` go in (`receive_data`), events come out (`next_event`), bytes 
 in `data_to_send()`, and time is a value (`get_timer()`, `handle_timer(now)`), as in aioquic.
 
 Requests flow both ways (D-RCTP-5), each side numbering its own (D-RCTP-6). The connection makes
-the first checks of D-RCTP-25 itself — framing, method, version, CSeq, direction, target syntax,
-session and states — and answers a request that fails one with its status, in order, without
-troubling the application; the application sees only requests that pass, and answers them with
-`send_response`. Responses leave in the order their requests arrived (R-RCTP-5), whoever wrote
-them. As an HTTP/1.1 server takes pipelined requests (and h11 hands them over), the application
-has one received request at a time: the next is checked, and handed over, once the one before it
-is answered, so that its checks see the states the earlier answers left.
+the first checks of D-RCTP-25 itself — framing (its reader), then `request_checks`: method,
+version, CSeq, direction, target syntax, session and states — and answers a request that fails
+one with its status, in order, without troubling the application; the application sees only
+requests that pass, and answers them with `send_response`. Responses leave in the order their
+requests arrived (R-RCTP-5), whoever wrote them. As an HTTP/1.1 server takes pipelined requests
+(and h11 hands them over), the application has one received request at a time: the next is
+checked, and handed over, once the one before it is answered, so that its checks see the states
+the earlier answers left.
 """
 
 from __future__ import annotations
@@ -27,18 +28,16 @@ from rcmlconf.rctp.fields import (
     parse_session,
 )
 from rcmlconf.rctp.messages import (
-    METHODS,
     REASONS,
     SERVER_METHODS,
     VALUES_TYPE,
-    VERSION,
     Headers,
     Request,
     Response,
 )
 from rcmlconf.rctp.reader import LIMITS, Limits, MessageReader
+from rcmlconf.rctp.request_checks import Refusal, first_refusal, request_cseq
 from rcmlconf.rctp.states import (
-    PUSH_STATES,
     SESSION_TRANSITIONS,
     STREAM_METHODS,
     STREAM_TRANSITIONS,
@@ -52,9 +51,6 @@ from rcmlconf.rctp.writer import write_message
 
 #: R-RCTP-23: how long the sender of BYE waits for its answer before closing.
 BYE_WAIT = 5.0
-#: The fields a message holds at most once (§2.2): a request repeating one is answered 400
-#: (R-RCTP-11). Content-Length is the reader's business. The Wireshark plugin flags them too.
-SINGLE_FIELDS = ("CSeq", "Session", "Content-Type", "Nodes", "Transport")
 
 
 # -- events ------------------------------------------------------------------------------------
@@ -269,63 +265,18 @@ class Connection:
         """D-RCTP-25: the protocol's own checks, in order; the first that fails answers."""
         request = inbound.request
         assert request is not None  # a slot for a broken message is never deferred
-        if self.session_state is SessionState.CLOSED:
-            # D-RCTP-13: nothing is sent in closed. A request pipelined after BYE is checked
-            # once the BYE is answered, and is dropped unanswered and unapplied.
-            self._inbound.remove(inbound)
-            return None
         # The CSeq is read first, so that every answer that can echo it does (R-RCTP-3).
-        cseq_texts = request.headers.get_all("CSeq")
-        cseq_problem = None
-        cseq = None
-        try:
-            cseq = parse_cseq(cseq_texts[0]) if len(cseq_texts) == 1 else None
-        except ValueTextError as exc:
-            cseq_problem = str(exc)
-        inbound.cseq = cseq
         # Numbering follows every readable CSeq, whatever else is wrong with the request, so
         # that one bad request does not put every later one out of sequence.
+        inbound.cseq = cseq = request_cseq(request)
         expected = self._expected_cseq
         if cseq is not None:
             self._expected_cseq = cseq + 1
-        if request.method not in METHODS:
-            return self._reject(
-                inbound, 501, f"{request.method} is not an RCTP/2.0 method", "R-RCTP-9"
-            )
-        if request.version != VERSION:
-            return self._reject(inbound, 505, f"{request.version} is not RCTP/2.0", "R-RCTP-10")
-        if cseq is None:
-            return self._reject(
-                inbound, 400, cseq_problem or "the request has no single CSeq", "R-RCTP-11"
-            )
-        names = [name.lower() for name, _ in request.headers]
-        for name in SINGLE_FIELDS:
-            if names.count(name.lower()) > 1:
-                return self._reject(inbound, 400, f"{name} appears more than once", "R-RCTP-11")
-        if cseq != expected:
-            return self._reject(inbound, 400, f"CSeq {cseq}, where {expected} was next", "R-RCTP-4")
-        if self.role is Role.CLIENT and request.method not in SERVER_METHODS:
-            return self._reject(
-                inbound,
-                405,
-                f"a server does not send {request.method}",
-                "R-RCTP-25",
-                allow="WRITE, STOP, BYE",
-            )
-        try:
-            target = parse_target(request.target)
-        except ValueTextError as exc:
-            return self._reject(inbound, 400, f"target: {exc}", "R-RCTP-15")
-        problem = self._session_problem(request)
-        if problem is not None:
-            return self._reject(inbound, *problem)
-        state = self._stream_state(target.path)
-        if (
-            request.method in STREAM_METHODS and (state, request.method) not in STREAM_TRANSITIONS
-        ) or (self.role is Role.CLIENT and request.method == "WRITE" and state not in PUSH_STATES):
-            return self._reject(
-                inbound, 455, f"{request.method} of a stream in state {state.value}", "R-RCTP-20"
-            )
+        refusal = first_refusal(request, self.role, expected, self)
+        if refusal is not None:
+            return self._refuse(inbound, refusal)
+        assert cseq is not None  # a request without one is refused
+        target = parse_target(request.target)
         if request.method == "BYE" and target.is_session:
             # R-RCTP-23: a valid BYE is answered 200, by the connection. A BYE of a node is the
             # application's to answer (405, D-RCTP-26), as it alone knows the node's kind.
@@ -337,42 +288,19 @@ class Connection:
         self._events.append(RequestReceived(request, cseq, target))
         return None
 
-    def _session_problem(self, request: Request) -> tuple[int, str, str] | None:
-        """454 and 455 of D-RCTP-13 and R-RCTP-17, -19; None when the session allows it."""
-        state = self.session_state
-        if state is SessionState.CLOSING:
-            return 455, "the session is ending (BYE)", "R-RCTP-20"
-        given = request.headers.get("Session")
-        if state is SessionState.IDLE:
-            if request.method == "CONNECT" and self.role is Role.SERVER:
-                return None
-            return 454, "no session yet: CONNECT first", "R-RCTP-17"
-        assert self.session is not None
-        if given is None:
-            if request.method == "CONNECT":
-                return 455, "this connection has a session already", "R-RCTP-20"
-            return 454, "the request does not name the session", "R-RCTP-19"
-        try:
-            named = parse_session(given).id
-        except ValueTextError:
-            named = None
-        if named != self.session.id:
-            return 454, "the request names another session", "R-RCTP-19"
-        return None
-
-    def _reject(
-        self,
-        inbound: _Inbound,
-        status: int,
-        reason: str,
-        rule: str | None,
-        allow: str | None = None,
-    ) -> None:
-        assert inbound.request is not None  # only a request that could be read is rejected
-        headers = [("Allow", allow)] if allow else []
-        body = reason.encode("utf-8")
-        inbound.answer = self._answer_bytes(inbound.cseq, status, headers, body, text=True)
-        self._events.append(RequestRejected(inbound.request, status, reason, rule))
+    def _refuse(self, inbound: _Inbound, refusal: Refusal) -> None:
+        """Answer a request that failed a check with its status, or drop it (D-RCTP-13)."""
+        request = inbound.request
+        assert request is not None  # only a request that could be read is rejected
+        if refusal.status is None:
+            # D-RCTP-13: nothing is sent in closed. A request pipelined after BYE is checked
+            # once the BYE is answered, and is dropped unanswered and unapplied.
+            self._inbound.remove(inbound)
+            return
+        headers = [("Allow", refusal.allow)] if refusal.allow else []
+        body = refusal.reason.encode("utf-8")
+        inbound.answer = self._answer_bytes(inbound.cseq, refusal.status, headers, body, text=True)
+        self._events.append(RequestRejected(request, refusal.status, refusal.reason, refusal.rule))
         self._flush_answers()
 
     # -- responses received ------------------------------------------------------------------
