@@ -376,7 +376,7 @@ class ControlConnection:
         if not sent.checked:
             self.states.check(requester.role, sent)
         self.states.judge_answer(side.role, sent, response, number, frame, time)
-        if sent.due is None or sent.request.method == "BYE":
+        if sent.due is None:  # refused on its own, it changes nothing: nor ends closing (D-RCTP-13)
             path = self.states.apply(sent, response, number, frame, time)
             if path is not None and sent.request.method == "SETUP":
                 self._setup(requester, sent.request, response, path, (number, frame, time))

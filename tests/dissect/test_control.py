@@ -11,10 +11,15 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from hypothesis import example, given
+from hypothesis import strategies as st
 from support.pcaps import TCP_ACK, TCP_PSH, TCP_SYN, TcpFlow, dissect, ipv4_tcp, ipv4_udp, pcap
 
 from rcmlconf.dissect import RCTP, RCTP_DATA, Options, Severity
 from rcmlconf.dissect.control_results import Answer
+from rcmlconf.rctp.connection import Connection, RequestReceived, RequestRejected
+from rcmlconf.rctp.messages import METHODS, SERVER_METHODS
+from rcmlconf.rctp.states import Role, SessionState
 
 TRANSCRIPTS = sorted(
     (Path(__file__).parents[2] / "vectors" / "rctp" / "transcripts").glob("*.json")
@@ -382,3 +387,107 @@ def test_bodies_are_decoded_with_the_rcml() -> None:
     assert isinstance(without[3].extra, Answer)
     assert without[3].extra.values is None
     assert without[4].extra is None
+
+
+# -- the core's own refusals, found due by the dissector -----------------------------------------
+
+OURS, OTHERS = "abcdefgh1234", "zzzzzzzzzzzz"
+Parts = tuple[str, str, str, str, str]
+#: A request's parts: method, target, version, how its CSeq comes, the session it names. Each
+#: part is most often right, so that an exchange goes through the states (D-RCTP-13, -14).
+raw_requests = st.tuples(
+    st.sampled_from([*METHODS, *sorted(SERVER_METHODS), "FETCH"]),
+    st.sampled_from(["*", "*", "/", "/drive/wheels", "/drive/wheels", "drive", "/a/"]),
+    st.sampled_from(["RCTP/2.0"] * 5 + ["RCTP/1.0"]),
+    st.sampled_from(["next"] * 8 + ["skip", "none", "zero", "twice"]),
+    st.sampled_from(["ours"] * 5 + ["none", "other", "twice"]),
+)
+RIGHT = ("RCTP/2.0", "next", "ours")
+#: A raw request from the core's peer, or the core's own BYE (which puts it in closing).
+steps = st.lists(st.one_of(raw_requests, st.just("BYE")), max_size=16)
+
+
+def raw_request(parts: Parts, cseq: int) -> tuple[bytes, int]:
+    """The request's bytes, and the CSeq its sender numbers its next request with."""
+    method, target, version, numbering, session = parts
+    lines = [f"{method} {target} {version}"]
+    numbers = {"next": [str(cseq)], "skip": [str(cseq + 1)], "none": [], "zero": ["0"]}
+    lines += [f"CSeq: {text}" for text in numbers.get(numbering, [str(cseq)] * 2)]
+    sessions = {"ours": [OURS], "none": [], "other": [OTHERS]}
+    lines += [f"Session: {given}" for given in sessions.get(session, [OURS] * 2)]
+    after = {"next": cseq + 1, "skip": cseq + 2}.get(numbering, cseq)  # D-RCTP-6
+    return wire("\r\n".join(lines) + "\r\n\r\n"), after
+
+
+def core_exchange(
+    receiver: Role, actions: list[Parts | str], opened: bool
+) -> tuple[bytes, list[RequestRejected]]:
+    """Raw requests sent to the `receiver`'s core, and its own BYEs (once the two cores opened a
+    session, when `opened`), each request that passes answered 200 by the core's application: the
+    capture of both directions, and the requests the core refused on its own."""
+    client, server = Connection(Role.CLIENT, 0.0), Connection(Role.SERVER, 0.0)
+    core, peer = (server, client) if receiver is Role.SERVER else (client, server)
+    flow = TcpFlow(CLIENT, SERVER).handshake()
+    refused: list[RequestRejected] = []
+
+    def record(end: Connection, data: bytes) -> None:
+        if data:
+            flow.send(CLIENT if end is client else SERVER, data)
+
+    def send(sender: Connection, data: bytes) -> bytes:
+        """`data` from `sender` to the other end, which takes it: what that end answers."""
+        record(sender, data)
+        other = server if sender is client else client
+        other.receive_data(data, 1.0)
+        while (event := other.next_event()) is not None:
+            if isinstance(event, RequestRejected):
+                refused.append(event)
+            elif isinstance(event, RequestReceived):
+                opens = event.request.method == "CONNECT"
+                other.send_response(event.request, 200, [("Session", f"{OURS};timeout=60")] * opens)
+        return other.data_to_send()
+
+    cseq = 1
+    if opened:
+        client.send_request("CONNECT", "/rover", now=0.0)
+        send(server, send(client, client.data_to_send()))
+        cseq += peer is client
+    for action in actions:
+        if isinstance(action, str):
+            # Only while open: the peer never answers, and the dissector judges a request once
+            # its sender's earlier ones are answered, as their receiver does (D-RCTP-25).
+            if core.session_state is SessionState.OPEN:
+                core.send_request(action, "*", now=1.0)
+                record(core, core.data_to_send())
+        else:
+            data, cseq = raw_request(action, cseq)
+            record(core, send(peer, data))  # nor does the peer read its answers
+    return pcap(flow.frames), refused
+
+
+@given(st.sampled_from(Role), steps, st.booleans())
+# A BYE refused in closing ends nothing: the WRITE after it is still answered 455 (D-RCTP-13).
+@example(Role.CLIENT, ["BYE", ("BYE", "*", *RIGHT), ("WRITE", "/drive/wheels", *RIGHT)], True)
+def test_what_the_core_refuses_the_dissector_finds_due(
+    receiver: Role, actions: list[Parts | str], opened: bool
+) -> None:
+    """D-RCTP-25: the requests a core refuses on its own, in any state an exchange leads to, are
+    the ones the dissector finds due a refusal, with the same status, rule and reason, and the
+    core's answers are the ones due."""
+    data, refused = core_exchange(receiver, actions, opened)
+    dissected = dissect(data)
+    (control,) = dissected.analysis.control
+    address, port = CLIENT if receiver is Role.SERVER else SERVER
+    peer = f"{address}:{port}"
+    sent = {r.number for r in dissected.records if r.source == peer}
+    due = [(n, status, rule) for n, status, rule in control.refused if n in sent and status]
+    assert [(status, rule) for _, status, rule in due] == [(e.status, e.rule) for e in refused]
+    for (number, _, rule), event in zip(due, refused, strict=True):
+        (text,) = [
+            f.text
+            for f in dissected.analysis.findings
+            if (f.message, f.rule) == (number, rule) and f.severity is not Severity.ERROR
+        ]
+        assert f": {event.reason}; " in text
+    answered = [f.text for f in dissected.analysis.findings if " answered " in f.text]
+    assert not [text for text in answered if text.startswith(("the client", "the server"))]
