@@ -112,7 +112,7 @@ class ControlStates:
         elif response.status != status:
             self.findings.add(
                 Severity.WARNING,
-                "R-RCTP-20" if status in (454, 455) else rule,
+                rule,
                 f"the {role} answered {request.method} {request.target} (CSeq {sent.cseq})"
                 f" {response.status}; D-RCTP-25 gives {status} ({why})",
                 frame,

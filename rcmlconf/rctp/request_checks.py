@@ -138,11 +138,13 @@ def _session_refusal(request: Request, receiver: Role, agreed: Agreed) -> Refusa
 
 
 def _stream_refusal(method: str, path: str, receiver: Role, agreed: Agreed) -> Refusal | None:
-    """455 of D-RCTP-14 (R-RCTP-20), and of a client for a data-change WRITE of an access not
-    playing on its side (D-RCTP-26, D-RCTP-27); None when the access's state allows it."""
+    """455 of D-RCTP-14, and of a client for a data-change WRITE of an access not playing on its
+    side (D-RCTP-26, D-RCTP-27); None when the access's state allows the request."""
+    # R-RCTP-20 binds a server; R-RCTP-68 is its answer from the client.
+    rule = "R-RCTP-20" if receiver is Role.SERVER else "R-RCTP-68"
     state = agreed.streams.get(path, StreamState.INIT)
     if method in STREAM_METHODS and (state, method) not in STREAM_TRANSITIONS:
-        return Refusal(455, f"{method} of a stream in state {state.value}", "R-RCTP-20")
+        return Refusal(455, f"{method} of a stream in state {state.value}", rule)
     if receiver is Role.CLIENT and method == "WRITE" and state not in PUSH_STATES:
-        return Refusal(455, f"a data-change WRITE of an access in state {state.value}", "R-RCTP-20")
+        return Refusal(455, f"a data-change WRITE of an access in state {state.value}", rule)
     return None

@@ -147,13 +147,13 @@ def request(
             request("STOP"),
             Role.CLIENT,
             Agreed(),
-            Refusal(455, "STOP of a stream in state init", "R-RCTP-20"),
+            Refusal(455, "STOP of a stream in state init", "R-RCTP-68"),
         ),
         (
             request("WRITE"),
             Role.CLIENT,
             Agreed(streams={"/a": StreamState.READY}),
-            Refusal(455, "a data-change WRITE of an access in state ready", "R-RCTP-20"),
+            Refusal(455, "a data-change WRITE of an access in state ready", "R-RCTP-68"),
         ),
         (request("WRITE"), Role.CLIENT, Agreed(streams={"/a": StreamState.PLAYING}), None),
         (request("WRITE"), Role.SERVER, Agreed(), None),  # the node's business (D-RCTP-25)
