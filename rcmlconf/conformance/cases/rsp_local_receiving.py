@@ -201,16 +201,19 @@ async def robot_sequence_wraps(ctx: Context) -> None:
         def says(found: Datagram, number: int = number) -> bool:
             return found.header.last_received == number
 
-        found = await probe.next(
-            PacketType.DOWNLINK, wait=max(probe.quiet, 4 * probe.period), where=says
-        )
-        ctx.expect(
-            found is not None,
+        sent = probe.now
+        due = sent + max(probe.quiet, 4 * probe.period)
+        found = await probe.next(PacketType.DOWNLINK, wait=due + margin(ctx) - sent, where=says)
+        downlinks = probe.packets(PacketType.DOWNLINK)
+        seen_by(
+            ctx,
+            probe,
+            found,
+            sent,
+            due,
             f"a DOWNLINK saying last received {number}: the newest, by serial arithmetic"
             " (D-RSP-15)",
-            f"last received {probe.packets(PacketType.DOWNLINK)[-1].header.last_received}"
-            if probe.packets(PacketType.DOWNLINK)
-            else "no DOWNLINK",
+            instead=f"last received {downlinks[-1].header.last_received}" if downlinks else "",
         )
 
 

@@ -22,8 +22,12 @@ def margin(ctx: Context) -> float:
 
 
 def held(ctx: Context, since: float) -> float:
-    """The longest the harness's loop was held (seconds) since loop time `since`."""
-    return ctx.loop_watch.held(since) if ctx.loop_watch is not None else 0.0
+    """How long the harness's loop was held (seconds) since loop time `since`, its holds added
+    up: each delays what the harness reads by its length at most, and so do several, one after
+    another, by their sum (a CPU-starved process is held many times a little, and a datagram
+    waits for its turn through all of them). The embedded reference shares the loop: its sending
+    was held as long."""
+    return ctx.loop_watch.total(since) if ctx.loop_watch is not None else 0.0
 
 
 def came_by(
