@@ -309,15 +309,8 @@ class Connection:
         """D-RCTP-6: a response answers this side's oldest unanswered request, by CSeq."""
         cseq_text = response.headers.get("CSeq")
         if not self._sent:
-            return self._fail(
-                RemoteProtocolError(
-                    "a response, but no request is waiting for one",
-                    offset,
-                    400,
-                    "R-RCTP-12",
-                    fatal=True,
-                    answerable=False,
-                )
+            return self._response_broken(
+                "a response, but no request is waiting for one", offset, "R-RCTP-12"
             )
         request = self._sent[0]
         try:
@@ -326,20 +319,28 @@ class Connection:
             cseq = None
         expected = int(request.headers.get("CSeq") or 0)
         if cseq != expected:
-            return self._fail(
-                RemoteProtocolError(
-                    f"response CSeq {cseq_text!r}, where {expected} is the oldest unanswered",
-                    offset,
-                    400,
-                    "R-RCTP-12",
-                    fatal=True,
-                    answerable=False,
-                )
+            return self._response_broken(
+                f"response CSeq {cseq_text!r}, where {expected} is the oldest unanswered",
+                offset,
+                "R-RCTP-12",
             )
+        if request.method == "CONNECT" and response.status == 200:
+            try:
+                parse_session(response.headers.get("Session") or "")
+            except ValueTextError as exc:
+                # No session to go on with: the connection is of no more use (D-RCTP-10).
+                return self._response_broken(
+                    f"the answer to CONNECT names no session: {exc}", offset, "R-RCTP-18"
+                )
         self._sent.popleft()
         self._events.append(ResponseReceived(response, request))
         self._exchange_done(request, response.status, response.headers, ours=True)
         return None
+
+    def _response_broken(self, reason: str, offset: int, rule: str) -> None:
+        """A response this side cannot go on after: framing or the session is lost, and a
+        response is never answered (D-RCTP-10)."""
+        self._fail(RemoteProtocolError(reason, offset, 400, rule, fatal=True, answerable=False))
 
     # -- sending -----------------------------------------------------------------------------
 

@@ -281,3 +281,28 @@ async def test_a_percent_encoded_site_path_is_decoded_before_connect() -> None:
             "client", "--rcml", str(ROVER), url, "read", "/identity/info/name"
         )
         assert (status, out, err) == (0, "name = rover\n", "")
+
+
+@run
+async def test_a_connect_answer_without_a_readable_session_is_the_servers_fault() -> None:
+    """A server answering CONNECT 200 with an unreadable Session: one line naming R-RCTP-18,
+    not an internal error (the client's core raised ValueTextError out of receive_data)."""
+
+    async def answer(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        await reader.readuntil(b"\r\n\r\n")
+        writer.write(b"RCTP/2.0 200 OK\r\nCSeq: 1\r\nSession: x\r\n\r\n")
+        await writer.drain()
+        await reader.read()  # until the client closes
+        writer.close()
+
+    server = await asyncio.start_server(answer, "127.0.0.1", 0)
+    async with server:
+        port = server.sockets[0].getsockname()[1]
+        url = f"rctp://127.0.0.1:{port}/rover"
+        status, out, err = await finished(
+            "client", "--rcml", str(ROVER), url, "read", "/identity/info/name"
+        )
+    assert status != 0, (out, err)
+    assert "bug in rcmlconf" not in err, err
+    assert "R-RCTP-18" in err, err
+    assert len(err.splitlines()) == 1, err

@@ -297,3 +297,26 @@ def test_random_exchanges_stay_in_defined_states(steps: list[tuple[str, Any, Any
                     pending[name].append(event.request)
             assert core.session_state in SessionState
             assert all(state in StreamState for state in core.streams.values())
+
+
+@pytest.mark.parametrize(
+    "session",
+    [None, "", "short", "abcdefgh1234;timeout=x"],
+    ids=["none", "empty", "short-id", "bad-timeout"],
+)
+def test_a_connect_answered_200_without_a_readable_session_is_the_servers_fault(
+    session: str | None,
+) -> None:
+    """R-RCTP-18: the client's core reports the server's answer as a protocol failure, with
+    its offset and rule, and raises nothing else (it raised ValueTextError out of
+    receive_data)."""
+    client = Connection(Role.CLIENT, 0.0)
+    client.send_request("CONNECT", "/", now=0.0)
+    client.data_to_send()
+    field = "" if session is None else f"Session: {session}\r\n"
+    client.receive_data(f"RCTP/2.0 200 OK\r\nCSeq: 1\r\n{field}\r\n".encode(), 0.0)
+    events = drain(client)
+    failures = [e for e in events if isinstance(e, ProtocolFailure)]
+    assert len(failures) == 1, events
+    assert failures[0].error.rule == "R-RCTP-18"
+    assert client.session is None

@@ -185,7 +185,9 @@ class Client:
         if self._udp is not None:
             self._udp.close()
         self._timer.set(None)
-        self._fail_waiting("the connection is closed")
+        # Why the session closed, where it says (the server broke the protocol, ended it), is
+        # what a request still waiting is told.
+        self._fail_waiting(self.closed.reason if self.closed else "the connection is closed")
 
     # -- requests ----------------------------------------------------------------------------
 
