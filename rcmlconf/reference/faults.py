@@ -7,11 +7,12 @@ as an implementer's bug would, one requirement broken at a time, so that a test 
 some case of the harness fails, naming that requirement.
 
 Each fault lives where such a bug would: a check of `Fault.X in faults` at one spot of the
-server's session, privileges or robot, or of the RSP robot's endpoint (each marked
-`# fault: NAME`); the faults of the control connection's bytes are one rewrite of what the server
-writes (`rewrite_control`, applied in the adapter's flush); those of the data stream a subclass of
-the core's endpoint (`reference.server.faulty_stream`); those of values a codec the server reads
-and writes bodies with (`faulty_codec`, and `loose_model` for the robot's packets). Without faults
+server's session, privileges or robot (each marked `# fault: NAME`); the faults of the control
+connection's bytes are one rewrite of what the server writes (`rewrite_control`, applied in the
+adapter's flush); those of the data stream a subclass of the core's endpoint
+(`reference.server.faulty_stream`), and those of the RSP robot a subclass of the core's robot
+endpoint (`reference.rsp.faulty_session`); those of values a codec the server reads and writes
+bodies with (`faulty_codec`, and `loose_model` for the robot's packets). Without faults
 nothing of this runs: the reference behaves exactly as it does without this module.
 
 Never for a real robot: a faulty server or robot breaks the protocols on purpose.

@@ -50,6 +50,8 @@ from rcmlconf.reference.faults import (
     names,
     rewrite_control,
 )
+from rcmlconf.reference.rsp.faulty_session import FaultyRobotEndpoint
+from rcmlconf.reference.rsp.robot import ReferenceRobot, RobotSettings
 from rcmlconf.reference.server.adapter import ReferenceServer, ServerSettings
 from rcmlconf.reference.server.faulty_stream import FaultyEndpoint
 from rcmlconf.rsp.codec import (
@@ -98,7 +100,7 @@ def test_every_fault_is_described_kebab_case_and_names_requirements_of_specs() -
 
 def test_without_faults_nothing_changes() -> None:
     assert ServerSettings().faults == frozenset()
-    assert RobotEndpoint(robot_model()).faults == frozenset()
+    assert type(ReferenceRobot(robot_model(), RobotSettings()).endpoint) is RobotEndpoint
     data = b"RCTP/2.0 404 Not Found\r\nCSeq: 3\r\n\r\nREAD /x RCTP/2.0\r\nCSeq: 1\r\n\r\n"
     assert rewrite_control(data, frozenset()) == data
 
@@ -731,7 +733,7 @@ class Local:
     """A local system made by hand: packets as a case would build them, the robot's read back."""
 
     def __init__(self, faults: frozenset[Fault] = frozenset()) -> None:
-        self.robot = RobotEndpoint(CUBO, faults=faults)
+        self.robot = FaultyRobotEndpoint(faults, CUBO) if faults else RobotEndpoint(CUBO)
         self.wire = SessionWire(self.robot.codec, Encryption.NONE, RspDirection.DOWNLINK)
         self.now = 0.0
         #: What the robot sent, in order.
@@ -990,11 +992,10 @@ def test_each_robot_fault_changes_what_the_robot_does(fault: Fault) -> None:
 
 
 def test_a_faulty_robot_says_so_at_start(caplog: pytest.LogCaptureFixture) -> None:
-    from rcmlconf.reference.rsp.robot import ReferenceRobot, RobotSettings
-
     async def main() -> None:
         robot = ReferenceRobot(CUBO, RobotSettings(port=0, faults=frozenset({Fault.ACK_NEXT_ID})))
         await robot.start()
+        assert isinstance(robot.endpoint, FaultyRobotEndpoint)
         assert robot.endpoint.faults == {Fault.ACK_NEXT_ID}
         robot.stop()
 

@@ -23,11 +23,13 @@ import asyncio
 import logging
 from collections import deque
 from dataclasses import dataclass
+from functools import partial
 
 from rcmlconf.reference.datagrams import DataSocket
 from rcmlconf.reference.faults import Fault, describe
 from rcmlconf.reference.rsp.batch import Batch, Datagrams, Timer
 from rcmlconf.reference.rsp.bodies import Body, body_for
+from rcmlconf.reference.rsp.faulty_session import FaultyRobotEndpoint
 from rcmlconf.reference.rsp.log_text import event_text, values_text
 from rcmlconf.reference.throttled import Throttled
 from rcmlconf.reference.timers import LoopTimer
@@ -65,8 +67,10 @@ class ReferenceRobot:
     ) -> None:
         self.model = model
         self.settings = settings
-        self.endpoint = RobotEndpoint(
-            model, encryptions=settings.encryptions, psk=settings.psk, faults=settings.faults
+        faults = settings.faults  # the endpoint of a faulty robot (faulty_session)
+        make = partial(FaultyRobotEndpoint, faults) if faults else RobotEndpoint
+        self.endpoint: RobotEndpoint = make(
+            model, encryptions=settings.encryptions, psk=settings.psk
         )
         self.body = body if body is not None else body_for(model, settings.seed)
         self.transport: Datagrams | None = None

@@ -21,8 +21,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from rcmlconf.errors import ProtocolError
-from rcmlconf.rctp.datastream.order import Arrival, SequenceTracker
-from rcmlconf.reference.faults import Fault, loose_model
+from rcmlconf.rctp.datastream.order import Arrival
 from rcmlconf.rsp.codec import (
     CLEAR_BUFFER,
     Bye,
@@ -68,7 +67,7 @@ _new = tuple.__new__
 
 
 @dataclass(slots=True)
-class _Session:
+class RobotSession:
     peer: Address
     wire: SessionWire
     client_nonce: bytes
@@ -85,7 +84,12 @@ class _Session:
 
 
 class RobotEndpoint:
-    """A robot's RSP side for one model."""
+    """A robot's RSP side for one model.
+
+    A robot that breaks RSP on purpose, to test a conformance harness, is a subclass: it overrides
+    the protected methods where its bugs sit, `_welcome_again`, `_time_out` and `_stop_on_loss`
+    being the seams of rare paths made for it; the beat's methods have none.
+    """
 
     __slots__ = (
         "_buffer",
@@ -104,7 +108,6 @@ class RobotEndpoint:
         "_states",
         "codec",
         "encryptions",
-        "faults",
         "model",
         "session",
     )
@@ -117,22 +120,17 @@ class RobotEndpoint:
         psk: bytes | None = None,
         min_period: float | None = None,
         random: Callable[[int], bytes] = os.urandom,
-        faults: frozenset[Fault] = frozenset(),
     ) -> None:
-        """`faults` are none but to test a conformance harness (`reference.faults`)."""
         if any(e is not Encryption.NONE for e in encryptions) and psk is None:
             raise ValueError("encrypted sessions need the robot's pre-shared key")
         self.model = model
-        # fault: payload-size-unchecked (packets read as a model with no size limit would be)
-        loose = Fault.PAYLOAD_SIZE_UNCHECKED in faults
-        self.codec = codec_for(loose_model(model) if loose else model)
+        self.codec = codec_for(model)
         self.encryptions = encryptions
         self._psk = psk
         self._min_period_ms = round((model.period if min_period is None else min_period) * 1000)
         self._random = random
-        self.faults = faults
         self._ids = 1 << (8 * model.id_length)
-        self.session: _Session | None = None
+        self.session: RobotSession | None = None
         self._out: list[tuple[bytes, Address]] = []
         self._events: deque[events.Event] = deque()
         #: Sensor and monitor values, newest first set by the application.
@@ -156,9 +154,6 @@ class RobotEndpoint:
 
     @property
     def free_buffers(self) -> int:
-        # `self.faults and` first, in the beat: an Enum's hash is Python code, faults rare.
-        if self.faults and Fault.FREE_BUFFERS_STUCK in self.faults:  # fault: free-buffers-stuck
-            return self.model.command_buffers
         return self.model.command_buffers - len(self._buffer)
 
     def set_state(self, name: str, values: Mapping[str, Value]) -> None:
@@ -241,13 +236,9 @@ class RobotEndpoint:
         silence = session.live.check(now)
         if silence is not None:  # most beats hear no silence: no enum member looked up
             if silence is Silence.TIMEOUT:
-                if Fault.SILENT_TIMEOUT in self.faults:  # fault: silent-timeout
-                    self._end(events.SessionClosed(ByeReason.TIMEOUT, by_peer=False))
-                    return
-                self._bye(ByeReason.TIMEOUT, now)
+                self._time_out(now)
                 return
-            if Fault.NO_STOP_ON_LOSS not in self.faults:  # fault: no-stop-on-loss
-                session.motion.lose_link()  # R-RSP-36
+            self._stop_on_loss(session)
             self._events.append(events.LinkLost())
         if session.beat.due(now):
             self._uplink(session, now)
@@ -262,12 +253,7 @@ class RobotEndpoint:
 
     def _receive(self, data: bytes, peer: Address, now: float) -> None:
         session = self.session
-        # fault: source-unchecked
-        if (
-            session is None
-            or (peer != session.peer and Fault.SOURCE_UNCHECKED not in self.faults)
-            or data[4:5] == _HELLO
-        ):
+        if session is None or peer != session.peer or data[4:5] == _HELLO:
             header = pull_header(data)
             if header.type is not PacketType.HELLO:
                 raise ProtocolError(
@@ -276,8 +262,6 @@ class RobotEndpoint:
             self._hello(header, data, peer, now)
             return
         drop_unsent(data, SENT_TO_ROBOT, "a robot")
-        if self.faults:
-            data = self._faulty_read(session, data)  # fault: those of _faulty_read
         packet, arrival = session.wire.read(data, self._psk)
         header, body = packet
         if session.live.heard(now):
@@ -323,8 +307,7 @@ class RobotEndpoint:
         session = self.session
         if session is not None and session.peer == peer:
             if hello.client_nonce == session.client_nonce:
-                if Fault.NO_RETRANSMISSION not in self.faults:  # fault: no-retransmission
-                    self._out.append((session.welcome, peer))
+                self._welcome_again(session)
                 return
             # The same local system with a new nonce lost its session: the new one replaces it.
             self._end(events.SessionClosed(ByeReason.CLOSED, by_peer=True))
@@ -342,7 +325,7 @@ class RobotEndpoint:
         data = wire.build(PacketType.WELCOME, welcome, now, self.free_buffers, self._psk)
         wire.secure(self._psk or b"", hello.client_nonce, robot_nonce)
         period = period_ms / 1000
-        self.session = _Session(
+        self.session = RobotSession(
             peer,
             wire,
             hello.client_nonce,
@@ -358,6 +341,10 @@ class RobotEndpoint:
         self._out.append((data, peer))
         self._events.append(events.SessionOpened(wire.session_id, period, peer))
 
+    def _welcome_again(self, session: RobotSession) -> None:
+        """A repeated HELLO (the session's nonce) gets the WELCOME given (D-RSP-12, R-RSP-20)."""
+        self._out.append((session.welcome, session.peer))
+
     def _new_session_id(self) -> int:
         """R-RSP-20: random, never 0 (and only one session is open at a time)."""
         while True:
@@ -370,7 +357,7 @@ class RobotEndpoint:
         byte, so that a local system of another model reads it too."""
         refused = Header(
             1,
-            self.model.model_id if Fault.REFUSED_OWN_MODEL in self.faults else header.model_id,
+            header.model_id,
             header.encryption,
             PacketType.REFUSED,
             0,
@@ -383,21 +370,17 @@ class RobotEndpoint:
         self._out.append((data, peer))
 
     def _downlink(
-        self, session: _Session, header: Header, body: MapBody, arrival: Arrival, now: float
+        self, session: RobotSession, header: Header, body: MapBody, arrival: Arrival, now: float
     ) -> None:
         # Every period (D-RSP-13): items unpacked, names and enum members held in locals.
         items = body.items
         newer = arrival is _NEWER
         if newer:
-            # R-RSP-33: before the payloads; fault: clear-buffer-ignored
-            if header.buffer & CLEAR_BUFFER and Fault.CLEAR_BUFFER_IGNORED not in self.faults:
+            if header.buffer & CLEAR_BUFFER:  # R-RSP-33: before the payloads
                 self._buffer.clear()
             flags = frozenset([d for d, ident, values in items if values is None and ident is None])
             session.active_modules = flags & self._modules
             session.requested = flags - self._modules
-            # fault: unrequested-reported
-            if self.faults and Fault.UNREQUESTED_REPORTED in self.faults:
-                session.requested |= self._reported
         acks = []
         devices = self.model.devices
         module_of, active = self._module_of, session.active_modules
@@ -406,10 +389,7 @@ class RobotEndpoint:
             if ident is not None:
                 assert values is not None
                 if self._occurrence(session, position, ident, values):
-                    ack = Item(position, ident)  # R-RSP-26
-                    if Fault.ACK_NEXT_ID in self.faults:  # fault: ack-next-id
-                        ack = Item(position, (ident + 1) % self._ids)
-                    acks.append(ack)
+                    acks.append(Item(position, ident))  # R-RSP-26
             elif values is not None and newer:
                 module = module_of[position]  # `_in_active`, inline
                 if module is None or module in active:
@@ -420,13 +400,12 @@ class RobotEndpoint:
             self._send(session, PacketType.ACK, MapBody(tuple(acks)), now)
 
     def _occurrence(
-        self, session: _Session, position: int, ident: int, values: Mapping[str, Value]
+        self, session: RobotSession, position: int, ident: int, values: Mapping[str, Value]
     ) -> bool:
         """Take a command or memory command once (R-RSP-25); whether to acknowledge it."""
         found = self.model.devices[position]
-        # fault: duplicates-taken (every occurrence is new), repeat-not-acked (no ACK again)
-        if not (session.commands.is_new(position, ident) or Fault.DUPLICATES_TAKEN in self.faults):
-            return Fault.REPEAT_NOT_ACKED not in self.faults  # seen before: acknowledged again
+        if not session.commands.is_new(position, ident):
+            return True  # seen before: acknowledged again
         if found.kind is _K.MEMORY_COMMAND:
             if not self.free_buffers:  # R-RSP-31: neither taken nor acknowledged
                 return False
@@ -436,7 +415,7 @@ class RobotEndpoint:
         session.commands.take(position, ident)
         return True
 
-    def _in_active(self, session: _Session, position: int) -> bool:
+    def _in_active(self, session: RobotSession, position: int) -> bool:
         """Not in a module, or in one the newest DOWNLINK activated (D-RSP-14)."""
         module = self._module_of[position]
         return module is None or module in session.active_modules
@@ -452,19 +431,17 @@ class RobotEndpoint:
 
     # -- sending -------------------------------------------------------------------------------
 
-    def _set_period(self, session: _Session, period_ms: int, now: float) -> None:
+    def _set_period(self, session: RobotSession, period_ms: int, now: float) -> None:
         period = max(period_ms, self._min_period_ms) / 1000
         if period != session.beat.period:
             session.beat = Beat(period, now + period)
             session.live.period = session.motion.period = period
 
-    def _send(self, session: _Session, kind: PacketType, body: Body, now: float) -> None:
+    def _send(self, session: RobotSession, kind: PacketType, body: Body, now: float) -> None:
         data = session.wire.build(kind, body, now, self.free_buffers, self._psk)
-        if self.faults and Fault.SEQUENCE_FROZEN in self.faults:  # fault: sequence-frozen
-            session.wire.sent -= 1
         self._out.append((data, session.peer))
 
-    def _uplink(self, session: _Session, now: float) -> None:
+    def _uplink(self, session: RobotSession, now: float) -> None:
         items: dict[int, Item] = {}
         states = self._states
         for position in self._reported & session.requested:
@@ -475,8 +452,6 @@ class RobotEndpoint:
             position = occurrence.device.position
             items[position] = Item(position, occurrence.id, occurrence.values)
         due = self._memory_events.due(now, _any)
-        if self.faults and Fault.NO_RETRANSMISSION in self.faults:  # fault: no-retransmission
-            due = [occurrence for occurrence in due if occurrence.last_sent is None]
         for occurrence in due:
             position = occurrence.device.position
             items[position] = Item(position, occurrence.id, occurrence.values)
@@ -486,16 +461,15 @@ class RobotEndpoint:
         self._send(session, _UPLINK, map_body(tuple([items[p] for p in sorted(items)])), now)
         self._memory_events.sent(due, now)
 
-    # -- faults (reference.faults), none but to test a conformance harness --------------------
+    # -- silence and ending --------------------------------------------------------------------
 
-    def _faulty_read(self, session: _Session, data: bytes) -> bytes:
-        """What the faults of reading a session's packet make of it before it is read."""
-        if Fault.REPLAY_WINDOW_OFF in self.faults:  # fault: replay-window-off
-            session.wire.tracker = SequenceTracker()  # every packet is the first, so newer
-        if Fault.SESSION_ID_UNCHECKED in self.faults and len(data) >= 17:
-            # fault: session-id-unchecked: whatever the packet names, it is the session's
-            data = data[:11] + session.wire.session_id.to_bytes(6, "big") + data[17:]
-        return data
+    def _time_out(self, now: float) -> None:
+        """Nothing from the peer for 10 seconds: BYE (R-RSP-22)."""
+        self._bye(ByeReason.TIMEOUT, now)
+
+    def _stop_on_loss(self, session: RobotSession) -> None:
+        """The link lost: the effectors whose onLoss is zero stop (R-RSP-36)."""
+        session.motion.lose_link()
 
     def _bye(self, reason: ByeReason, now: float) -> None:
         session = self.session
