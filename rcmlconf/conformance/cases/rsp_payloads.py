@@ -1,0 +1,206 @@
+"""rsp/payload: the payloads of the robot's packets and of the local system's (D-RSP-14), what it
+does with them, well-formed or not, newer or late (D-RSP-15; R-RSP-16, R-RSP-19, R-RSP-23,
+R-RSP-26, R-RSP-34). The harness plays the local system."""
+
+from __future__ import annotations
+
+from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.rsp_datagram import Datagram, sequence_of
+from rcmlconf.conformance.probes.rsp_devices import (
+    close_to,
+    first,
+    flags,
+    monitored,
+    of_kind,
+    value_item,
+    values_of,
+    visible,
+)
+from rcmlconf.conformance.probes.rsp_driven import drive
+from rcmlconf.conformance.probes.rsp_exchanges import (
+    dropped_then_taken,
+    fresh_uplink,
+    late_acked,
+    raw_session,
+    requested_uplinks,
+    taken,
+    uplinks_within,
+)
+from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.verdicts import NotApplicable
+from rcmlconf.rsp.model import DeviceKind
+
+
+@case(
+    "rsp/payload/trailing-byte",
+    "A DOWNLINK with a byte after its last payload is dropped unanswered",
+    ["R-RSP-16", "R-RSP-18"],
+    role=Role.ROBOT,
+)
+async def trailing_byte(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    await dropped_then_taken(ctx, probe, raw, lambda d: d + b"\x00", "R-RSP-16", "a trailing byte")
+
+
+@case(
+    "rsp/payload/cut-short",
+    "A DOWNLINK whose last payload is a byte short is dropped unanswered",
+    ["R-RSP-16", "R-RSP-18"],
+    role=Role.ROBOT,
+)
+async def cut_short(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    await dropped_then_taken(ctx, probe, raw, lambda d: d[:-1], "R-RSP-16", "a payload cut short")
+
+
+@case(
+    "rsp/payload/every-state",
+    "With every sensor and monitor requested, each UPLINK reports all of them, laid out by field",
+    ["R-RSP-23", "R-RSP-16"],
+    role=Role.ROBOT,
+)
+async def every_state(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    model = probe.model
+    states = of_kind(model, DeviceKind.SENSOR, DeviceKind.MONITOR)
+    if not states:
+        raise NotApplicable("no sensor or monitor")
+    uplinks = await requested_uplinks(probe, raw, states, 4)
+    names = {d.name for d in states}
+    for found in uplinks:
+        ctx.expect(
+            found.devices(model) == names,
+            f"all {len(names)} sensors and monitors",
+            f"{sorted(found.devices(model) ^ names)} missing or extra",
+            "R-RSP-23",
+        )
+
+
+@case(
+    "rsp/payload/effector-applied",
+    "An effector value in DOWNLINKs is applied: its monitor reports it",
+    ["R-RSP-34"],
+    role=Role.ROBOT,
+)
+async def effector_applied(ctx: Context) -> None:
+    driven = await drive(ctx)
+    ctx.expect(
+        await driven.reached(),
+        f"{driven.monitor.name} reporting {driven.wanted}",
+        driven.latest(),
+    )
+
+
+@case(
+    "rsp/payload/effector-held",
+    "An effector keeps its value when the DOWNLINKs stop carrying it (hold, D-RSP-20)",
+    ["R-RSP-34"],
+    role=Role.ROBOT,
+)
+async def effector_held(ctx: Context) -> None:
+    driven = await drive(ctx)
+    probe = driven.probe
+    await driven.settled()
+    probe.session.set_active(driven.effector.name, False)
+    since = probe.now + 2 * probe.session.period
+    await probe.listen(12 * probe.session.period)
+    moved = await driven.moved(since)
+    ctx.expect(moved is None, f"{driven.monitor.name} holding {driven.wanted}", str(moved))
+
+
+@case(
+    "rsp/payload/late-state-ignored",
+    "An effector value in a late DOWNLINK (not newer) is not applied over the newer one",
+    ["R-RSP-19"],
+    role=Role.ROBOT,
+)
+async def late_state_ignored(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    model = probe.model
+    effector, monitor = monitored(model)
+    field = effector.fields[0]
+    newest = {f.name: visible(f) for f in effector.fields}
+    older = {f.name: f.zero() for f in effector.fields}
+    request = flags(model, effector, monitor)
+    raw.skip(5)
+    await taken(probe, raw, [*request, value_item(effector, newest)], wait=probe.quiet)
+    top = sequence_of(raw.last)
+    raw.rewind(top - 3)
+    raw.downlink([*request, value_item(effector, older)])
+    raw.rewind(top + 1)
+
+    def reports(found: Datagram) -> bool:
+        values = values_of(found, monitor)
+        return values is not None and close_to(field, values.get(field.name), newest[field.name])
+
+    found = await fresh_uplink(probe, top, where=reports, wait=min(probe.wait, 0.45))
+    last = next(
+        (values_of(d, monitor) for d in reversed(probe.received) if values_of(d, monitor)),
+        None,
+    )
+    ctx.expect(
+        found is not None,
+        f"{monitor.name} reaching {newest} (the newer packet's)",
+        f"{monitor.name} at {last}",
+    )
+    raw.downlink(request)  # the link kept alive
+    for later in await uplinks_within(probe, 4, raw.period, "the late DOWNLINK"):
+        if not reports(later):
+            ctx.expect(
+                False,
+                f"{monitor.name} staying at {newest}",
+                str(values_of(later, monitor)),
+            )
+
+
+@case(
+    "rsp/payload/late-occurrence-taken",
+    "A command in a late DOWNLINK (not newer, never seen) is taken and acknowledged",
+    ["R-RSP-26"],
+    role=Role.ROBOT,
+)
+async def late_occurrence_taken(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    command = first(probe.model, DeviceKind.COMMAND)
+    raw.skip(5)
+    top = sequence_of(raw.downlink())
+    ack = await late_acked(probe, raw, command, 0, top - 2, resume=top + 1)
+    ctx.expect(ack is not None, f"ACK of {command.name} #0", "no ACK")
+
+
+@case(
+    "rsp/payload/inactive-module",
+    "An effector value sent while its module is inactive is not applied",
+    ["R-RSP-23"],
+    role=Role.ROBOT,
+)
+async def inactive_module(ctx: Context) -> None:
+    model = ctx.target.rsp_model
+    if model is None:
+        raise NotApplicable("no RSP model")
+    effector, monitor = monitored(model, lambda e: e.module is not None)
+    probe, raw = await raw_session(ctx)
+    field = effector.fields[0]
+    wanted = {f.name: visible(f) for f in effector.fields}
+    monitor_only = flags(model, monitor)
+    gated = [i for i in monitor_only if model.devices[i.device].name != effector.module]
+    for _ in range(3):
+        raw.downlink([*gated, value_item(effector, wanted)])
+        await probe.listen(raw.period)
+    found = await taken(probe, raw, monitor_only, wait=max(0.3, 10 * raw.period))
+    ctx.expect(
+        found is not None,
+        f"{monitor.name} reported once {effector.module} is active",
+        "no UPLINK",
+    )
+    later = await uplinks_within(probe, 4, raw.period, f"{monitor.name} was reported")
+    target = wanted[field.name]
+    assert isinstance(target, int | float)
+    for found in later[-3:]:
+        values = values_of(found, monitor)
+        actual = values.get(field.name) if values is not None else None
+        ctx.expect(
+            isinstance(actual, int | float) and abs(actual) < abs(target) / 2,
+            f"{monitor.name} near its zero (the value of an inactive module not applied)",
+            str(values),
+        )
