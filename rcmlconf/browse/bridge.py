@@ -15,7 +15,7 @@ from rcmlconf.browse.messages import Action, Malformed, parse_message
 from rcmlconf.browse.outbox import Outbox
 from rcmlconf.browse.panel import Panel
 from rcmlconf.browse.robot import RobotSession
-from rcmlconf.rctp.url import RctpUrl
+from rcmlconf.rcml.url import RctpUrl
 
 log = logging.getLogger("rcmlconf.browse")
 

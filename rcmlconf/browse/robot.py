@@ -24,8 +24,8 @@ from rcmlconf.browse.outbox import Outbox
 from rcmlconf.browse.panel import PanelWidget, checkbox_values, shown
 from rcmlconf.errors import ValueTextError
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode
+from rcmlconf.rcml.url import RctpUrl
 from rcmlconf.rctp.datastream.clock import unix_from_ntp
-from rcmlconf.rctp.url import RctpUrl
 from rcmlconf.reference.client.adapter import Client, RctpError
 from rcmlconf.reference.client.session import (
     Closed,

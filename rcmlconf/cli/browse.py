@@ -23,7 +23,7 @@ from rcmlconf.cli.logs import log_lines
 from rcmlconf.cli.params import seconds
 from rcmlconf.cli.ready import write_ready
 from rcmlconf.errors import ValueTextError
-from rcmlconf.rctp.url import RctpUrl, http_base
+from rcmlconf.rcml.url import RctpUrl, http_base
 from rcmlconf.reference.client.adapter import Client, RctpError
 from rcmlconf.validate.report import summary_line
 from rcmlconf.wording import plural

@@ -19,7 +19,7 @@ from rcmlconf.conformance.probes.clients import ClientListener
 from rcmlconf.conformance.probes.local_listener import LocalListener
 from rcmlconf.conformance.targets import Target
 from rcmlconf.rcml.model import RcmlDocument
-from rcmlconf.rctp.url import http_base
+from rcmlconf.rcml.url import http_base
 from rcmlconf.rsp.model import RobotModel
 
 

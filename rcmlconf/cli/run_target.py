@@ -15,7 +15,7 @@ import sys
 from rcmlconf.cli.console import Output
 from rcmlconf.cli.hosts import Address
 from rcmlconf.rcml.model import RcmlDocument
-from rcmlconf.rctp.url import RctpUrl
+from rcmlconf.rcml.url import RctpUrl
 from rcmlconf.reference.client.files import NoModel, from_index
 
 #: How long the first connection may take, before --timeout-scale (a case's own bound).

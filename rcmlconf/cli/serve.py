@@ -15,8 +15,8 @@ from rcmlconf.cli.logs import log_lines
 from rcmlconf.cli.models import load_or_exit
 from rcmlconf.cli.ready import write_ready
 from rcmlconf.cli.serve_limits import limit_options, limits_from
+from rcmlconf.rcml.url import DEFAULT_PORT, FILES_PORT_OFFSET, http_base
 from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
-from rcmlconf.rctp.url import DEFAULT_PORT, FILES_PORT_OFFSET, http_base
 from rcmlconf.reference.drivers import AUTO, DRIVERS, DriverError, choose_driver
 from rcmlconf.reference.faults import faults_named, names
 from rcmlconf.reference.server.adapter import ReferenceServer, ServerSettings

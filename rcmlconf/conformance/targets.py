@@ -17,7 +17,7 @@ from rcmlconf.conformance.probes.clients import HARNESS_RCML, ClientListener
 from rcmlconf.conformance.probes.local_listener import LocalListener
 from rcmlconf.conformance.probes.local_scenario import reference_local
 from rcmlconf.rcml.model import RcmlDocument
-from rcmlconf.rctp.url import FILES_PORT_OFFSET
+from rcmlconf.rcml.url import FILES_PORT_OFFSET
 from rcmlconf.reference.faults import Fault
 from rcmlconf.rsp.codec import Encryption
 from rcmlconf.rsp.model import RobotModel

@@ -36,7 +36,7 @@ from rcmlconf.rcml.model import (
     RcmlDocument,
 )
 from rcmlconf.rcml.schema import ELEMENTS
-from rcmlconf.rctp.url import RctpUrl
+from rcmlconf.rcml.url import RctpUrl
 from rcmlconf.values import ValueType
 from rcmlconf.values.declared import Number, Problem, declared_bounds, declared_type
 

@@ -14,7 +14,7 @@ from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-from rcmlconf.rctp.url import RctpUrl
+from rcmlconf.rcml.url import RctpUrl
 from rcmlconf.values import Value, ValueType, first_outside
 from rcmlconf.values.declared import zero_value
 

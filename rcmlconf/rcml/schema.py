@@ -5,7 +5,7 @@ from __future__ import annotations
 from rcmlconf.markup.lexical import enumeration, unsigned, uri_reference, xml_name
 from rcmlconf.markup.structure import Attr, ElementDef
 from rcmlconf.rcml.model import PERMISSION_TEXTS, AccessType
-from rcmlconf.rctp.url import parse_rctp_url
+from rcmlconf.rcml.url import parse_rctp_url
 from rcmlconf.values import ALIASES, DATA_TYPES, parse_positive
 from rcmlconf.values.types import MAX_COUNT, MAX_SIZE
 

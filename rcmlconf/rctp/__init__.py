@@ -4,6 +4,6 @@ The control connection: `connection.Connection` (either role; bytes and time in,
 out), built on `reader` and `writer` (messages, `messages`), `states` (the state machines as
 tables), `request_checks` (what a request's receiver answers on its own, D-RCTP-25, which the
 dissector asks too), `fields` and `targets` (header values, request-targets). The data stream:
-`datastream` (packets, FLOW payloads, sequence order, clocks, DATA values). `url` reads `rctp://`
-URLs.
+`datastream` (packets, FLOW payloads, sequence order, clocks, DATA values). The `rctp://` URL
+an RCML names its server by is RCML's (`rcml.url`, D-RCML-17).
 """

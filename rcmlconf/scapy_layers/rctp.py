@@ -48,9 +48,9 @@ from scapy.fields import (
 from scapy.layers.inet import TCP, UDP
 from scapy.packet import Packet, bind_bottom_up, bind_layers, bind_top_down
 
+from rcmlconf.rcml.url import DEFAULT_PORT
 from rcmlconf.rctp.messages import REASONS, VERSION
 from rcmlconf.rctp.reader import LIMITS
-from rcmlconf.rctp.url import DEFAULT_PORT
 
 # The numbers of specs/rctp-2.0.md, taken from the core so that the layer and the codec it is
 # checked against cannot disagree on them.

@@ -23,12 +23,12 @@ from collections.abc import Iterable, Mapping
 from importlib import resources
 
 from rcmlconf import __version__
+from rcmlconf.rcml.url import DEFAULT_PORT as RCTP_PORT
 from rcmlconf.rctp.datastream import flow, packets
 from rcmlconf.rctp.fields import MAX_CSEQ
 from rcmlconf.rctp.messages import METHODS, REASONS, VERSION
 from rcmlconf.rctp.reader import LIMITS
 from rcmlconf.rctp.request_checks import SINGLE_FIELDS
-from rcmlconf.rctp.url import DEFAULT_PORT as RCTP_PORT
 from rcmlconf.rsp.codec import bodies, header
 from rcmlconf.rsp.layout import HEADER_SIZE, MAC_SIZE, TAG_SIZE, Bit, MapPacket, bit
 from rcmlconf.rsp.model import MAX_MODEL_ID, Field, RobotModel

@@ -13,11 +13,11 @@ from rcmlconf.conformance.registry import all_cases
 from rcmlconf.conformance.runner import RunOptions, run_cases
 from rcmlconf.conformance.targets import REFERENCE_RCML, Target
 from rcmlconf.conformance.verdicts import Verdict
+from rcmlconf.rcml.url import parse_rctp_url
 from rcmlconf.rctp.connection import Connection, ProtocolFailure
 from rcmlconf.rctp.errors import LocalProtocolError
 from rcmlconf.rctp.states import Role as Side
 from rcmlconf.rctp.states import SessionState
-from rcmlconf.rctp.url import parse_rctp_url
 from rcmlconf.validate.validator import load_robot
 
 BOUND = 60.0

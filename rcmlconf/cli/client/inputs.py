@@ -14,9 +14,9 @@ from collections.abc import Callable
 from urllib.parse import urlsplit
 
 from rcmlconf.errors import ValueTextError
+from rcmlconf.rcml.url import RctpUrl, parse_rctp_url
 from rcmlconf.rctp.reader import LIMITS
 from rcmlconf.rctp.targets import format_target, parse_target
-from rcmlconf.rctp.url import RctpUrl, parse_rctp_url
 from rcmlconf.reference.client.files import is_http_url
 from rcmlconf.wording import shorten
 

@@ -20,7 +20,7 @@ from rcmlconf.cli.client.inputs import check_url
 from rcmlconf.cli.console import Output
 from rcmlconf.errors import ValueTextError
 from rcmlconf.rcml.model import RcmlDocument
-from rcmlconf.rctp.url import RctpUrl
+from rcmlconf.rcml.url import RctpUrl
 from rcmlconf.reference.client.adapter import Client, RctpError
 from rcmlconf.reference.client.files import NoModel, load_model
 

@@ -16,7 +16,7 @@ from rcmlconf.cli.client.running import Options
 from rcmlconf.cli.interrupts import Interrupts
 from rcmlconf.errors import ValueTextError
 from rcmlconf.rcml.model import RcmlDocument
-from rcmlconf.rctp.url import RctpUrl
+from rcmlconf.rcml.url import RctpUrl
 from rcmlconf.reference.client.files import NoModel, Unfetched, fetch, is_http_url, load_rcml
 from rcmlconf.reference.client.scenario import ScenarioResult, run_scenario
 

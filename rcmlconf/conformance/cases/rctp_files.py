@@ -22,7 +22,7 @@ from rcmlconf.conformance.probes.files import Answer, FilesProbe
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
 from rcmlconf.rcml.model import RcmlDocument
-from rcmlconf.rctp.url import FILES_PORT_OFFSET
+from rcmlconf.rcml.url import FILES_PORT_OFFSET
 from rcmlconf.validate.validator import Validator
 from rcmlconf.wording import shorten
 

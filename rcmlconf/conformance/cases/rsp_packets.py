@@ -116,11 +116,7 @@ async def timestamp(ctx: Context) -> None:
     probe, raw = await raw_session(ctx)
     welcome = raw.welcome
     assert welcome is not None
-    ctx.expect(
-        welcome.header.timestamp == 0,
-        "WELCOME at 0 ms",
-        f"{welcome.header.timestamp} ms",
-    )
+    ctx.expect(welcome.header.timestamp == 0, "WELCOME at 0 ms", f"{welcome.header.timestamp} ms")
     raw.downlink(flags(probe.model, reported(probe.model, 1)[0]))
     await probe.listen(max(0.4, 15 * raw.period))
     stamped = [d for d in probe.received if d.header.session_id == raw.session_id]
@@ -183,12 +179,7 @@ async def last_received(ctx: Context) -> None:
 async def other_version(ctx: Context) -> None:
     probe, raw = await raw_session(ctx)
     await dropped_then_taken(
-        ctx,
-        probe,
-        raw,
-        lambda d: patch(d, VERSION_AT, b"\x02"),
-        "R-RSP-18",
-        "version 2",
+        ctx, probe, raw, lambda d: patch(d, VERSION_AT, b"\x02"), "R-RSP-18", "version 2"
     )
 
 
@@ -202,12 +193,7 @@ async def other_model(ctx: Context) -> None:
     probe, raw = await raw_session(ctx)
     other = (probe.model.model_id % 65535 + 1).to_bytes(2)
     await dropped_then_taken(
-        ctx,
-        probe,
-        raw,
-        lambda d: patch(d, MODEL_AT, other),
-        "R-RSP-18",
-        "another model ID",
+        ctx, probe, raw, lambda d: patch(d, MODEL_AT, other), "R-RSP-18", "another model ID"
     )
 
 
@@ -220,12 +206,7 @@ async def other_model(ctx: Context) -> None:
 async def other_session(ctx: Context) -> None:
     probe, raw = await raw_session(ctx)
     await dropped_then_taken(
-        ctx,
-        probe,
-        raw,
-        lambda d: flip(d, SESSION_AT + 5),
-        "R-RSP-18",
-        "a spoofed session ID",
+        ctx, probe, raw, lambda d: flip(d, SESSION_AT + 5), "R-RSP-18", "a spoofed session ID"
     )
 
 
@@ -239,13 +220,7 @@ async def other_address(ctx: Context) -> None:
     probe, raw = await raw_session(ctx)
     for spoofer in await _either_side(ctx, probe):
         await dropped_then_taken(
-            ctx,
-            probe,
-            raw,
-            lambda d: d,
-            "R-RSP-18",
-            "from another port",
-            sender=spoofer,
+            ctx, probe, raw, lambda d: d, "R-RSP-18", "from another port", sender=spoofer
         )
 
 
@@ -531,10 +506,5 @@ async def bit_past_last_device(ctx: Context) -> None:
     spare = len(model.devices)
     at = 20 + spare // 8
     await dropped_then_taken(
-        ctx,
-        probe,
-        raw,
-        lambda d: flip(d, at, 0x80 >> spare % 8),
-        "R-RSP-17",
-        f"bit {spare} set",
+        ctx, probe, raw, lambda d: flip(d, at, 0x80 >> spare % 8), "R-RSP-17", f"bit {spare} set"
     )

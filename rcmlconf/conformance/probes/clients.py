@@ -27,7 +27,7 @@ from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.rcml.model import RcmlDocument
-from rcmlconf.rctp.url import http_base
+from rcmlconf.rcml.url import http_base
 from rcmlconf.reference.server.files import INDEX_TYPE, XML_TYPE, Document, FileServer, index_page
 
 Summon = Callable[[str], Awaitable[None]]

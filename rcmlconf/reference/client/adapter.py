@@ -28,13 +28,13 @@ from typing import Self
 from rcmlconf import __version__
 from rcmlconf.errors import RcmlconfError, ValueTextError
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, RcmlDocument
+from rcmlconf.rcml.url import RctpUrl, parse_rctp_url
 from rcmlconf.rctp.bodies import ValuesCodec
 from rcmlconf.rctp.datastream.clock import ClockEstimate
 from rcmlconf.rctp.datastream.endpoint import HEARTBEAT_EVERY, Address
 from rcmlconf.rctp.fields import Transport, format_nodes, parse_nodes
 from rcmlconf.rctp.messages import Request, Response
 from rcmlconf.rctp.targets import parse_target
-from rcmlconf.rctp.url import RctpUrl, parse_rctp_url
 from rcmlconf.reference.client.session import (
     Answered,
     ClientEvent,

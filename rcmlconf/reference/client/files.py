@@ -20,7 +20,7 @@ from urllib.parse import urljoin, urlsplit
 from rcmlconf.errors import RcmlconfError
 from rcmlconf.markup.failure import MAX_DOCUMENT_BYTES
 from rcmlconf.rcml.model import RcmlDocument
-from rcmlconf.rctp.url import RctpUrl
+from rcmlconf.rcml.url import RctpUrl
 from rcmlconf.validate.validator import InvalidRobot, Validator, load_robot
 from rcmlconf.wording import plural
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import NoReturn, TypeVar
 
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, Permission, RcmlDocument
-from rcmlconf.rctp.url import FILES_PORT_OFFSET, RctpUrl, http_base, parse_rctp_url
+from rcmlconf.rcml.url import FILES_PORT_OFFSET, RctpUrl, http_base, parse_rctp_url
 from rcmlconf.reference.client.adapter import Client, RctpError
 from rcmlconf.reference.client.files import NoModel, from_index
 from rcmlconf.reference.client.session import ClientEvent, Closed, ServerRequest

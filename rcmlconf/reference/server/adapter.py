@@ -33,10 +33,10 @@ from pathlib import Path
 from typing import Any
 
 from rcmlconf.rcml.model import RcmlDocument
+from rcmlconf.rcml.url import DEFAULT_PORT, FILES_PORT_OFFSET, RctpUrl
 from rcmlconf.rctp.datastream.endpoint import Address
 from rcmlconf.rctp.datastream.packets import peek_tag
 from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
-from rcmlconf.rctp.url import DEFAULT_PORT, FILES_PORT_OFFSET, RctpUrl
 from rcmlconf.reference.datagrams import DataSocket
 from rcmlconf.reference.drivers import Driver
 from rcmlconf.reference.faults import CONTROL_FAULTS, Fault, describe, rewrite_control

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from rcmlconf.errors import ValueTextError
-from rcmlconf.rctp.url import RctpUrl, parse_rctp_url
+from rcmlconf.rcml.url import RctpUrl, parse_rctp_url
 
 
 @pytest.mark.parametrize(

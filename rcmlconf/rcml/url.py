@@ -1,4 +1,5 @@
-"""The RCTP URL `rctp://host[:port][/path]` (D-RCML-17)."""
+"""The RCTP URL `rctp://host[:port][/path]` (D-RCML-17): how an RCML document names its robot's
+server, here below RCTP because RCML is (the core, the reference and the harness read it too)."""
 
 from __future__ import annotations
 
