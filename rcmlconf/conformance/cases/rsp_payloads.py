@@ -135,7 +135,8 @@ async def late_state_ignored(ctx: Context) -> None:
 
     found = await fresh_uplink(probe, top, where=reports, wait=min(probe.wait, 0.45))
     last = next(
-        (values_of(d, monitor) for d in reversed(probe.received) if values_of(d, monitor)), None
+        (values_of(d, monitor) for d in reversed(probe.received) if values_of(d, monitor)),
+        None,
     )
     ctx.expect(
         found is not None,
@@ -145,7 +146,11 @@ async def late_state_ignored(ctx: Context) -> None:
     raw.downlink(request)  # the link kept alive
     for later in await uplinks_within(probe, 4, raw.period, "the late DOWNLINK"):
         if not reports(later):
-            ctx.expect(False, f"{monitor.name} staying at {newest}", str(values_of(later, monitor)))
+            ctx.expect(
+                False,
+                f"{monitor.name} staying at {newest}",
+                str(values_of(later, monitor)),
+            )
 
 
 @case(
@@ -184,7 +189,9 @@ async def inactive_module(ctx: Context) -> None:
         await probe.listen(raw.period)
     found = await taken(probe, raw, monitor_only, wait=max(0.3, 10 * raw.period))
     ctx.expect(
-        found is not None, f"{monitor.name} reported once {effector.module} is active", "no UPLINK"
+        found is not None,
+        f"{monitor.name} reported once {effector.module} is active",
+        "no UPLINK",
     )
     later = await uplinks_within(probe, 4, raw.period, f"{monitor.name} was reported")
     target = wanted[field.name]
