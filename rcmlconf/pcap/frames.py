@@ -148,7 +148,8 @@ class FrameDecoder:
             )
             ip = start + 4
         else:
-            raise FrameError(f"link type {linktype} is not one this reader knows", start)
+            known = ", ".join(f"{number} ({name})" for number, name in sorted(LINK_TYPES.items()))
+            raise FrameError(f"link type {linktype} is none this reader knows: {known}", start)
         if protocol in (_ETHERTYPE_IPV4, _ETHERTYPE_IPV6):
             return ip
         self.skipped += 1

@@ -12,6 +12,7 @@ from support.pcaps import ethernet, ipv4, ipv4_tcp, ipv4_udp, ipv6_udp, null, sl
 
 from rcmlconf.pcap.addresses import address_text, endpoint_text
 from rcmlconf.pcap.frames import (
+    LINK_TYPES,
     LINKTYPE_ETHERNET,
     LINKTYPE_IPV6,
     LINKTYPE_LINUX_SLL,
@@ -59,6 +60,15 @@ def test_link_layers(linktype: int, frame: bytes) -> None:
     assert payload == b"hello"
     assert frame[where : where + 5] == b"hello"
     assert not cut
+
+
+def test_an_unknown_link_type_is_named_with_those_the_reader_knows() -> None:
+    """A capture of another link (802.11 radiotap, say) tells the user what it could read."""
+    with pytest.raises(FrameError) as caught:
+        FrameDecoder().decode(DATAGRAM, 0, len(DATAGRAM), 127, len(DATAGRAM))
+    assert str(caught.value).startswith("link type 127 is none this reader knows: ")
+    for number, name in LINK_TYPES.items():
+        assert f"{number} ({name})" in str(caught.value)
 
 
 def test_ethernet_padding_is_not_payload() -> None:
