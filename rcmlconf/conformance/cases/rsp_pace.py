@@ -18,7 +18,7 @@ from rcmlconf.conformance.probes.pace import ms, spaced
 from rcmlconf.conformance.probes.rsp_datagram import SESSION_AT, Datagram, Where, newer, sequence_of
 from rcmlconf.conformance.probes.rsp_devices import close_to, flags, reported, values_of
 from rcmlconf.conformance.probes.rsp_driven import Driven, drive
-from rcmlconf.conformance.probes.rsp_exchanges import reporting, taken
+from rcmlconf.conformance.probes.rsp_exchanges import must_take, reporting
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
 from rcmlconf.conformance.registry import Role, case
 from rcmlconf.conformance.rsp_numbers import (
@@ -28,7 +28,7 @@ from rcmlconf.conformance.rsp_numbers import (
     STAMP_ROUNDING,
     STOP_LAG,
 )
-from rcmlconf.conformance.verdicts import Failed, Inconclusive
+from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.rsp.codec import PacketType
 from rcmlconf.rsp.model import OnLoss
 from rcmlconf.values import Value
@@ -119,16 +119,15 @@ async def slow_hello(ctx: Context) -> None:
     try:
         # R-RSP-42: with a sensor to report, an UPLINK every T: the first within a period of the
         # request, and a period between each and the next.
-        first = await taken(
-            probe, raw, flags(model, sensor), wait=GAP_LONGEST * period + probe.quiet
+        first = await must_take(
+            ctx,
+            probe,
+            raw,
+            flags(model, sensor),
+            f"an UPLINK within a period ({period * 1000:g} ms) of the request for {sensor.name}",
+            "R-RSP-42",
+            wait=GAP_LONGEST * period + probe.quiet,
         )
-        if first is None:
-            raise Failed(
-                "R-RSP-42",
-                f"an UPLINK within a period ({period * 1000:g} ms) of the request for"
-                f" {sensor.name}",
-                "none",
-            )
         request = sequence_of(raw.last)
         found = await _uplinks(
             probe,

@@ -30,6 +30,7 @@ from rcmlconf.conformance.probes.rsp_exchanges import (
     acked,
     dropped_then_taken,
     late_acked,
+    must_take,
     raw_session,
     replay_dropped,
     requested_uplinks,
@@ -40,7 +41,7 @@ from rcmlconf.conformance.probes.rsp_forged import flip, patch
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
 from rcmlconf.conformance.registry import Role, case
 from rcmlconf.conformance.rsp_numbers import stamp_allowance
-from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
+from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.impair import derive_seed
 from rcmlconf.rsp.codec import (
     Bye,
@@ -150,12 +151,14 @@ async def last_received(ctx: Context) -> None:
     request = flags(probe.model, reported(probe.model, 1)[0])
     for _ in range(2):
         raw.downlink(request)
-    found = await taken(probe, raw, request, wait=probe.quiet)
+    found = await must_take(
+        ctx, probe, raw, request, "an UPLINK that took the DOWNLINKs", wait=probe.quiet
+    )
     newest = sequence_of(raw.last)
     ctx.expect(
-        found is not None and found.header.last_received == newest,
+        found.header.last_received == newest,
         f"UPLINKs saying {newest}",
-        "none" if found is None else str(found.header.last_received),
+        str(found.header.last_received),
     )
     raw.skip(10)
     jumped = sequence_of(raw.downlink(request))
@@ -364,12 +367,15 @@ async def outside_window(ctx: Context) -> None:
     await probe.listen(probe.quiet)
     stale = [d for d in probe.packets(PacketType.ACK, after=start) if d.acks(command.position)]
     ctx.expect(not stale, "a packet 65 behind dropped unread (no ACK)", "an ACK", "R-RSP-18")
-    ack = await late_acked(probe, raw, command, 0, newest - 64, resume=newest + 1)
-    ctx.expect(
-        ack is not None,
-        "the command of a late packet exactly 64 behind acknowledged (D-RSP-15)",
-        "no ACK",
-        "R-RSP-26",
+    await late_acked(
+        ctx,
+        probe,
+        raw,
+        command,
+        0,
+        newest - 64,
+        resume=newest + 1,
+        expected="the command of a late packet exactly 64 behind acknowledged (D-RSP-15)",
     )
 
 
@@ -385,14 +391,15 @@ async def local_sequence_wraps(ctx: Context) -> None:
     before, after = reported(model, 2)
     for target in (20000, 40000, 60000, 65535):
         raw.rewind(target)  # each taken before the next: 20,000 on from the one before
-        if await taken(probe, raw, flags(model, before)) is None:
-            raise Failed("R-RSP-19", f"an UPLINK taking DOWNLINK {target}", "none")
-    found = await taken(probe, raw, flags(model, after))  # sequence 0: newer than 65,535
-    wrapped = sequence_of(raw.last)  # 1, 2, ... if the impairment spoiled 0
+        took = f"an UPLINK taking DOWNLINK {target}"
+        await must_take(ctx, probe, raw, flags(model, before), took, "R-RSP-19")
+    # Sequence 0: newer than 65,535 (1, 2, ... if the impairment spoiled 0).
+    found = await must_take(ctx, probe, raw, flags(model, after), "an UPLINK taking DOWNLINK 0")
     ctx.expect(
-        found is not None and found.devices(model) == {after.name},
-        f"UPLINKs reporting {after.name} only, as DOWNLINK {wrapped} asked after 65,535",
-        "no UPLINK that took it" if found is None else str(sorted(found.devices(model))),
+        found.devices(model) == {after.name},
+        f"UPLINKs reporting {after.name} only, as DOWNLINK {sequence_of(raw.last)} asked after"
+        " 65,535",
+        str(sorted(found.devices(model))),
     )
 
 
@@ -478,18 +485,15 @@ async def module_gates_reports(ctx: Context) -> None:
     probe, raw = await raw_session(ctx)
     device = held[0]
     module = modules_of(probe.model, device)[0]
-    found = await taken(probe, raw, [Item(device.position)])
-    ctx.expect(
-        found is not None and not found.items,
-        f"nothing of {device.name} while {module.name} is inactive",
-        "no UPLINK" if found is None else str(sorted(found.devices(probe.model))),
-    )
-    found = await taken(probe, raw, flags(probe.model, device))
-    ctx.expect(
-        found is not None and found.devices(probe.model) == {device.name},
-        f"{device.name} once {module.name} is active",
-        "no UPLINK" if found is None else str(sorted(found.devices(probe.model))),
-    )
+    inactive = f"nothing of {device.name} while {module.name} is inactive"
+    active = f"{device.name} once {module.name} is active"
+    for request, reports, what in (
+        ([Item(device.position)], set(), inactive),
+        (flags(probe.model, device), {device.name}, active),
+    ):
+        found = await must_take(ctx, probe, raw, request, f"an UPLINK reporting {what}")
+        got = found.devices(probe.model)
+        ctx.expect(got == reports, what, str(sorted(got)))
 
 
 @case(

@@ -18,9 +18,11 @@ from rcmlconf.conformance.probes.rsp_devices import (
 )
 from rcmlconf.conformance.probes.rsp_driven import drive
 from rcmlconf.conformance.probes.rsp_exchanges import (
+    came,
     dropped_then_taken,
-    fresh_uplink,
+    fresh,
     late_acked,
+    must_take,
     raw_session,
     requested_uplinks,
     taken,
@@ -28,6 +30,7 @@ from rcmlconf.conformance.probes.rsp_exchanges import (
 )
 from rcmlconf.conformance.registry import Role, case
 from rcmlconf.conformance.verdicts import NotApplicable
+from rcmlconf.rsp.codec import PacketType
 from rcmlconf.rsp.model import DeviceKind
 
 
@@ -133,24 +136,25 @@ async def late_state_ignored(ctx: Context) -> None:
         values = values_of(found, monitor)
         return values is not None and close_to(field, values.get(field.name), newest[field.name])
 
-    found = await fresh_uplink(probe, top, where=reports, wait=min(probe.wait, 0.45))
-    last = next(
-        (values_of(d, monitor) for d in reversed(probe.received) if values_of(d, monitor)),
-        None,
-    )
-    ctx.expect(
-        found is not None,
+    def last() -> str:
+        found = (values_of(d, monitor) for d in reversed(probe.received) if values_of(d, monitor))
+        return f"{monitor.name} at {next(found, None)}"
+
+    # An UPLINK since the robot took the newer packet: before the late one, or after.
+    await came(
+        ctx,
+        probe,
+        PacketType.UPLINK,
         f"{monitor.name} reaching {newest} (the newer packet's)",
-        f"{monitor.name} at {last}",
+        after=0,
+        where=fresh(lambda: top, reports),
+        wait=min(probe.wait, 0.45),
+        instead=last,
     )
     raw.downlink(request)  # the link kept alive
     for later in await uplinks_within(probe, 4, raw.period, "the late DOWNLINK"):
         if not reports(later):
-            ctx.expect(
-                False,
-                f"{monitor.name} staying at {newest}",
-                str(values_of(later, monitor)),
-            )
+            ctx.expect(False, f"{monitor.name} staying at {newest}", str(values_of(later, monitor)))
 
 
 @case(
@@ -164,8 +168,8 @@ async def late_occurrence_taken(ctx: Context) -> None:
     command = first(probe.model, DeviceKind.COMMAND)
     raw.skip(5)
     top = sequence_of(raw.downlink())
-    ack = await late_acked(probe, raw, command, 0, top - 2, resume=top + 1)
-    ctx.expect(ack is not None, f"ACK of {command.name} #0", "no ACK")
+    expected = f"ACK of {command.name} #0 in DOWNLINK #{top - 2}, after #{top}"
+    await late_acked(ctx, probe, raw, command, 0, top - 2, resume=top + 1, expected=expected)
 
 
 @case(
@@ -187,11 +191,13 @@ async def inactive_module(ctx: Context) -> None:
     for _ in range(3):
         raw.downlink([*gated, value_item(effector, wanted)])
         await probe.listen(raw.period)
-    found = await taken(probe, raw, monitor_only, wait=max(0.3, 10 * raw.period))
-    ctx.expect(
-        found is not None,
+    await must_take(
+        ctx,
+        probe,
+        raw,
+        monitor_only,
         f"{monitor.name} reported once {effector.module} is active",
-        "no UPLINK",
+        wait=max(0.3, 10 * raw.period),
     )
     later = await uplinks_within(probe, 4, raw.period, f"{monitor.name} was reported")
     target = wanted[field.name]

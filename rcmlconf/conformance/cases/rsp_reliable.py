@@ -20,11 +20,14 @@ from rcmlconf.conformance.probes.rsp_datagram import (
 )
 from rcmlconf.conformance.probes.rsp_devices import first, flags, occurrence, reported, zero_values
 from rcmlconf.conformance.probes.rsp_exchanges import (
-    ack_of,
-    acked,
+    AT_ONCE,
+    NEXT_PERIOD,
+    acknowledging,
     another_welcomed,
+    came,
     dropped_then_taken,
-    fresh_uplink,
+    fresh,
+    must_ack,
     raw_session,
     replay_dropped,
     reporting,
@@ -174,8 +177,8 @@ async def two_reliable_at_once(ctx: Context) -> None:
         PacketType.ACK,
     )
     for found in (command, memory):
-        ack = await ack_of(probe, found, 0, after=start)
-        ctx.expect(ack is not None, f"ACK of {found.name} #0", "none")
+        ack = f"ACK of {found.name} #0, {AT_ONCE}"
+        await came(ctx, probe, PacketType.ACK, ack, after=start, where=acknowledging(found, 0))
 
 
 # -- the memory-command buffer ------------------------------------------------------------------
@@ -251,8 +254,7 @@ async def keyframe_duration(ctx: Context) -> None:
     # #1 waits in the buffer while #0 runs (D-RSP-19); itself as short as it may be, so that
     # nothing of this case still runs when the next case's session begins.
     for ident, values in ((0, {**keyframe(memory), timed[0].name: lasting}), (1, None)):
-        if await acked(probe, raw, memory, ident, values) is None:
-            raise Failed("R-RSP-26", f"ACK of {memory.name} #{ident}", "none")
+        await must_ack(ctx, probe, raw, memory, ident, "R-RSP-26", values=values)
     waiting = probe.received[-1].header.buffer
     if waiting >= free:
         raise not_held(probe, memory, f"#0 and #1 of {lasting} ms taken, still {waiting} free")
@@ -500,13 +502,23 @@ def _session_case(encryption: Encryption) -> Callable[[Context], Awaitable[None]
         command = first(model, DeviceKind.COMMAND)
         sensor = reported(model, 1)[0]
         raw.standing = flags(model, sensor)
-        ack = await acked(probe, raw, command, 0)
-        ctx.expect(ack is not None, f"a sealed ACK of {command.name} #0", "none", "R-RSP-37")
-        uplink = await fresh_uplink(probe, sequence_of(raw.last))
+        sealed = f"a sealed ACK of {command.name} #0"
+        await must_ack(ctx, probe, raw, command, 0, "R-RSP-37", expected=sealed)
+        reports = f"sealed UPLINKs reporting {sensor.name}"
+        took = sequence_of(raw.last)
+        uplink = await came(
+            ctx,
+            probe,
+            PacketType.UPLINK,
+            f"{reports}: {NEXT_PERIOD}",
+            "R-RSP-37",
+            after=0,
+            where=fresh(lambda: took),
+        )
         ctx.expect(
-            uplink is not None and sensor.name in uplink.devices(model),
-            f"sealed UPLINKs reporting {sensor.name}",
-            "none" if uplink is None else str(sorted(uplink.devices(model))),
+            sensor.name in uplink.devices(model),
+            reports,
+            str(sorted(uplink.devices(model))),
             "R-RSP-37",
         )
         _all_sealed(ctx, probe, raw, encryption)

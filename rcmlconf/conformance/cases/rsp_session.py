@@ -14,9 +14,12 @@ from rcmlconf.conformance.probes.pace import gaps, ms, paced, spaced
 from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, sequence_of
 from rcmlconf.conformance.probes.rsp_devices import flags, reported
 from rcmlconf.conformance.probes.rsp_exchanges import (
+    NEXT_PERIOD,
     another_welcomed,
-    fresh_uplink,
+    came,
+    fresh,
     hello_from_another,
+    must_take,
     raw_session,
     reporting,
     taken,
@@ -279,11 +282,12 @@ async def busy(ctx: Context) -> None:
     else:
         _refused(ctx, answer, RefusedReason.BUSY, "R-RSP-20")
         _echoes(ctx, answer, model.model_id, 0)
-    uplink = await taken(probe, raw, flags(model, sensor))
+    going = "the first session's UPLINKs going on"
+    uplink = await must_take(ctx, probe, raw, flags(model, sensor), going, "R-RSP-20")
     ctx.expect(
-        uplink is not None and uplink.header.session_id == raw.session_id,
-        "the first session's UPLINKs going on",
-        "none" if uplink is None else f"session {uplink.header.session_id:#x}",
+        uplink.header.session_id == raw.session_id,
+        going,
+        f"session {uplink.header.session_id:#x}",
         "R-RSP-20",
     )
     if answer.type is PacketType.REFUSED:  # D-RSP-12: its free buffers as ever
@@ -322,11 +326,12 @@ async def repeated_hello(ctx: Context) -> None:
         f" {again.body.period_ms} ms, {again.header.buffer} free buffers",
     )
     sensor = reported(probe.model, 1)[0]
-    uplink = await taken(probe, raw, flags(probe.model, sensor))
+    going = f"the session going on, reporting {sensor.name}"
+    uplink = await must_take(ctx, probe, raw, flags(probe.model, sensor), going)
     ctx.expect(
-        uplink is not None and sensor.name in uplink.devices(probe.model),
-        f"the session going on, reporting {sensor.name}",
-        "no such UPLINK" if uplink is None else str(sorted(uplink.devices(probe.model))),
+        sensor.name in uplink.devices(probe.model),
+        going,
+        str(sorted(uplink.devices(probe.model))),
     )
     await probe.listen(3 * raw.period)
     _same_free(ctx, [first, again], probe.packets(PacketType.UPLINK), "WELCOME")
@@ -465,11 +470,19 @@ async def silence_keeps_session(ctx: Context) -> None:
     )
     resumed = probe.session.packets_sent % 65536  # the next DOWNLINK's sequence number
     probe.muted = False
-    found = await fresh_uplink(probe, resumed)
+    expected = f"an UPLINK of session {opened.session_id:#x} that took the DOWNLINKs again"
+    found = await came(
+        ctx,
+        probe,
+        PacketType.UPLINK,
+        f"{expected}: {NEXT_PERIOD}",
+        after=0,
+        where=fresh(lambda: resumed),
+    )
     ctx.expect(
-        found is not None and found.header.session_id == opened.session_id,
-        f"an UPLINK of session {opened.session_id:#x} that took the DOWNLINKs again",
-        "none" if found is None else f"session {found.header.session_id:#x}",
+        found.header.session_id == opened.session_id,
+        expected,
+        f"session {found.header.session_id:#x}",
     )
 
 

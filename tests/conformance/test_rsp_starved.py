@@ -1,0 +1,165 @@
+"""What a robot case waits for that the robot must send (an ACK, an UPLINK that took a DOWNLINK:
+`rsp_exchanges.came`; the UPLINKs of rsp/value's range cases) is judged as D-RSP-26 judges what
+must come by a bound, on the embedded reference in this process. A robot stalled, its datagrams
+held back past the case's window, while the harness's loop was held as long (a robot short of CPU
+beside the harness, as in CI): the case is inconclusive, where it used to fail. Stalled as long
+with the loop free (a robot in another process, late), or never sending it: the case fails,
+naming the requirement."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import Callable
+
+import pytest
+
+from rcmlconf.conformance.ics import EVERYTHING
+from rcmlconf.conformance.loopwatch import LoopWatch
+from rcmlconf.conformance.probes.rsp_probe import QUIET
+from rcmlconf.conformance.registry import all_cases
+from rcmlconf.conformance.runner import RunOptions, run_cases
+from rcmlconf.conformance.targets import embedded_reference
+from rcmlconf.conformance.verdicts import Result, Verdict
+from rcmlconf.errors import ProtocolError
+from rcmlconf.reference.datagrams import Address, DataSocket
+from rcmlconf.rsp.codec import Header, PacketType, pull_header
+
+#: Seconds past the case's window the robot's datagrams are held back, about.
+PAST = 0.1
+#: Seconds rsp/value/out-of-range's robot sends nothing, from the UPLINK that took the last
+#: DOWNLINK in range (#10): the ten periods of its values out of range, and more.
+SILENT = 1.0
+#: The whole run of one case, at most (seconds).
+BOUND = 30.0
+
+Pick = Callable[[Header], bool]
+
+
+def _first_ack(header: Header) -> bool:
+    return header.type is PacketType.ACK
+
+
+def _took(sequence: int) -> Pick:
+    """An UPLINK that took the case's DOWNLINK numbered `sequence` (its HELLO is 0)."""
+    return lambda header: header.type is PacketType.UPLINK and header.last_received >= sequence
+
+
+def _wait(case: str) -> float:
+    """The probe's wait in `case` (`Context.wait`): the window of most of what it waits for."""
+    return all_cases()[case].timeout / 3
+
+
+#: case, the datagram the robot stalls at (or never sends), the case's window for it (seconds),
+#: and the requirement its failure names.
+CASES = [
+    ("rsp/value/over-size", _first_ack, _wait("rsp/value/over-size"), "R-RSP-18"),
+    ("rsp/header/outside-window", _first_ack, _wait("rsp/header/outside-window"), "R-RSP-26"),
+    ("rsp/header/last-received", _took(3), QUIET, "R-RSP-15"),
+]
+IDS = [case for case, *_ in CASES]
+
+
+def _stall(monkeypatch: pytest.MonkeyPatch, pick: Pick, *, held: float, then: float) -> None:
+    """At the first datagram `pick` selects, the robot holds the harness's loop `held` seconds
+    and sends nothing for `then` seconds more (it sends what it made then, in order)."""
+    send = DataSocket.sendto
+    waiting: list[tuple[DataSocket, bytes, Address | None]] = []
+    until: list[float] = []
+
+    def release() -> None:
+        for socket, data, addr in waiting:
+            send(socket, data, addr)
+        waiting.clear()
+
+    def sendto(socket: DataSocket, data: bytes, addr: Address | None = None) -> None:
+        loop = asyncio.get_running_loop()
+        if not until and _picked(pick, data):
+            time.sleep(held)
+            until.append(loop.time() + then)
+            loop.call_at(until[0], release)
+        if until and loop.time() < until[0]:
+            waiting.append((socket, data, addr))
+            return
+        send(socket, data, addr)
+
+    monkeypatch.setattr(DataSocket, "sendto", sendto)
+
+
+def _never(monkeypatch: pytest.MonkeyPatch, pick: Pick) -> None:
+    """The robot never sends what `pick` selects, and sends all else."""
+    send = DataSocket.sendto
+
+    def sendto(socket: DataSocket, data: bytes, addr: Address | None = None) -> None:
+        if not _picked(pick, data):
+            send(socket, data, addr)
+
+    monkeypatch.setattr(DataSocket, "sendto", sendto)
+
+
+def _unloaded(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A machine that holds nothing: the loop watch sees no hold, whatever this one's load."""
+    monkeypatch.setattr(LoopWatch, "held", lambda _, since: 0.0)
+    monkeypatch.setattr(LoopWatch, "total", lambda _, since: 0.0)
+
+
+def _picked(pick: Pick, data: bytes) -> bool:
+    try:
+        return pick(pull_header(data))
+    except ProtocolError:
+        return False
+
+
+def _run(case: str) -> Result:
+    async def scenario() -> list[Result]:
+        async with embedded_reference(EVERYTHING.features) as target:
+            return await run_cases([all_cases()[case]], target, RunOptions())
+
+    (result,) = asyncio.run(asyncio.wait_for(scenario(), BOUND))
+    return result
+
+
+@pytest.mark.parametrize(("case", "pick", "window", "requirement"), CASES, ids=IDS)
+def test_a_robot_stalled_with_the_harness_is_inconclusive(
+    monkeypatch: pytest.MonkeyPatch, case: str, pick: Pick, window: float, requirement: str
+) -> None:
+    _stall(monkeypatch, pick, held=window, then=PAST)
+    result = _run(case)
+    assert result.verdict is Verdict.INCONCLUSIVE, result
+    assert "event loop was held" in result.reason, result
+
+
+@pytest.mark.parametrize(("case", "pick", "window", "requirement"), CASES, ids=IDS)
+def test_a_robot_stalled_alone_fails(
+    monkeypatch: pytest.MonkeyPatch, case: str, pick: Pick, window: float, requirement: str
+) -> None:
+    _unloaded(monkeypatch)
+    _stall(monkeypatch, pick, held=0.0, then=window + PAST)
+    result = _run(case)
+    assert (result.verdict, result.requirement) == (Verdict.FAIL, requirement), result
+    assert "it came" in (result.actual or ""), result  # the second window saw it, late
+
+
+@pytest.mark.parametrize(("case", "pick", "window", "requirement"), CASES, ids=IDS)
+def test_a_robot_that_never_sends_it_fails(
+    monkeypatch: pytest.MonkeyPatch, case: str, pick: Pick, window: float, requirement: str
+) -> None:
+    _unloaded(monkeypatch)
+    _never(monkeypatch, pick)
+    result = _run(case)
+    assert (result.verdict, result.requirement) == (Verdict.FAIL, requirement), result
+
+
+@pytest.mark.parametrize(("held", "verdict"), [(SILENT, Verdict.INCONCLUSIVE), (0.0, Verdict.FAIL)])
+def test_a_robot_silent_through_values_out_of_range(
+    monkeypatch: pytest.MonkeyPatch, held: float, verdict: Verdict
+) -> None:
+    """No UPLINK while the case sends its values out of range: the monitor is not reported, as
+    a robot that stopped at them would not report it (R-RSP-16), but a silence, which the loop
+    held as long excuses (the silence then is the harness's as much as the robot's)."""
+    if not held:
+        _unloaded(monkeypatch)
+    _stall(monkeypatch, _took(10), held=held, then=SILENT)
+    result = _run("rsp/value/out-of-range")
+    assert result.verdict is verdict, result
+    assert "no UPLINK" in result.reason, result
