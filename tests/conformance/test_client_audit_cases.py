@@ -62,9 +62,9 @@ FAULTS = {
     ),
     # Only CSeq checked for repetition among the fields that appear once.
     "only-cseq-once": (
-        "rctp/connection.py",
-        "            if names.count(name.lower()) > 1:",
-        '            if name == "CSeq" and names.count(name.lower()) > 1:',
+        "rctp/request_checks.py",
+        "        if names.count(name.lower()) > 1:",
+        '        if name == "CSeq" and names.count(name.lower()) > 1:',
         "rctp/client/session-twice",
         "R-RCTP-11",
     ),

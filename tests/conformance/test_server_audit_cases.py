@@ -78,9 +78,9 @@ FAULTS = {
     ),
     # A server that compares the whole Session field with the session's ID.
     "session-field-compared-whole": (
-        "rctp/connection.py",
-        "            named = parse_session(given).id",
-        "            named = given",
+        "rctp/request_checks.py",
+        "        named = parse_session(given).id",
+        "        named = given",
         ROVER,
         ["rctp/session/session-with-timeout"],
         "R-RCTP-19",
