@@ -24,7 +24,8 @@ import time
 from collections.abc import Callable
 
 from rcmlconf.conformance.ics import EVERYTHING
-from rcmlconf.conformance.registry import Case, Role, all_cases
+from rcmlconf.conformance.registry import Case, all_cases
+from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.runner import RunOptions, run_cases, under_test
 from rcmlconf.conformance.targets import embedded_reference, quiet_reference_logs
 from rcmlconf.conformance.verdicts import Result, Verdict

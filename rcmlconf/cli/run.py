@@ -15,7 +15,7 @@ import click
 from rcmlconf.cli.hosts import address_option, listen_option
 from rcmlconf.cli.params import Bounded
 from rcmlconf.cli.run_options import report_option, site_option
-from rcmlconf.conformance.registry import CONNECT_TIMEOUT, SESSION_WAIT
+from rcmlconf.conformance.run_defaults import CONNECT_TIMEOUT, SESSION_WAIT
 from rcmlconf.impair.spec import MOST_BURST, MOST_TIME
 from rcmlconf.rcml.url import DEFAULT_PORT as RCTP_PORT
 from rcmlconf.reference.faults import Fault

@@ -44,12 +44,13 @@ from rcmlconf.cli.run_target import (
 from rcmlconf.conformance.files import shown
 from rcmlconf.conformance.ics import EVERYTHING, Ics, load_ics
 from rcmlconf.conformance.probes.clients import HARNESS_RCML
-from rcmlconf.conformance.registry import Case, Role, all_cases
+from rcmlconf.conformance.registry import Case, all_cases
 from rcmlconf.conformance.reports.baseline import load_baseline, mark_known
 from rcmlconf.conformance.reports.html import to_html
 from rcmlconf.conformance.reports.json_report import to_json
 from rcmlconf.conformance.reports.junit import to_junit
 from rcmlconf.conformance.reports.summary import counts, explain, new_failures, run_status
+from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.runner import (
     PARTLY,
     RunOptions,

@@ -7,11 +7,12 @@ import asyncio
 import secrets
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, TypeVar
+from typing import TYPE_CHECKING, Protocol, TypeVar
 
 from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.probes.local_probe import LocalProbe
-from rcmlconf.conformance.registry import SESSION_WAIT, Case, Role
+from rcmlconf.conformance.roles import Role
+from rcmlconf.conformance.run_defaults import SESSION_WAIT
 from rcmlconf.conformance.targets import Target
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
@@ -30,6 +31,29 @@ LATE = 0.02
 _ANY = Permission(0)
 
 
+class CaseRules(Protocol):
+    """What a context reads of its case (`registry.Case`): it names the case, scales its time,
+    says which flows run impaired and which role it plays."""
+
+    @property
+    def id(self) -> str: ...
+
+    @property
+    def requirements(self) -> tuple[str, ...]: ...
+
+    @property
+    def role(self) -> Role: ...
+
+    @property
+    def timeout(self) -> float: ...
+
+    @property
+    def impairment(self) -> str | None: ...
+
+    @property
+    def waits_session(self) -> bool: ...
+
+
 def outside_bounds(value: float, low: float, high: float) -> float:
     """How far `value` lies outside [low, high] (0 within): a failed check's `by`, in its units."""
     return max(low - value, value - high, 0.0)
@@ -37,7 +61,7 @@ def outside_bounds(value: float, low: float, high: float) -> float:
 
 @dataclass
 class Context:
-    case: Case
+    case: CaseRules
     target: Target
     #: Multiplies every wait (--timeout-scale).
     scale: float = 1.0

@@ -5,7 +5,6 @@ never a number that shifts when a case is added.
 
 from __future__ import annotations
 
-import enum
 import fnmatch
 import importlib
 import pkgutil
@@ -14,6 +13,8 @@ from collections.abc import Awaitable, Callable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from rcmlconf.conformance.roles import Role
+
 if TYPE_CHECKING:
     from rcmlconf.conformance.context import Context
     from rcmlconf.conformance.probes.clients import Served
@@ -21,26 +22,7 @@ if TYPE_CHECKING:
 _ID = re.compile(r"^(rctp|rsp)/[a-z0-9-]+/[a-z0-9-]+$")
 
 
-class Role(enum.Enum):
-    """What the implementation under test is."""
-
-    #: An RCTP/2.0 server (`--target`).
-    SERVER = "server"
-    #: An RCTP/2.0 client; the harness plays the server (`--role client --listen`).
-    CLIENT = "client"
-    #: An RSP robot; the harness plays the local system (`--rsp-target`).
-    ROBOT = "robot"
-    #: An RSP local system; the harness plays the robot (`--role local --listen`).
-    LOCAL = "local"
-
-
 CaseFunction = Callable[["Context"], Awaitable[None]]
-#: The longest session timeout (D-RCTP-11) the cases that wait one out wait for, by default
-#: (`run --session-wait`): a server that announces longer makes them inconclusive.
-SESSION_WAIT = 5.0
-#: How long a client or local system started for a case has to connect, by default (`run
-#: --connect-timeout`).
-CONNECT_TIMEOUT = 10.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,7 +44,7 @@ class Case:
     serial: bool
     run: CaseFunction
     #: Waits out the server's session timeout: its time grows by what --session-wait adds to
-    #: SESSION_WAIT.
+    #: run_defaults.SESSION_WAIT.
     waits_session: bool = False
     #: A client case's own RCML, made from its robot's and the case's files URL (D-RCTP-31: a
     #: case may serve another RCML to test step 1); served from the start of the run, since a

@@ -12,7 +12,9 @@ from pathlib import Path
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.loopwatch import LoopWatch
-from rcmlconf.conformance.registry import CONNECT_TIMEOUT, SESSION_WAIT, Case, Role
+from rcmlconf.conformance.registry import Case
+from rcmlconf.conformance.roles import Role
+from rcmlconf.conformance.run_defaults import CONNECT_TIMEOUT, SESSION_WAIT
 from rcmlconf.conformance.targets import Target
 from rcmlconf.conformance.transcript import Address, Entry
 from rcmlconf.conformance.verdicts import CaseStop, Failed, Result, Verdict

@@ -22,7 +22,8 @@ from support.robots import TESTBOT, robot
 from support.servers import serving
 
 from rcmlconf.conformance.ics import EVERYTHING
-from rcmlconf.conformance.registry import Case, Role, all_cases
+from rcmlconf.conformance.registry import Case, all_cases
+from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.runner import RunOptions, run_cases
 from rcmlconf.conformance.targets import REFERENCE_SESSION_TIMEOUT, Target, embedded_reference
 from rcmlconf.conformance.verdicts import Result, Verdict

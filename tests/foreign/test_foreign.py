@@ -17,7 +17,8 @@ import pytest
 from support.foreign import IMPLEMENTATIONS, Fault, Implementation, Verdicts
 from support.sweeps import SWEEPS
 
-from rcmlconf.conformance.registry import Role, all_cases
+from rcmlconf.conformance.registry import all_cases
+from rcmlconf.conformance.roles import Role
 
 ROLES = {"server": Role.SERVER, "robot": Role.ROBOT, "client": Role.CLIENT, "local": Role.LOCAL}
 #: Faults no case catches at default settings, and why; each name must be a fault of its

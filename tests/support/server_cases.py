@@ -7,7 +7,8 @@ import dataclasses
 from collections.abc import Callable
 
 from rcmlconf.conformance.ics import EVERYTHING
-from rcmlconf.conformance.registry import Role, all_cases
+from rcmlconf.conformance.registry import all_cases
+from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.runner import RunOptions, run_cases
 from rcmlconf.conformance.targets import embedded_reference
 from rcmlconf.conformance.verdicts import Result

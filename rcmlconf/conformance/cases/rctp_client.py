@@ -9,7 +9,8 @@ from collections.abc import Callable
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.clients import Served, case_path
 from rcmlconf.conformance.probes.control import ControlProbe
-from rcmlconf.conformance.registry import CaseFunction, Role, case
+from rcmlconf.conformance.registry import CaseFunction, case
+from rcmlconf.conformance.roles import Role
 from rcmlconf.rcml.model import AccessType
 from rcmlconf.rctp.messages import Response
 from rcmlconf.rctp.targets import format_target

@@ -13,7 +13,8 @@ from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.held import margin, seen_by
 from rcmlconf.conformance.probes.rsp_devices import first, occurrence, zero_values
 from rcmlconf.conformance.probes.rsp_probe import open_probe
-from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.registry import case
+from rcmlconf.conformance.roles import Role
 from rcmlconf.rsp.codec import PacketType
 from rcmlconf.rsp.model import DeviceKind
 

@@ -19,7 +19,8 @@ from rcmlconf.conformance.probes.rsp_devices import first, flags, occurrence, re
 from rcmlconf.conformance.probes.rsp_exchanges import raw_session, taken
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
 from rcmlconf.conformance.probes.rsp_raw import RawSession
-from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.registry import case
+from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.verdicts import Failed, Inconclusive
 from rcmlconf.rsp.codec import CLEAR_BUFFER, PacketType
 from rcmlconf.rsp.model import DeviceKind

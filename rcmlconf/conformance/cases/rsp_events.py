@@ -36,7 +36,8 @@ from rcmlconf.conformance.probes.rsp_raised import (
     watch,
 )
 from rcmlconf.conformance.probes.rsp_raw import RawSession
-from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.registry import case
+from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import PacketType
 from rcmlconf.rsp.model import Device, DeviceKind, RobotModel

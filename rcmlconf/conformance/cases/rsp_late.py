@@ -10,7 +10,8 @@ from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.rsp_datagram import sequence_of
 from rcmlconf.conformance.probes.rsp_devices import flags, reported
 from rcmlconf.conformance.probes.rsp_exchanges import raw_session, taken, uplinks_within
-from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.registry import case
+from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.verdicts import Inconclusive
 
 #: Periods the case watches the UPLINKs after the late DOWNLINK: one for the robot to take it,

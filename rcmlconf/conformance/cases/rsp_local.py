@@ -18,7 +18,8 @@ from rcmlconf.conformance.probes.local_scenario import REQUESTED
 from rcmlconf.conformance.probes.pace import paced, spaced
 from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, sequence_of
 from rcmlconf.conformance.probes.rsp_devices import first, of_kind, zero_values
-from rcmlconf.conformance.registry import CaseFunction, Role, case
+from rcmlconf.conformance.registry import CaseFunction, case
+from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.rsp_numbers import (
     GAP_LONGEST,
     GAP_SHORTEST,

@@ -31,7 +31,8 @@ from rcmlconf.conformance.probes.rsp_raised import (
     received_uplinks,
     watch,
 )
-from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.registry import case
+from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.rsp_numbers import (
     MAX_RTO,
     STAMP_ROUNDING,

@@ -28,7 +28,8 @@ from rcmlconf.conformance.probes.rsp_devices import (
 from rcmlconf.conformance.probes.rsp_exchanges import raw_session
 from rcmlconf.conformance.probes.rsp_probe import RspProbe
 from rcmlconf.conformance.probes.rsp_raw import RawSession
-from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.registry import case
+from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.rsp.codec import Item, PacketType
 from rcmlconf.rsp.model import Device, Field

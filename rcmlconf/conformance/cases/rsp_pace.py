@@ -20,7 +20,8 @@ from rcmlconf.conformance.probes.rsp_devices import close_to, flags, reported, v
 from rcmlconf.conformance.probes.rsp_driven import Driven, drive
 from rcmlconf.conformance.probes.rsp_exchanges import must_take, reporting
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
-from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.registry import case
+from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.rsp_numbers import (
     GAP_LONGEST,
     GAP_SHORTEST,

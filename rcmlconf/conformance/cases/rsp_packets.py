@@ -39,7 +39,8 @@ from rcmlconf.conformance.probes.rsp_exchanges import (
 )
 from rcmlconf.conformance.probes.rsp_forged import flip, patch
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
-from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.registry import case
+from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.rsp_numbers import stamp_allowance
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.impair import derive_seed

@@ -28,7 +28,8 @@ from rcmlconf.conformance.probes.rsp_exchanges import (
     taken,
     uplinks_within,
 )
-from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.registry import case
+from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.verdicts import NotApplicable
 from rcmlconf.rsp.codec import PacketType
 from rcmlconf.rsp.model import DeviceKind

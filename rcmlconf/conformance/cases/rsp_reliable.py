@@ -36,7 +36,8 @@ from rcmlconf.conformance.probes.rsp_exchanges import (
 from rcmlconf.conformance.probes.rsp_forged import flip, hello_packet, patch
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
 from rcmlconf.conformance.probes.rsp_raw import RawSession
-from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.registry import case
+from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import (
     CLEAR_BUFFER,

@@ -26,7 +26,8 @@ from rcmlconf.conformance.probes.rsp_exchanges import (
 )
 from rcmlconf.conformance.probes.rsp_forged import hello_packet
 from rcmlconf.conformance.probes.rsp_probe import open_probe
-from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.registry import case
+from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.rsp_numbers import (
     KEEPALIVE_PERIODS,
     KEEPALIVE_SLACK,

@@ -31,7 +31,8 @@ from rcmlconf.conformance.probes.rsp_devices import (
 from rcmlconf.conformance.probes.rsp_exchanges import going_on, raw_session, unanswered
 from rcmlconf.conformance.probes.rsp_probe import RspProbe
 from rcmlconf.conformance.probes.rsp_raw import RawSession
-from rcmlconf.conformance.registry import Role, case
+from rcmlconf.conformance.registry import case
+from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.rsp_numbers import GAP_LONGEST
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import Item, MapBody, PacketType
