@@ -13,6 +13,7 @@ from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.held import margin, seen_by
 from rcmlconf.conformance.probes.rsp_devices import first, occurrence, zero_values
 from rcmlconf.conformance.probes.rsp_probe import open_probe
+from rcmlconf.conformance.probes.rsp_raw import hand_driven
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.roles import Role
 from rcmlconf.rsp.codec import PacketType
@@ -34,7 +35,7 @@ async def memory_command_at_once(ctx: Context) -> None:
     probe = await open_probe(ctx)
     memory = first(probe.model, DeviceKind.MEMORY_COMMAND)
     asked = max(probe.model.period, SLOW_PERIOD * ctx.scale)
-    raw = probe.raw(period_ms=round(asked * 1000))
+    raw = hand_driven(probe, period_ms=round(asked * 1000))
     await raw.open()
     period = raw.period
     # Fields at their safe values (a keyframe of no duration): it leaves the buffer at once.

@@ -18,7 +18,7 @@ from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, sequence_o
 from rcmlconf.conformance.probes.rsp_devices import first, flags, occurrence, reported
 from rcmlconf.conformance.probes.rsp_exchanges import raw_session, taken
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
-from rcmlconf.conformance.probes.rsp_raw import RawSession
+from rcmlconf.conformance.probes.rsp_raw import RawSession, hand_driven
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.verdicts import Failed, Inconclusive
@@ -58,7 +58,7 @@ async def executing_left_buffer(ctx: Context) -> None:
     probe = await open_probe(ctx)
     model = probe.model
     memory = first(model, DeviceKind.MEMORY_COMMAND)
-    raw = probe.raw(period_ms=round(max(model.period, SLOW_PERIOD * ctx.scale) * 1000))
+    raw = hand_driven(probe, period_ms=round(max(model.period, SLOW_PERIOD * ctx.scale) * 1000))
     await raw.open()
     raw.standing = flags(model, reported(model, 1)[0])  # an UPLINK every T
     period, buffers = raw.period, model.command_buffers

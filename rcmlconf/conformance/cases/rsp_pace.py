@@ -20,6 +20,7 @@ from rcmlconf.conformance.probes.rsp_devices import close_to, flags, reported, v
 from rcmlconf.conformance.probes.rsp_driven import Driven, drive
 from rcmlconf.conformance.probes.rsp_exchanges import must_take, reporting
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
+from rcmlconf.conformance.probes.rsp_raw import hand_driven
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.rsp_numbers import (
@@ -112,7 +113,7 @@ def _beating(ctx: Context, found: list[Datagram], period: float, note: str) -> N
 async def slow_hello(ctx: Context) -> None:
     probe = await open_probe(ctx)
     model = probe.model
-    raw = probe.raw(period_ms=SLOW_MS)
+    raw = hand_driven(probe, period_ms=SLOW_MS)
     await raw.open()
     period = raw.period  # WELCOME's
     _slow_enough(period)

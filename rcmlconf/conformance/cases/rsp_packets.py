@@ -39,6 +39,7 @@ from rcmlconf.conformance.probes.rsp_exchanges import (
 )
 from rcmlconf.conformance.probes.rsp_forged import flip, patch
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
+from rcmlconf.conformance.probes.rsp_raw import hand_driven
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.rsp_numbers import stamp_allowance
@@ -243,7 +244,7 @@ async def outside_session(ctx: Context) -> None:
     def of_other_model(data: bytes) -> bytes:
         return patch(data, MODEL_AT, other)
 
-    stray = probe.raw()  # never opened: a session ID the robot never gave
+    stray = hand_driven(probe)  # never opened: a session ID the robot never gave
     stray.wire.session_id = random.randrange(1, 1 << 48)
     start = probe.mark()
     period = Period(round(model.period * 1000))
@@ -260,7 +261,7 @@ async def outside_session(ctx: Context) -> None:
         "no answer to packets of no session (R-RSP-21 answers a HELLO of another model, only)",
         ", ".join(f"{d.type.name} {getattr(d.body, 'reason', '')}" for d in answers),
     )
-    raw = probe.raw()
+    raw = hand_driven(probe)
     await raw.open()
     for spoofer in await _either_side(ctx, probe):
         await dropped_then_taken(

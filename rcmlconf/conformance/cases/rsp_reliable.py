@@ -35,7 +35,7 @@ from rcmlconf.conformance.probes.rsp_exchanges import (
 )
 from rcmlconf.conformance.probes.rsp_forged import flip, hello_packet, patch
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
-from rcmlconf.conformance.probes.rsp_raw import RawSession
+from rcmlconf.conformance.probes.rsp_raw import RawSession, hand_driven
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
@@ -483,7 +483,7 @@ _AEADS = (
 async def _sealed(ctx: Context, encryption: Encryption) -> tuple[RspProbe, RawSession]:
     """A sealed session by hand; its WELCOME's MAC checked (R-RSP-38)."""
     probe = await open_probe(ctx)
-    raw = probe.raw(encryption)
+    raw = hand_driven(probe, encryption)
     answer = await raw.expect_welcome("R-RSP-37", f"WELCOME ({encryption.name} declared)")
     assert probe.psk is not None
     data = answer.data
@@ -588,7 +588,7 @@ for _encryption, _feature, _slug in _AEADS:
 )
 async def wrong_key(ctx: Context) -> None:
     probe = await open_probe(ctx)
-    raw = probe.raw(Encryption.AES_256_GCM)
+    raw = hand_driven(probe, Encryption.AES_256_GCM)
     key = os.urandom(32)
     answer = await probe.expect_answer_to(
         lambda: raw.hello(psk=key),

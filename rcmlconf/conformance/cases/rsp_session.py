@@ -26,6 +26,7 @@ from rcmlconf.conformance.probes.rsp_exchanges import (
 )
 from rcmlconf.conformance.probes.rsp_forged import hello_packet
 from rcmlconf.conformance.probes.rsp_probe import open_probe
+from rcmlconf.conformance.probes.rsp_raw import hand_driven
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.rsp_numbers import (
@@ -108,7 +109,7 @@ def _echoes(
 async def welcome(ctx: Context) -> None:
     probe = await open_probe(ctx)
     model = probe.model
-    raw = probe.raw()
+    raw = hand_driven(probe)
     answer = await raw.expect_welcome("R-RSP-20")
     header, body = answer.header, answer.body
     assert isinstance(body, Welcome)
@@ -153,7 +154,7 @@ async def fresh_session_ids(ctx: Context) -> None:
     probe = await open_probe(ctx)
     seen: list[int] = []
     for _ in range(3):
-        raw = probe.raw()
+        raw = hand_driven(probe)
         answer = await raw.open()
         seen.append(answer.header.session_id)
         raw.bye()
@@ -221,7 +222,7 @@ async def encryption_not_offered(ctx: Context) -> None:
         raise NotApplicable(f"the ICS declares every AEAD ({declared}): none to refuse")
     probe = await open_probe(ctx)
     encryption = lacking[0]
-    raw = probe.raw(encryption) if probe.psk is not None else None
+    raw = hand_driven(probe, encryption) if probe.psk is not None else None
     period = round(probe.model.period * 1000)
     # Without a key to sign with: a MAC of zeros (the robot need not check it to refuse).
     unsigned = hello_packet(probe.model.model_id, encryption, os.urandom(NONCE_SIZE), period)

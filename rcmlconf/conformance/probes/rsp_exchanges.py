@@ -14,7 +14,7 @@ from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.rsp_datagram import Datagram, Where, newer, sequence_of, summary
 from rcmlconf.conformance.probes.rsp_devices import first, flags, occurrence, reported
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
-from rcmlconf.conformance.probes.rsp_raw import RawSession
+from rcmlconf.conformance.probes.rsp_raw import RawSession, hand_driven
 from rcmlconf.conformance.rsp_numbers import HELLO_INTERVAL
 from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.rsp.codec import Encryption, Item, MapBody, PacketType
@@ -28,7 +28,7 @@ async def raw_session(
 ) -> tuple[RspProbe, RawSession]:
     """A probe with a session opened by hand (HELLO, WELCOME)."""
     probe = await open_probe(ctx)
-    raw = probe.raw(encryption)
+    raw = hand_driven(probe, encryption)
     await raw.open()
     return probe, raw
 
@@ -368,7 +368,7 @@ async def hello_from_another(
         f"{expected or 'WELCOME or REFUSED'}, before the local system's first repeat of its"
         f" HELLO (D-RSP-12: {HELLO_INTERVAL * 1000:g} ms)",
         requirement,
-        send=other.raw().hello,
+        send=hand_driven(other).hello,
     )
 
 

@@ -2,10 +2,11 @@
 
 A probe is one UDP socket talking to one robot. It can run the core's sans-IO `LocalEndpoint`
 (`open_session`: the session a well-behaved local system keeps, with its DOWNLINK every T, its
-retransmissions and ACKs), and it can send datagrams the case builds by hand (`raw`, a
-`rsp_raw.RawSession`, whose packets are numbered, stamped and sealed by the core's `SessionWire`
-and may then be altered byte by byte, or `send` of any bytes at all). Both at once: every datagram
-the robot sends is decoded with the core's codec and kept in `received`, whoever asked for it.
+retransmissions and ACKs), and it can send datagrams the case builds by hand
+(`rsp_raw.hand_driven`, a `RawSession`, whose packets are numbered, stamped and sealed by the
+core's `SessionWire` and may then be altered byte by byte, or `send` of any bytes at all). Both
+at once: every datagram the robot sends is decoded with the core's codec and kept in `received`,
+whoever asked for it.
 
 Every datagram sent and received is in the case's transcript (a one-line summary and the bytes).
 A robot datagram the codec cannot read fails the case with the requirement of the layout it breaks
@@ -23,7 +24,7 @@ import asyncio
 import contextlib
 import os
 from collections.abc import Callable, Mapping
-from typing import cast
+from typing import Protocol, cast
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.datagrams import DatagramLog
@@ -36,7 +37,6 @@ from rcmlconf.conformance.probes.rsp_datagram import (
     Datagram,
     summary,
 )
-from rcmlconf.conformance.probes.rsp_raw import RawSession
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Failed, HarnessError, Inconclusive, NotApplicable
 from rcmlconf.errors import EncodeError, ProtocolError
@@ -95,6 +95,19 @@ class _Socket(asyncio.DatagramProtocol):
         self.probe.transcript.note(f"UDP error: {exc}")
 
 
+class HandDriven(Protocol):
+    """A session a case drives packet by packet on a probe's socket (`rsp_raw.RawSession`), as
+    the probe serves it: told each WELCOME it reads, asked for the BYE that ends it with the
+    case."""
+
+    @property
+    def nonce(self) -> bytes: ...
+
+    def welcomed(self, found: Datagram) -> None: ...
+
+    def closing_bye(self) -> bytes | None: ...
+
+
 class RspProbe(DatagramLog):
     """One local system's socket towards one robot (use `open_probe`)."""
 
@@ -131,8 +144,8 @@ class RspProbe(DatagramLog):
         #: Client nonces of this probe's HELLOs: WELCOMEs to them give the keys to read with.
         self._nonces: set[bytes] = set()
         self._openers: dict[int, _Opener] = {}
-        #: Sessions the robot opened for this probe (WELCOME seen), not yet ended, for close().
-        self.raw_sessions: list[RawSession] = []
+        #: Sessions the case drives by hand on this probe's socket (`adopt`), for close().
+        self.raw_sessions: list[HandDriven] = []
         # The endpoint, its events and the newest state of each device.
         self.endpoint: LocalEndpoint | None = None
         self.events: list[tuple[float, events.Event]] = []
@@ -316,8 +329,7 @@ class RspProbe(DatagramLog):
             opener.tracker.see(found.header.sequence)
             self._openers.setdefault(found.header.session_id, opener)
         for raw in self.raw_sessions:
-            if raw.nonce == body.client_nonce and raw.wire.session_id == 0:
-                raw.accept(found)
+            raw.welcomed(found)
 
     # -- the endpoint --------------------------------------------------------------------------
 
@@ -470,21 +482,11 @@ class RspProbe(DatagramLog):
 
     # -- sessions by hand ----------------------------------------------------------------------
 
-    def raw(
-        self,
-        encryption: Encryption = Encryption.NONE,
-        *,
-        period_ms: int | None = None,
-        nonce: bytes | None = None,
-        psk: bytes | None = None,
-    ) -> RawSession:
-        """A session the case drives packet by packet (`RawSession`)."""
-        if encryption is not Encryption.NONE and (psk or self.psk) is None:
-            raise NotApplicable("the robot's pre-shared key is not known (ICS [rsp] psk-file)")
-        raw = RawSession(self, encryption, period_ms, nonce, psk or self.psk)
-        self.raw_sessions.append(raw)
-        self._nonces.add(raw.nonce)
-        return raw
+    def adopt(self, session: HandDriven) -> None:
+        """A session the case drives by hand on this probe's socket: its WELCOME is handed to it,
+        and its BYE ends it with the case."""
+        self.raw_sessions.append(session)
+        self._nonces.add(session.nonce)
 
     # -- the end -------------------------------------------------------------------------------
 
@@ -503,9 +505,10 @@ class RspProbe(DatagramLog):
             for data in self.endpoint.datagrams_to_send(now):
                 self._put(data, "BYE (the case ends)")
         for raw in self.raw_sessions:
-            if raw.wire.session_id and not raw.ended:
-                with contextlib.suppress(EncodeError):
-                    self._put(raw.last_bye(), "BYE (the case ends)")
+            with contextlib.suppress(EncodeError):
+                bye = raw.closing_bye()
+                if bye is not None:
+                    self._put(bye, "BYE (the case ends)")
         self.closed = True
         if self._timer is not None:
             self._timer.cancel()

@@ -20,7 +20,7 @@ from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.rsp_datagram import Datagram, sequence_of
 from rcmlconf.conformance.probes.rsp_devices import flags, of_kind
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
-from rcmlconf.conformance.probes.rsp_raw import RawSession
+from rcmlconf.conformance.probes.rsp_raw import RawSession, hand_driven
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import Item, MapBody, PacketType
 from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
@@ -71,7 +71,7 @@ async def requesting(
     """A session by hand (HELLO asking for `period_ms`, by default the model's) whose DOWNLINKs
     request `devices`, kept alive by a `Beat`."""
     probe = await open_probe(ctx)
-    raw = probe.raw(period_ms=period_ms)
+    raw = hand_driven(probe, period_ms=period_ms)
     await raw.open()
     raw.standing = flags(probe.model, *devices)
     Beat(ctx, raw)

@@ -1,5 +1,5 @@
 """A session with an RSP robot packet by packet, as a case drives it (`RawSession`, made by
-`RspProbe.raw`): the core's `SessionWire` numbers, stamps and seals what the case builds, the case
+`hand_driven`): the core's `SessionWire` numbers, stamps and seals what the case builds, the case
 may alter the bytes before they go, skip or rewind sequence numbers, and the BYE that ends the
 case is numbered so that the robot takes it whatever the case did to the numbering."""
 
@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Iterable
-from typing import TYPE_CHECKING
 
 from rcmlconf.conformance.probes.rsp_datagram import (
     SEQUENCE_SPACE,
@@ -16,7 +15,8 @@ from rcmlconf.conformance.probes.rsp_datagram import (
     newer,
     sequence_of,
 )
-from rcmlconf.conformance.verdicts import Failed, Inconclusive
+from rcmlconf.conformance.probes.rsp_probe import RspProbe
+from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import (
     Bye,
     ByeReason,
@@ -33,8 +33,21 @@ from rcmlconf.rsp.layout import MAC_SIZE, NONCE_SIZE
 from rcmlconf.rsp.security import Direction
 from rcmlconf.rsp.session.wire import SessionWire
 
-if TYPE_CHECKING:
-    from rcmlconf.conformance.probes.rsp_probe import RspProbe
+
+def hand_driven(
+    probe: RspProbe,
+    encryption: Encryption = Encryption.NONE,
+    *,
+    period_ms: int | None = None,
+    nonce: bytes | None = None,
+    psk: bytes | None = None,
+) -> RawSession:
+    """A session the case drives packet by packet on `probe`'s socket (`RawSession`)."""
+    if encryption is not Encryption.NONE and (psk or probe.psk) is None:
+        raise NotApplicable("the robot's pre-shared key is not known (ICS [rsp] psk-file)")
+    raw = RawSession(probe, encryption, period_ms, nonce, psk or probe.psk)
+    probe.adopt(raw)
+    return raw
 
 
 class RawSession:
@@ -121,6 +134,16 @@ class RawSession:
         if self.welcome is None:
             self.accept(answer)
         return answer
+
+    def welcomed(self, found: Datagram) -> None:
+        """A WELCOME the probe read: the session's, if it answers this session's HELLO first."""
+        body = found.body
+        if isinstance(body, Welcome) and body.client_nonce == self.nonce and not self.session_id:
+            self.accept(found)
+
+    def closing_bye(self) -> bytes | None:
+        """The BYE that ends the session with the case (`last_bye`), if it is open."""
+        return self.last_bye() if self.session_id and not self.ended else None
 
     def accept(self, welcome: Datagram) -> None:
         """The robot's WELCOME: the session's ID, and its keys (D-RSP-21)."""
