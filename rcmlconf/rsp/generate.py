@@ -11,25 +11,16 @@ The text is deterministic (a model and a source name give one text) and ASCII bu
 of other scripts; it is `mypy --strict`- and `ruff check`-clean, and laid out as `ruff format`
 lays it out (100 columns) for names of up to 50 characters: `python_text.Writer` splits lines the
 way ruff does for the shapes the module has, and a line longer names make too long gets
-`# noqa: E501`.
-XML Names become Python identifiers deterministically: `-`, `.`, `_`,
-`:` and characters no identifier may hold separate words, camelCase splits words too; devices and
-fields become snake_case (`leftWheel` -> `left_wheel`), classes PascalCase (`irFire` ->
-`IrFire...`). A name that is a keyword or that the module needs for itself gets a `_` suffix
-(`class` -> `class_`); two devices (or two fields of a device) that become the same identifier are
-refused (`NameClash`), since either would hide the other.
+`# noqa: E501`. The identifiers it gives devices, fields and classes are `generate_names`'.
 """
 
 from __future__ import annotations
 
-import keyword
 import re
-import unicodedata
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
 
-from rcmlconf.errors import RcmlconfError
-from rcmlconf.rsp.model import Device, DeviceKind, Field, OnLoss, RobotModel
+from rcmlconf.rsp.generate_names import DeviceNames, model_names
+from rcmlconf.rsp.model import DeviceKind, Field, OnLoss, RobotModel
 from rcmlconf.rsp.python_text import (
     LINE_LENGTH,
     STEP,
@@ -42,218 +33,6 @@ from rcmlconf.rsp.python_text import (
     wrap,
 )
 from rcmlconf.values import Kind
-
-
-class NameClash(RcmlconfError):
-    """Two names of the model become the same Python identifier."""
-
-
-# -- names ----------------------------------------------------------------------------------------
-
-#: Where camelCase starts a word: `leftWheel`, `IRFire`, `lcd2Left`.
-_CAMEL = re.compile(r"(?<=[a-z0-9])(?=[A-Z])|(?<=[A-Z])(?=[A-Z][a-z])")
-_UPPER = str.maketrans("abcdefghijklmnopqrstuvwxyz", "ABCDEFGHIJKLMNOPQRSTUVWXYZ")
-_LOWER = str.maketrans("ABCDEFGHIJKLMNOPQRSTUVWXYZ", "abcdefghijklmnopqrstuvwxyz")
-#: What the generated module uses as types: a field or attribute of that name would hide them.
-_TYPES = frozenset({"int", "float", "bool", "str", "bytes", "tuple"})
-#: A field is a NamedTuple field (tuple has `count` and `index`) and a keyword argument of a method.
-_FIELD_RESERVED = _TYPES | {"self", "count", "index"}
-#: A device is an attribute of its module's class, beside `set_active`.
-_DEVICE_RESERVED = _TYPES | {"set_active"}
-#: Module-level names the generated module imports or defines besides classes.
-_TOP_RESERVED = frozenset(
-    {
-        "Callable",
-        "DeviceAccess",
-        "Final",
-        "LookupError",
-        "NamedTuple",
-        "TypeError",
-        "Value",
-        "Values",
-    }
-)
-
-_KIND_SUFFIX = {
-    DeviceKind.MODULE: "Module",
-    DeviceKind.EFFECTOR: "Effector",
-    DeviceKind.SENSOR: "Sensor",
-    DeviceKind.MONITOR: "Monitor",
-    DeviceKind.COMMAND: "Command",
-    DeviceKind.EVENT: "Event",
-    DeviceKind.MEMORY_COMMAND: "MemoryCommand",
-    DeviceKind.MEMORY_EVENT: "MemoryEvent",
-}
-
-
-def _keeps(char: str) -> bool:
-    """A character an identifier may hold: ASCII letters and digits, and the letters, marks and
-    digits of other scripts that Python takes (after NFKC, which Python applies to identifiers)."""
-    if char.isascii():
-        return char.isalnum()
-    return ("a" + unicodedata.normalize("NFKC", char)).isidentifier()
-
-
-def words(name: str) -> list[str]:
-    """An XML Name's words: split at characters identifiers do not keep and at camelCase."""
-    chunks = "".join(c if _keeps(c) else " " for c in name).split()
-    return [word for chunk in chunks for word in _CAMEL.sub(" ", chunk).split()]
-
-
-def snake_name(name: str, reserved: Iterable[str] = ()) -> str:
-    """`leftWheel` -> `left_wheel`; ASCII letters only change case."""
-    text = "_".join(w.translate(_LOWER) for w in words(name)) or "x"
-    return _usable(text if text.isidentifier() else "x_" + text, reserved)
-
-
-def pascal_name(name: str, reserved: Iterable[str] = ()) -> str:
-    """`irFire` -> `IrFire`, `IRFire` -> `IrFire`."""
-    text = "".join(w[0].translate(_UPPER) + w[1:].translate(_LOWER) for w in words(name)) or "X"
-    return _usable(text if text.isidentifier() else "X" + text, reserved)
-
-
-def _usable(text: str, reserved: Iterable[str]) -> str:
-    # Python reads `ﬁ` as `fi` and `e` with a combining acute as `\xe9`: compare what it reads.
-    text = unicodedata.normalize("NFKC", text)
-    taken = set(reserved)
-    while keyword.iskeyword(text) or text in taken:
-        text += "_"
-    return text
-
-
-# -- what each device becomes ---------------------------------------------------------------------
-
-_PY_TYPES = {
-    Kind.BOOL: "bool",
-    Kind.INTEGER: "int",
-    Kind.FLOAT: "float",
-    Kind.STRING: "str",
-    Kind.BYTES: "bytes",
-}
-
-
-@dataclass(frozen=True)
-class _FieldName:
-    field: Field
-    #: Its NamedTuple field and keyword argument.
-    ident: str
-
-    @property
-    def annotation(self) -> str:
-        item = _PY_TYPES[self.field.type.base.kind]
-        return f"tuple[{item}, ...]" if self.field.type.is_array else item
-
-    @property
-    def converter(self) -> str:
-        item = _PY_TYPES[self.field.type.base.kind]
-        return f"_as_{item}_tuple" if self.field.type.is_array else f"_as_{item}"
-
-
-@dataclass(frozen=True)
-class _DeviceNames:
-    device: Device
-    #: Its attribute in the model's class and its module's.
-    attr: str
-    #: Its class.
-    cls: str
-    #: The class of its values, and the function that makes one from a mapping (a monitor's are
-    #: its effector's); None for a module.
-    values: str | None
-    reader: str | None
-    fields: tuple[_FieldName, ...]
-
-
-@dataclass(frozen=True)
-class _Names:
-    model_cls: str
-    #: What the module's docstring calls the model's object.
-    model_var: str
-    #: By device name, in model order.
-    by_name: dict[str, _DeviceNames]
-
-    @property
-    def devices(self) -> Iterable[_DeviceNames]:
-        return self.by_name.values()
-
-    def of(self, name: str) -> _DeviceNames:
-        return self.by_name[name]
-
-
-def _clash(what: str, first: str, second: str, ident: str) -> NameClash:
-    return NameClash(
-        f"{what} {first!r} and {second!r} both become the Python name {ident!r}; rename one"
-    )
-
-
-def _name_fields(device: Device) -> tuple[_FieldName, ...]:
-    seen: dict[str, str] = {}
-    names = []
-    for field in device.fields:
-        ident = snake_name(field.name, _FIELD_RESERVED)
-        if ident in seen:
-            raise _clash(f"fields of {device.name!r}:", seen[ident], field.name, ident)
-        seen[ident] = field.name
-        names.append(_FieldName(field, ident))
-    return tuple(names)
-
-
-def _class_names(devices: Sequence[Device]) -> list[str]:
-    """`leftWheel` -> `LeftWheelEffector`; a name already ending in its kind keeps one
-    (`leftWheelMonitor` -> `LeftWheelMonitor`) unless another device's class has that name."""
-    full, short = [], []
-    for device in devices:
-        suffix = _KIND_SUFFIX[device.kind]
-        pascal = pascal_name(device.name)
-        full.append(pascal + suffix)
-        ends = pascal.endswith(suffix) and pascal != suffix
-        short.append(pascal if ends else pascal + suffix)
-    chosen = []
-    for index, name in enumerate(short):
-        others = {*full[:index], *full[index + 1 :], *short[:index], *short[index + 1 :]}
-        chosen.append(full[index] if name in others else name)
-    return chosen
-
-
-def _names(model: RobotModel) -> _Names:
-    attrs: dict[str, str] = {}
-    top: dict[str, str] = {}
-    classes = _class_names(model.devices)
-    named: list[_DeviceNames] = []
-    for device, cls in zip(model.devices, classes, strict=True):
-        attr = snake_name(device.name, _DEVICE_RESERVED)
-        if attr in attrs:
-            raise _clash("devices", attrs[attr], device.name, attr)
-        attrs[attr] = device.name
-        own = [cls]
-        values = reader = None
-        if device.kind is DeviceKind.MONITOR:
-            effector = next(d for d in named if d.device.name == device.of)  # before it (D-RSP-4)
-            values, reader = effector.values, effector.reader
-        elif device.kind is not DeviceKind.MODULE:
-            values = pascal_name(device.name) + "Values"
-            reader = f"_{attr}_values"
-            own.append(values)
-        for ident in own:
-            if ident in top:
-                raise _clash("devices", top[ident], device.name, ident)
-            top[ident] = device.name
-        named.append(_DeviceNames(device, attr, cls, values, reader, _name_fields(device)))
-    short = _first_words(model.name)
-    model_cls = pascal_name(short, {*_TOP_RESERVED, *top})
-    return _Names(model_cls, snake_name(short), {d.device.name: d for d in named})
-
-
-def _first_words(text: str, limit: int = 40) -> str:
-    """The first words of the model's name, which is free text (`CUBO`, `Every kind`), as many
-    as make at most `limit` characters (and one at least): its class's name need not be a
-    sentence."""
-    kept: list[str] = []
-    for word in words(text):
-        if kept and sum(map(len, kept)) + len(word) > limit:
-            break
-        kept.append(word)
-    return " ".join(kept)
-
 
 # -- the module -----------------------------------------------------------------------------------
 
@@ -339,7 +118,7 @@ class _Module:
     def __init__(self, model: RobotModel, source: str) -> None:
         self.model = model
         self.source = source
-        self.names = _names(model)
+        self.names = model_names(model)
         self.out = Writer()
         self.helpers = self._helpers_used()
         #: Effector -> its monitors.
@@ -419,10 +198,10 @@ class _Module:
         names = self.names
         var = names.model_var
 
-        def first(*kinds: DeviceKind) -> _DeviceNames | None:
+        def first(*kinds: DeviceKind) -> DeviceNames | None:
             return next((d for d in names.devices if d.device.kind in kinds), None)
 
-        def arguments(device: _DeviceNames) -> str:
+        def arguments(device: DeviceNames) -> str:
             return ", ".join(f"{f.ident}={_example(f.field)}" for f in device.fields)
 
         lines = [f"{var} = {names.model_cls}(access)"]
@@ -488,7 +267,7 @@ class _Module:
 
     # -- per device
 
-    def _values(self, names: _DeviceNames) -> None:
+    def _values(self, names: DeviceNames) -> None:
         out = self.out
         device = names.device
         out.line(0, f"class {names.values}(NamedTuple):")
@@ -504,7 +283,7 @@ class _Module:
             out.line(4, f"{field.ident}: {field.annotation}")
             out.doc(4, _field_doc(field.field))
 
-    def _reader(self, names: _DeviceNames) -> None:
+    def _reader(self, names: DeviceNames) -> None:
         assert names.values is not None
         assert names.reader is not None
         out = self.out
@@ -520,7 +299,7 @@ class _Module:
         )
         out.stmt(4, "return ", Call(f"{names.values}(", items, ")"), parens=True)
 
-    def _device(self, names: _DeviceNames) -> None:
+    def _device(self, names: DeviceNames) -> None:
         out = self.out
         device = names.device
         out.line(0, f"class {names.cls}:")
@@ -540,7 +319,7 @@ class _Module:
             out.blank()
             method(self, names)
 
-    def _device_doc(self, names: _DeviceNames) -> str:
+    def _device_doc(self, names: DeviceNames) -> str:
         device = names.device
         where = f", in module {escape(device.module)}" if device.module else ""
         head = (
@@ -565,23 +344,23 @@ class _Module:
     def _signature(self, name: str, *params: str, returns: str) -> None:
         self.out.stmt(4, "", call(f"def {name}(", "self", *params, close=f") -> {returns}"), ":")
 
-    def _keywords(self, names: _DeviceNames) -> list[str]:
+    def _keywords(self, names: DeviceNames) -> list[str]:
         return ["*", *(f"{f.ident}: {f.annotation}" for f in names.fields)] if names.fields else []
 
-    def _arguments(self, names: _DeviceNames) -> Call:
+    def _arguments(self, names: DeviceNames) -> Call:
         return Call(
             "{",
             tuple((f"{string_literal(f.field.name)}: ", f.ident) for f in names.fields),
             "}",
         )
 
-    def _field_lines(self, names: _DeviceNames) -> list[str]:
+    def _field_lines(self, names: DeviceNames) -> list[str]:
         lines: list[str] = []
         for f in names.fields:
             lines.extend(wrap(f"{f.ident}: {_field_doc(f.field)}", "", "    ", LINE_LENGTH - 8))
         return lines
 
-    def _write(self, names: _DeviceNames) -> None:
+    def _write(self, names: DeviceNames) -> None:
         self._signature("write", *self._keywords(names), returns="None")
         self.out.doc(
             8,
@@ -591,7 +370,7 @@ class _Module:
         )
         self.out.stmt(8, "", call("self._access.write(", "self.NAME", self._arguments(names)))
 
-    def _issue(self, names: _DeviceNames) -> None:
+    def _issue(self, names: DeviceNames) -> None:
         self._signature("issue", *self._keywords(names), returns="int")
         memory = names.device.kind is DeviceKind.MEMORY_COMMAND
         how = (
@@ -612,7 +391,7 @@ class _Module:
             parens=True,
         )
 
-    def _read_written(self, names: _DeviceNames) -> None:
+    def _read_written(self, names: DeviceNames) -> None:
         assert names.reader is not None
         out = self.out
         self._signature("read", returns=str(names.values))
@@ -622,7 +401,7 @@ class _Module:
         out.line(12, 'raise LookupError(f"{self.NAME}: nothing written yet")')
         out.stmt(8, "return ", call(f"{names.reader}(", "values"), parens=True)
 
-    def _read_next(self, names: _DeviceNames) -> None:
+    def _read_next(self, names: DeviceNames) -> None:
         assert names.reader is not None
         occurrence = names.device.kind.occurrence
         self._signature("read", "timeout: float | None = None", returns=str(names.values))
@@ -639,7 +418,7 @@ class _Module:
             parens=True,
         )
 
-    def _latest(self, names: _DeviceNames) -> None:
+    def _latest(self, names: DeviceNames) -> None:
         assert names.reader is not None
         out = self.out
         self._signature("latest", returns=f"{names.values} | None")
@@ -649,7 +428,7 @@ class _Module:
         out.line(12, "return None")
         out.stmt(8, "return ", call(f"{names.reader}(", "values"), parens=True)
 
-    def _listen(self, names: _DeviceNames) -> None:
+    def _listen(self, names: DeviceNames) -> None:
         assert names.reader is not None
         what = "occurrence" if names.device.kind.occurrence else "new value"
         callback = call("callback: Callable[", f"[{names.values}]", "None", close="]")
@@ -670,7 +449,7 @@ class _Module:
         )
         self.out.stmt(8, "return ", lambda_, parens=True)
 
-    def _set_active(self, names: _DeviceNames) -> None:
+    def _set_active(self, names: DeviceNames) -> None:
         self._signature("set_active", "active: bool", returns="None")
         self.out.doc(8, _ACTIVE_DOCS[names.device.kind])
         self.out.line(8, "self._access.set_active(self.NAME, active)")

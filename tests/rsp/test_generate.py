@@ -23,7 +23,8 @@ from mypy import api as mypy_api
 from support.rsp_models import CUBO, EVERY_KIND, ROOT
 
 from rcmlconf.rsp.api import DeviceAccess, Values
-from rcmlconf.rsp.generate import NameClash, generate_module, pascal_name, snake_name
+from rcmlconf.rsp.generate import generate_module
+from rcmlconf.rsp.generate_names import NameClash, pascal_name, snake_name
 from rcmlconf.rsp.model import DeviceKind, RobotModel
 from rcmlconf.validate.validator import load_robot_model
 

@@ -9,7 +9,8 @@ import click
 
 from rcmlconf.cli.console import Output
 from rcmlconf.cli.models import load_or_exit
-from rcmlconf.rsp.generate import NameClash, generate_module
+from rcmlconf.rsp.generate import generate_module
+from rcmlconf.rsp.generate_names import NameClash
 from rcmlconf.validate.validator import load_robot_model
 from rcmlconf.wording import plural
 
