@@ -1,10 +1,10 @@
-"""What a robot case waits for that the robot must send (an ACK, an UPLINK that took a DOWNLINK:
-`rsp_exchanges.came`; the UPLINKs of rsp/value's range cases) is judged as D-RSP-26 judges what
-must come by a bound, on the embedded reference in this process. A robot stalled, its datagrams
-held back past the case's window, while the harness's loop was held as long (a robot short of CPU
-beside the harness, as in CI): the case is inconclusive, where it used to fail. Stalled as long
-with the loop free (a robot in another process, late), or never sending it: the case fails,
-naming the requirement."""
+"""What a robot case waits for that the robot must send (an ACK, an UPLINK that took a DOWNLINK,
+the answer to a HELLO, a monitor reporting the value written: `awaited.must_come`; the UPLINKs of
+rsp/value's range cases) is judged as D-RSP-26 judges what must come by a bound, on the embedded
+reference in this process. A robot stalled, its datagrams held back past the case's window, while
+the harness's loop was held as long (a robot short of CPU beside the harness, as in CI): the case
+is inconclusive, where it used to fail. Stalled as long with the loop free (a robot in another
+process, late), or never sending it: the case fails, naming the requirement."""
 
 from __future__ import annotations
 
@@ -45,6 +45,10 @@ def _took(sequence: int) -> Pick:
     return lambda header: header.type is PacketType.UPLINK and header.last_received >= sequence
 
 
+def _welcome(header: Header) -> bool:
+    return header.type is PacketType.WELCOME
+
+
 def _wait(case: str) -> float:
     """The probe's wait in `case` (`Context.wait`): the window of most of what it waits for."""
     return all_cases()[case].timeout / 3
@@ -56,6 +60,19 @@ CASES = [
     ("rsp/value/over-size", _first_ack, _wait("rsp/value/over-size"), "R-RSP-18"),
     ("rsp/header/outside-window", _first_ack, _wait("rsp/header/outside-window"), "R-RSP-26"),
     ("rsp/header/last-received", _took(3), QUIET, "R-RSP-15"),
+    # rsp_buffer.take
+    ("rsp/reliable/command-reacked", _first_ack, _wait("rsp/reliable/command-reacked"), "R-RSP-26"),
+    # the endpoint's commands acknowledged (rsp_reliable._acknowledged)
+    (
+        "rsp/reliable/commands-under-loss",
+        _first_ack,
+        _wait("rsp/reliable/commands-under-loss"),
+        "R-RSP-26",
+    ),
+    # rsp_raw.RawSession.expect_welcome
+    ("rsp/session/welcome", _welcome, _wait("rsp/session/welcome"), "R-RSP-20"),
+    # rsp_driven.Driven.shown: every UPLINK from the first DOWNLINK's, the effector's value in it
+    ("rsp/payload/effector-applied", _took(1), _wait("rsp/payload/effector-applied"), "R-RSP-34"),
 ]
 IDS = [case for case, *_ in CASES]
 

@@ -15,8 +15,8 @@ from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.held import margin, seen_by
 from rcmlconf.conformance.probes.rsp_buffer import durable, keyframe, not_held, take
 from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, sequence_of
-from rcmlconf.conformance.probes.rsp_devices import first, flags, occurrence, reported
-from rcmlconf.conformance.probes.rsp_exchanges import raw_session, taken
+from rcmlconf.conformance.probes.rsp_devices import first, flags, reported
+from rcmlconf.conformance.probes.rsp_exchanges import late_acked, raw_session, taken
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
 from rcmlconf.conformance.probes.rsp_raw import RawSession, hand_driven
 from rcmlconf.conformance.registry import case
@@ -71,7 +71,7 @@ async def executing_left_buffer(ctx: Context) -> None:
             " command: the robot holds others"
         )
     mark = probe.mark()
-    alone = await take(probe, raw, memory, 0)
+    alone = await take(ctx, probe, raw, memory, 0)
     sent_at, sent = probe.sent[-1]
     due = sent_at + START_PERIODS * period
     found = await probe.next(
@@ -104,7 +104,7 @@ async def _one_waiting(ctx: Context, probe: RspProbe, raw: RawSession, horizon: 
     memory = first(probe.model, DeviceKind.MEMORY_COMMAND)
     buffers = probe.model.command_buffers
     mark = probe.mark()
-    behind = await take(probe, raw, memory, 1)
+    behind = await take(ctx, probe, raw, memory, 1)
     sequence = sequence_of(raw.last)
 
     def within(d: Datagram) -> bool:
@@ -142,11 +142,11 @@ async def late_clear_buffer_ignored(ctx: Context) -> None:
     model = probe.model
     memory = first(model, DeviceKind.MEMORY_COMMAND)
     raw.standing = flags(model, reported(model, 1)[0])  # an UPLINK every T
-    await take(probe, raw, memory, 0)
+    await take(ctx, probe, raw, memory, 0)
     await probe.listen(START_PERIODS * raw.period)  # #0 has left the buffer (R-RSP-31)
     ident = 1
     while ident <= WAITING and probe.received[-1].header.buffer > 0:
-        await take(probe, raw, memory, ident)
+        await take(ctx, probe, raw, memory, ident)
         ident += 1
     raw.skip(5)  # numbers left unused: the late packet's is one never seen (D-RSP-15)
     before = await taken(probe, raw)
@@ -157,18 +157,19 @@ async def late_clear_buffer_ignored(ctx: Context) -> None:
     # taken (D-RSP-16), whose ACK says the robot read the packet (D-RSP-15: a late packet's
     # occurrences are handled) and gives its free buffers then.
     repeated = ident - 1
-
-    def late() -> None:
-        raw.rewind(top - 3)
-        raw.downlink([occurrence(memory, repeated, keyframe(memory))], buffer=CLEAR_BUFFER)
-        raw.rewind(top + 1)
-
     mark = probe.mark()
-    ack = await probe.answer_to(
-        late, PacketType.ACK, where=lambda d: repeated in d.acks(memory.position)
+    ack = await late_acked(
+        ctx,
+        probe,
+        raw,
+        memory,
+        repeated,
+        top - 3,
+        resume=top + 1,
+        expected=f"ACK of {memory.name} #{repeated} in a late DOWNLINK with Clear Buffer",
+        values=keyframe(memory),
+        buffer=CLEAR_BUFFER,
     )
-    if ack is None:
-        raise Failed("R-RSP-26", f"ACK of {memory.name} #{repeated} in a late DOWNLINK", "none")
     await probe.listen(WATCH * raw.period)
     counts = [d.header.buffer for d in probe.packets(_FROM_ROBOT, after=mark)]
     cleared = await taken(probe, raw, buffer=CLEAR_BUFFER)

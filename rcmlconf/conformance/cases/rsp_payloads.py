@@ -5,6 +5,7 @@ R-RSP-26, R-RSP-34). The harness plays the local system."""
 from __future__ import annotations
 
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.awaited import came
 from rcmlconf.conformance.probes.rsp_datagram import Datagram, sequence_of
 from rcmlconf.conformance.probes.rsp_devices import (
     close_to,
@@ -18,7 +19,6 @@ from rcmlconf.conformance.probes.rsp_devices import (
 )
 from rcmlconf.conformance.probes.rsp_driven import drive
 from rcmlconf.conformance.probes.rsp_exchanges import (
-    came,
     dropped_then_taken,
     fresh,
     late_acked,
@@ -88,11 +88,7 @@ async def every_state(ctx: Context) -> None:
 )
 async def effector_applied(ctx: Context) -> None:
     driven = await drive(ctx)
-    ctx.expect(
-        await driven.reached(),
-        f"{driven.monitor.name} reporting {driven.wanted}",
-        driven.latest(),
-    )
+    await driven.shown(ctx, "R-RSP-34")
 
 
 @case(

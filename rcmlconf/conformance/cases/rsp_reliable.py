@@ -11,6 +11,7 @@ import statistics
 from collections.abc import Awaitable, Callable
 
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.awaited import came, must_come
 from rcmlconf.conformance.probes.rsp_buffer import BUSY_MS, keyframe, not_held, take
 from rcmlconf.conformance.probes.rsp_datagram import (
     ENCRYPTION_AT,
@@ -24,7 +25,6 @@ from rcmlconf.conformance.probes.rsp_exchanges import (
     NEXT_PERIOD,
     acknowledging,
     another_welcomed,
-    came,
     dropped_then_taken,
     fresh,
     must_ack,
@@ -35,10 +35,10 @@ from rcmlconf.conformance.probes.rsp_exchanges import (
 )
 from rcmlconf.conformance.probes.rsp_forged import flip, hello_packet, patch
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
-from rcmlconf.conformance.probes.rsp_raw import RawSession, hand_driven
+from rcmlconf.conformance.probes.rsp_raw import BEFORE_REPEAT, RawSession, hand_driven
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.roles import Role
-from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
+from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import (
     CLEAR_BUFFER,
     Encryption,
@@ -62,7 +62,7 @@ async def _busy(ctx: Context) -> tuple[RspProbe, RawSession, Device, int]:
     probe, raw = await raw_session(ctx)
     memory = first(probe.model, DeviceKind.MEMORY_COMMAND)
     raw.standing = flags(probe.model, reported(probe.model, 1)[0])  # an UPLINK every T
-    taken_at = (await take(probe, raw, memory, 0)).header.buffer
+    taken_at = (await take(ctx, probe, raw, memory, 0)).header.buffer
     # #0 leaves the buffer when the robot starts to execute it, at a control tick of its own
     # (D-RSP-19): wait for an UPLINK that says so, not a fixed time a loaded machine overruns.
     await probe.next(
@@ -106,7 +106,7 @@ async def command_acked(ctx: Context) -> None:
     acks = []
     delays = []
     for ident in range(7):
-        ack = await take(probe, raw, command, ident)
+        ack = await take(ctx, probe, raw, command, ident)
         _acks_only(ctx, probe.model, ack, command, ident)
         acks.append(ack)
         sent_at, sent = probe.sent[-1]
@@ -146,7 +146,7 @@ async def command_reacked(ctx: Context) -> None:
     probe, raw = await raw_session(ctx)
     command = first(probe.model, DeviceKind.COMMAND)
     for ident in (0, 0, 0, 1, 0):
-        await take(probe, raw, command, ident)
+        await take(ctx, probe, raw, command, ident)
 
 
 @case(
@@ -158,7 +158,7 @@ async def command_reacked(ctx: Context) -> None:
 async def memory_command_acked(ctx: Context) -> None:
     probe, raw = await raw_session(ctx)
     memory = first(probe.model, DeviceKind.MEMORY_COMMAND)
-    ack = await take(probe, raw, memory, 0)
+    ack = await take(ctx, probe, raw, memory, 0)
     _acks_only(ctx, probe.model, ack, memory, 0)
 
 
@@ -194,10 +194,10 @@ async def two_reliable_at_once(ctx: Context) -> None:
 )
 async def memory_command_once(ctx: Context) -> None:
     probe, raw, memory, free = await _busy(ctx)
-    first_take = (await take(probe, raw, memory, 1)).header.buffer
+    first_take = (await take(ctx, probe, raw, memory, 1)).header.buffer
     if first_take >= free:
         raise not_held(probe, memory, f"#1 taken, free {free}, then {first_take}")
-    again = (await take(probe, raw, memory, 1)).header.buffer
+    again = (await take(ctx, probe, raw, memory, 1)).header.buffer
     ctx.expect(
         again == first_take,
         f"{first_take} free buffers still ({memory.name} #1 taken once)",
@@ -209,7 +209,7 @@ async def memory_command_once(ctx: Context) -> None:
     bits = 8 * probe.model.id_length
     behind = (1 << bits) // 4
     old = (1 - behind) % (1 << bits)
-    stale = (await take(probe, raw, memory, old)).header.buffer
+    stale = (await take(ctx, probe, raw, memory, old)).header.buffer
     ctx.expect(
         stale == first_take,
         f"{first_take} free buffers still ({memory.name} #{old}, {behind} behind #1 on {bits}"
@@ -217,13 +217,13 @@ async def memory_command_once(ctx: Context) -> None:
         f"{stale} free",
         "R-RSP-25",
     )
-    then = (await take(probe, raw, memory, 2)).header.buffer
+    then = (await take(ctx, probe, raw, memory, 2)).header.buffer
     ctx.expect(then == first_take - 1, f"{first_take - 1} free after #2", f"{then}", "R-RSP-25")
     if then == 0:
         return  # no buffer left for the edge below
     # D-RSP-16's edge: exactly half the ID space ahead is new (RFC 1982 leaves it undefined).
     edge = (2 + (1 << bits) // 2) % (1 << bits)
-    past = (await take(probe, raw, memory, edge)).header.buffer
+    past = (await take(ctx, probe, raw, memory, edge)).header.buffer
     ctx.expect(
         past == then - 1,
         f"{then - 1} free after #{edge}: half the ID space ahead of #2 is new (D-RSP-16), taken",
@@ -297,7 +297,7 @@ async def full_buffer(ctx: Context) -> None:
     while left > 0:
         if ident > probe.model.command_buffers + 1:
             raise Inconclusive(f"{ident} memory commands and still {left} free buffers")
-        now = (await take(probe, raw, memory, ident)).header.buffer
+        now = (await take(ctx, probe, raw, memory, ident)).header.buffer
         if now >= left:
             raise not_held(probe, memory, f"#{ident} taken, still {now} free")
         left, ident = now, ident + 1
@@ -313,7 +313,7 @@ async def full_buffer(ctx: Context) -> None:
         f"{cleared}",
         "R-RSP-33",
     )
-    await take(probe, raw, memory, ident)
+    await take(ctx, probe, raw, memory, ident)
 
 
 @case(
@@ -326,10 +326,10 @@ async def clear_buffer(ctx: Context) -> None:
     probe, raw, memory, _ = await _busy(ctx)
     empty = await _free(probe, raw, CLEAR_BUFFER)
     for ident in (1, 2, 3):
-        held = (await take(probe, raw, memory, ident)).header.buffer
+        held = (await take(ctx, probe, raw, memory, ident)).header.buffer
     if held != empty - 3:
         raise not_held(probe, memory, f"three taken, {empty} free, then {held}")
-    ack = await take(probe, raw, memory, 4, buffer=CLEAR_BUFFER)
+    ack = await take(ctx, probe, raw, memory, 4, buffer=CLEAR_BUFFER)
     ctx.expect(
         ack.header.buffer == empty - 1,
         f"{empty - 1} free in the ACK: the three dropped, then #4 taken",
@@ -397,6 +397,9 @@ def _full(probe: RspProbe) -> str:
 
 
 async def _acknowledged(ctx: Context, probe: RspProbe, found: Device, ids: list[int]) -> None:
+    """The endpoint's commands or memory commands `ids` of `found`, each acknowledged (R-RSP-26):
+    a command, carried in every DOWNLINK until then (R-RSP-27), must be (`must_come`); a memory
+    command under loss is Inconclusive without its ACK (below)."""
     lossy = found.kind is DeviceKind.MEMORY_COMMAND and not ctx.impairment.is_none
     # Under loss, room for six repeats of a memory command (0.2, 0.4, 0.8, 1.6, 2, 2 s apart,
     # D-RSP-17): at 15 % loss each way a command or its ACK is lost 28 % of the time and all
@@ -404,29 +407,32 @@ async def _acknowledged(ctx: Context, probe: RspProbe, found: Device, ids: list[
     # about once in 1,600 (at 20 % loss and five tries it was about one run in twenty).
     most = 0.6 * ctx.case.timeout * ctx.scale
     for ident in ids:
-        # Not past the case's own timeout (a fail), and room left to finish.
-        wait = max(min(most, ctx.left - FINISH * ctx.scale), 0.0) if lossy else None
 
         def acknowledges(event: events.Event, ident: int = ident) -> bool:
             return isinstance(event, events.Acknowledged) and (
                 event.device == found.name and event.id == ident
             )
 
-        if await probe.event(acknowledges, wait=wait) is None:
-            if lossy:
-                # A memory command is repeated only after each retransmission timeout, which
-                # doubles (D-RSP-17): within the wait a few repeats go, and under loss every one
-                # of them or of their ACKs can be lost (rarely: see above).
-                # The case is about taking each once; rsp/reliable/memory-command-acked checks
-                # the ACK on a clean path.
-                raise Inconclusive(
-                    f"no ACK of {found.name} #{ident} within {wait:.2g} s: the impairment"
-                    f" ({ctx.impairment}) may have lost every repeat{_full(probe)}"
-                )
-            raise Failed(
-                "R-RSP-26",
-                f"ACK of {found.name} #{ident} (sent again after each timeout)",
-                f"none within {probe.wait:.2g} s",
+        def look(
+            seconds: float, where: Callable[[events.Event], bool] = acknowledges
+        ) -> Awaitable[events.Event | None]:
+            return probe.event(where, wait=seconds)
+
+        if not lossy:
+            ack = f"ACK of {found.name} #{ident} (in each DOWNLINK until then, R-RSP-27), {AT_ONCE}"
+            await must_come(ctx, probe, look, probe.wait, ack, "R-RSP-26")
+            continue
+        # Not past the case's own timeout (a fail), and room left to finish.
+        wait = max(min(most, ctx.left - FINISH * ctx.scale), 0.0)
+        if await look(wait) is None:
+            # A memory command is repeated only after each retransmission timeout, which
+            # doubles (D-RSP-17): within the wait a few repeats go, and under loss every one
+            # of them or of their ACKs can be lost (rarely: see above).
+            # The case is about taking each once; rsp/reliable/memory-command-acked checks
+            # the ACK on a clean path.
+            raise Inconclusive(
+                f"no ACK of {found.name} #{ident} within {wait:.2g} s: the impairment"
+                f" ({ctx.impairment}) may have lost every repeat{_full(probe)}"
             )
 
 
@@ -484,7 +490,7 @@ async def _sealed(ctx: Context, encryption: Encryption) -> tuple[RspProbe, RawSe
     """A sealed session by hand; its WELCOME's MAC checked (R-RSP-38)."""
     probe = await open_probe(ctx)
     raw = hand_driven(probe, encryption)
-    answer = await raw.expect_welcome("R-RSP-37", f"WELCOME ({encryption.name} declared)")
+    answer = await raw.expect_welcome(ctx, "R-RSP-37", f"WELCOME ({encryption.name} declared)")
     assert probe.psk is not None
     data = answer.data
     ctx.expect(
@@ -590,11 +596,13 @@ async def wrong_key(ctx: Context) -> None:
     probe = await open_probe(ctx)
     raw = hand_driven(probe, Encryption.AES_256_GCM)
     key = os.urandom(32)
-    answer = await probe.expect_answer_to(
-        lambda: raw.hello(psk=key),
+    answer = await came(
+        ctx,
+        probe,
         (PacketType.WELCOME, PacketType.REFUSED),
+        f"REFUSED, {BEFORE_REPEAT}",
         "R-RSP-38",
-        expected="REFUSED",
+        send=lambda: raw.hello(psk=key),
     )
     body = answer.body
     ctx.expect(

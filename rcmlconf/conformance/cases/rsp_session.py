@@ -9,6 +9,7 @@ import statistics
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.ics import FEATURES
+from rcmlconf.conformance.probes.awaited import came
 from rcmlconf.conformance.probes.held import margin, seen_by
 from rcmlconf.conformance.probes.pace import gaps, ms, paced, spaced
 from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, sequence_of
@@ -16,7 +17,6 @@ from rcmlconf.conformance.probes.rsp_devices import flags, reported
 from rcmlconf.conformance.probes.rsp_exchanges import (
     NEXT_PERIOD,
     another_welcomed,
-    came,
     fresh,
     hello_from_another,
     must_take,
@@ -26,7 +26,7 @@ from rcmlconf.conformance.probes.rsp_exchanges import (
 )
 from rcmlconf.conformance.probes.rsp_forged import hello_packet
 from rcmlconf.conformance.probes.rsp_probe import open_probe
-from rcmlconf.conformance.probes.rsp_raw import hand_driven
+from rcmlconf.conformance.probes.rsp_raw import BEFORE_REPEAT, hand_driven
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.rsp_numbers import (
@@ -110,7 +110,7 @@ async def welcome(ctx: Context) -> None:
     probe = await open_probe(ctx)
     model = probe.model
     raw = hand_driven(probe)
-    answer = await raw.expect_welcome("R-RSP-20")
+    answer = await raw.expect_welcome(ctx, "R-RSP-20")
     header, body = answer.header, answer.body
     assert isinstance(body, Welcome)
     ctx.expect(header.session_id != 0, "a session ID that is not 0", "0", "R-RSP-20")
@@ -202,8 +202,13 @@ async def _unknown_model_refused(ctx: Context, encryption: Encryption) -> None:
     period = round(probe.model.period * 1000)
     for other in _other_models(probe.model.model_id):
         hello = hello_packet(other, encryption, os.urandom(NONCE_SIZE), period, psk=probe.psk)
-        answer = await probe.expect_answer_to(
-            functools.partial(probe.send, hello), _ANSWERS, "R-RSP-21", expected="REFUSED"
+        answer = await came(
+            ctx,
+            probe,
+            _ANSWERS,
+            f"REFUSED, {BEFORE_REPEAT}",
+            "R-RSP-21",
+            send=functools.partial(probe.send, hello),
         )
         _refused(ctx, answer, RefusedReason.UNKNOWN_MODEL, "R-RSP-21")
         _echoes(ctx, answer, other, int(encryption), "R-RSP-21")
@@ -226,11 +231,13 @@ async def encryption_not_offered(ctx: Context) -> None:
     period = round(probe.model.period * 1000)
     # Without a key to sign with: a MAC of zeros (the robot need not check it to refuse).
     unsigned = hello_packet(probe.model.model_id, encryption, os.urandom(NONCE_SIZE), period)
-    answer = await probe.expect_answer_to(
-        raw.hello if raw is not None else lambda: probe.send(unsigned),
+    answer = await came(
+        ctx,
+        probe,
         _ANSWERS,
+        f"REFUSED, {BEFORE_REPEAT}",
         "R-RSP-20",
-        expected="REFUSED",
+        send=raw.hello if raw is not None else lambda: probe.send(unsigned),
     )
     if answer.type is PacketType.WELCOME:
         if raw is not None:
@@ -309,8 +316,13 @@ async def repeated_hello(ctx: Context) -> None:
     first = raw.welcome
     assert first is not None
     assert isinstance(first.body, Welcome)
-    again = await probe.expect_answer_to(  # sequence 1, the same nonce (D-RSP-12)
-        raw.hello, PacketType.WELCOME, "R-RSP-41", expected="WELCOME again"
+    again = await came(  # sequence 1, the same nonce (D-RSP-12)
+        ctx,
+        probe,
+        PacketType.WELCOME,
+        f"WELCOME again, {BEFORE_REPEAT}",
+        "R-RSP-41",
+        send=raw.hello,
     )
     assert isinstance(again.body, Welcome)
     same = (

@@ -10,9 +10,10 @@ commands at once, never fill its buffer, and leave the cases that count on it in
 
 from __future__ import annotations
 
+from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.rsp_datagram import Datagram
 from rcmlconf.conformance.probes.rsp_devices import zero_values
-from rcmlconf.conformance.probes.rsp_exchanges import acked
+from rcmlconf.conformance.probes.rsp_exchanges import must_ack
 from rcmlconf.conformance.probes.rsp_probe import RspProbe
 from rcmlconf.conformance.probes.rsp_raw import RawSession
 from rcmlconf.conformance.verdicts import CaseStop, Failed, Inconclusive
@@ -53,6 +54,7 @@ def not_held(probe: RspProbe, memory: Device, what: str) -> CaseStop:
 
 
 async def take(
+    ctx: Context,
     probe: RspProbe,
     raw: RawSession,
     found: Device,
@@ -61,9 +63,6 @@ async def take(
     buffer: int = 0,
 ) -> Datagram:
     """Send memory command or command `ident` (a memory command keeps the robot busy) and
-    return the robot's ACK of it (R-RSP-26)."""
+    return the robot's ACK of it, which must come (`must_ack`, R-RSP-26)."""
     values = keyframe(found) if found.kind is DeviceKind.MEMORY_COMMAND else None
-    ack = await acked(probe, raw, found, ident, values, buffer=buffer)
-    if ack is None:
-        raise Failed("R-RSP-26", f"ACK of {found.name} #{ident}", f"none within {probe.wait:.2g} s")
-    return ack
+    return await must_ack(ctx, probe, raw, found, ident, "R-RSP-26", values=values, buffer=buffer)

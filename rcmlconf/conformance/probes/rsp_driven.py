@@ -7,6 +7,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.awaited import must_come
 from rcmlconf.conformance.probes.rsp_devices import close_to, modules_of, monitored, visible
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
 from rcmlconf.conformance.verdicts import Inconclusive
@@ -39,6 +40,23 @@ class Driven:
     async def reached(self) -> bool:
         """Whether the monitor reports the value written within the probe's wait."""
         return await self.probe.state(self.monitor.name, self.at_wanted) is not None
+
+    async def shown(self, ctx: Context, requirement: str) -> None:
+        """The monitor reporting the value written, which must come within the probe's wait
+        (`must_come`: a robot, or a harness, short of CPU may miss it; `requirement` fails)."""
+        since = self.probe.now
+        await must_come(
+            ctx,
+            self.probe,
+            lambda wait: self.probe.state(
+                self.monitor.name, self.at_wanted, wait=wait, since=since
+            ),
+            self.probe.wait,
+            f"{self.monitor.name} reporting {self.wanted} (D-RSP-27: its effector's actual"
+            " state, as far as the body has carried out the value applied)",
+            requirement,
+            instead=lambda: f"its newest report {self.latest()}",
+        )
 
     async def settled(self) -> None:
         """The monitor reporting the value written; Inconclusive if it never does (a case about

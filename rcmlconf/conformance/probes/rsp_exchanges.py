@@ -1,21 +1,21 @@
 """Exchanges the RSP robot cases share, each something sent and the robot's answer waited for
-(bounded by the probe's wait): a session opened by hand or by the core's endpoint
-(`raw_session`, `reporting`), what must come checked once for all, a late robot told from one that
-never sends (`came`), a command acknowledged (`acked`, `must_ack`, `late_acked`), a DOWNLINK taken
-(`taken`, `must_take`, `fresh_uplink`, `requested_uplinks`), a bad packet dropped and the session
-going on (`dropped_then_taken`, `unanswered`, `going_on`, `replay_dropped`), and another local
-system's HELLO answered (`hello_from_another`, `another_welcomed`)."""
+(bounded by the probe's wait; what must come, by `awaited.came`: a late robot told from one that
+never sends): a session opened by hand or by the core's endpoint (`raw_session`, `reporting`), a
+command acknowledged (`acked`, `must_ack`, `late_acked`), a DOWNLINK taken (`taken`, `must_take`,
+`fresh_uplink`, `requested_uplinks`), a bad packet dropped and the session going on
+(`dropped_then_taken`, `unanswered`, `going_on`, `replay_dropped`), and another local system's
+HELLO answered (`hello_from_another`, `another_welcomed`)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
 
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.awaited import came
 from rcmlconf.conformance.probes.rsp_datagram import Datagram, Where, newer, sequence_of, summary
 from rcmlconf.conformance.probes.rsp_devices import first, flags, occurrence, reported
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
-from rcmlconf.conformance.probes.rsp_raw import RawSession, hand_driven
-from rcmlconf.conformance.rsp_numbers import HELLO_INTERVAL
+from rcmlconf.conformance.probes.rsp_raw import BEFORE_REPEAT, RawSession, hand_driven
 from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.rsp.codec import Encryption, Item, MapBody, PacketType
 from rcmlconf.rsp.model import Device, DeviceKind
@@ -43,63 +43,6 @@ async def reporting(
     sensor = reported(probe.model, 1)[0]
     probe.session.set_active(sensor.name, True)
     return probe, opened, sensor
-
-
-#: Seconds (times --timeout-scale) of the case's time that `came`'s second window leaves for the
-#: verdict: the check's own, not the case's timeout (a fail that says nothing of what was late).
-_SPARE = 0.1
-
-
-async def came(
-    ctx: Context,
-    probe: RspProbe,
-    kinds: PacketType | tuple[PacketType, ...],
-    expected: str,
-    requirement: str | None = None,
-    *,
-    send: Callable[[], object] | None = None,
-    after: int | None = None,
-    where: Where | None = None,
-    wait: float | None = None,
-    instead: Callable[[], str] | None = None,
-) -> Datagram:
-    """The first datagram of `kinds` for which `where` holds from `after` (by default: from now,
-    `send` sending its packet first as `answer_to` does), which must come (Failed: `requirement`,
-    `expected`; `instead` says what came in its place) within `wait` (the probe's by default).
-    That window lies well past the bound of specs/ the robot sends it by (`expected` cites it):
-    the case does not judge its timing. A robot or a harness short of CPU may still miss it, so
-    when nothing came in it, the case waits as long again to learn how late it comes: a timing
-    check (D-RSP-26: a hold of the harness's loop delays what it reads by its length at most),
-    excused as far as the holds add up to how late it came, or when it never came, to how long
-    the case waited past the window. On a machine that holds nothing, a robot that never sends
-    it fails, and so does one that sends it that late."""
-    start = probe.mark() if after is None else after
-    window = probe.wait if wait is None else wait
-    since = probe.now
-    if send is None:
-        found = await probe.next(kinds, after=start, where=where, wait=window)
-    else:
-        found = await probe.answer_to(send, kinds, where=where, wait=window)
-    if found is None:
-        due = since + window
-        again = min(window, ctx.left - _SPARE * ctx.scale)
-        late = await probe.next(kinds, after=start, where=where, wait=again)
-        seen = probe.now if late is None else late.at
-        got = (
-            f"none within {(seen - since) * 1000:.0f} ms"
-            if late is None
-            else f"none within {window * 1000:.0f} ms: it came {(seen - since) * 1000:.0f} ms after"
-        )
-        ctx.expect(
-            False,
-            expected,
-            got + (f"; {instead()}" if instead is not None else ""),
-            requirement,
-            timing=True,
-            by=seen - due,
-        )
-    assert found is not None  # expect failed the case otherwise
-    return found
 
 
 def acknowledging(found: Device, ident: int) -> Where:
@@ -145,6 +88,7 @@ async def must_ack(
     requirement: str,
     *,
     values: Mapping[str, Value] | None = None,
+    buffer: int = 0,
     expected: str = "",
 ) -> Datagram:
     """`acked`'s ACK, which must come (`came`); `expected` says why, in the failure's text."""
@@ -154,7 +98,7 @@ async def must_ack(
         PacketType.ACK,
         f"{expected or f'ACK of {found.name} #{ident}'}, {AT_ONCE}",
         requirement,
-        send=_occurring(raw, found, ident, values, 0),
+        send=_occurring(raw, found, ident, values, buffer),
         where=acknowledging(found, ident),
     )
 
@@ -309,15 +253,18 @@ async def late_acked(
     *,
     resume: int,
     expected: str,
+    values: Mapping[str, Value] | None = None,
+    buffer: int = 0,
 ) -> Datagram:
-    """Send occurrence `ident` of command `found` in a DOWNLINK numbered `sequence`, older than
-    the newest the robot has and never seen (again while the impairment spoils it), number our
-    next packet `resume`, and return the robot's ACK of it, which must come (`came`): a late
-    packet's occurrences are taken (D-RSP-15, R-RSP-26). `expected` says which packet it is."""
+    """Send occurrence `ident` of command or memory command `found` in a DOWNLINK numbered
+    `sequence` (its buffer byte `buffer`), older than the newest the robot has and never seen
+    (again while the impairment spoils it), number our next packet `resume`, and return the
+    robot's ACK of it, which must come (`came`): a late packet's occurrences are taken (D-RSP-15,
+    R-RSP-26). `expected` says which packet it is."""
 
     def late() -> None:
         raw.rewind(sequence)
-        raw.downlink([occurrence(found, ident)])
+        _occurring(raw, found, ident, values, buffer)()
         raw.rewind(resume)
 
     return await came(
@@ -365,8 +312,7 @@ async def hello_from_another(
         ctx,
         other,
         (PacketType.WELCOME, PacketType.REFUSED),
-        f"{expected or 'WELCOME or REFUSED'}, before the local system's first repeat of its"
-        f" HELLO (D-RSP-12: {HELLO_INTERVAL * 1000:g} ms)",
+        f"{expected or 'WELCOME or REFUSED'}, {BEFORE_REPEAT}",
         requirement,
         send=hand_driven(other).hello,
     )

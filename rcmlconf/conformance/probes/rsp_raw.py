@@ -8,6 +8,8 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Iterable
 
+from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.probes.awaited import came
 from rcmlconf.conformance.probes.rsp_datagram import (
     SEQUENCE_SPACE,
     SESSION_AT,
@@ -16,6 +18,7 @@ from rcmlconf.conformance.probes.rsp_datagram import (
     sequence_of,
 )
 from rcmlconf.conformance.probes.rsp_probe import RspProbe
+from rcmlconf.conformance.rsp_numbers import HELLO_INTERVAL
 from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import (
     Bye,
@@ -32,6 +35,11 @@ from rcmlconf.rsp.codec.bodies import Body
 from rcmlconf.rsp.layout import MAC_SIZE, NONCE_SIZE
 from rcmlconf.rsp.security import Direction
 from rcmlconf.rsp.session.wire import SessionWire
+
+#: What the robot's answer to a HELLO is due by, as `came`'s `expected` cites it.
+BEFORE_REPEAT = (
+    f"before the local system's first repeat of its HELLO (D-RSP-12: {HELLO_INTERVAL * 1000:g} ms)"
+)
 
 
 def hand_driven(
@@ -119,15 +127,19 @@ class RawSession:
             self.accept(answer)
         return answer
 
-    async def expect_welcome(self, requirement: str, expected: str = "WELCOME") -> Datagram:
+    async def expect_welcome(
+        self, ctx: Context, requirement: str, expected: str = "WELCOME"
+    ) -> Datagram:
         """HELLO and the robot's answer, as `open`, for a case that checks the handshake itself:
-        Failed (`requirement`, `expected`) when it refuses or does not answer, and any WELCOME
-        taken (its nonce is the case's to check)."""
-        answer = await self.probe.expect_answer_to(
-            self.hello,
+        Failed (`requirement`, `expected`) when it refuses or does not answer (`came`), and any
+        WELCOME taken (its nonce is the case's to check)."""
+        answer = await came(
+            ctx,
+            self.probe,
             (PacketType.WELCOME, PacketType.REFUSED),
+            f"{expected}, {BEFORE_REPEAT}",
             requirement,
-            expected=expected,
+            send=self.hello,
         )
         if isinstance(answer.body, Refused):
             raise Failed(requirement, expected, f"REFUSED {answer.body.reason.name}")
