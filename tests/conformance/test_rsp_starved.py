@@ -4,7 +4,9 @@ rsp/value's range cases) is judged as D-RSP-26 judges what must come by a bound,
 reference in this process. A robot stalled, its datagrams held back past the case's window, while
 the harness's loop was held as long (a robot short of CPU beside the harness, as in CI): the case
 is inconclusive, where it used to fail. Stalled as long with the loop free (a robot in another
-process, late), or never sending it: the case fails, naming the requirement."""
+process, late), or never sending it: the case fails, naming the requirement. What the robot may
+send or not (the UPLINK showing a memory command left the buffer: `awaited.may_come`) is waited
+for as much longer as the harness's loop was held."""
 
 from __future__ import annotations
 
@@ -47,6 +49,19 @@ def _took(sequence: int) -> Pick:
 
 def _welcome(header: Header) -> bool:
     return header.type is PacketType.WELCOME
+
+
+def _left_buffer() -> Pick:
+    """The first UPLINK with more free buffers than the first ACK gave: the memory command that
+    ACK took has left the buffer, its execution begun (D-RSP-19)."""
+    acked: list[int] = []
+
+    def pick(header: Header) -> bool:
+        if header.type is PacketType.ACK:
+            acked.append(header.buffer)
+        return header.type is PacketType.UPLINK and bool(acked) and header.buffer > acked[0]
+
+    return pick
 
 
 def _wait(case: str) -> float:
@@ -180,3 +195,31 @@ def test_a_robot_silent_through_values_out_of_range(
     result = _run("rsp/value/out-of-range")
     assert result.verdict is verdict, result
     assert "no UPLINK" in result.reason, result
+
+
+#: rsp_reliable._busy's case: it reads the free buffers once memory command #0 left the buffer,
+#: and finds the buffer not held (R-RSP-31) when #1 is taken without a count below that.
+BUSY = "rsp/reliable/memory-command-once"
+
+
+def test_a_robot_stalled_with_the_harness_before_its_buffer_shows_it_busy_passes(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The UPLINK that shows #0 left the buffer (D-RSP-19) is held back past the case's wait for
+    it (the quiet time) and the two periods after it, while the harness's loop was held longer:
+    the case waits for it as much longer as the holds add up to (D-RSP-26), and reads the count
+    after it, where it read the one before and failed."""
+    _stall(monkeypatch, _left_buffer(), held=2 * QUIET, then=PAST)
+    result = _run(BUSY)
+    assert result.verdict is Verdict.PASS, result
+
+
+def test_a_robot_stalled_alone_before_its_buffer_shows_it_busy_fails(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """As long a stall with the loop free: the holds excuse nothing, and the count read before #0
+    left is not held by #1."""
+    _unloaded(monkeypatch)
+    _stall(monkeypatch, _left_buffer(), held=0.0, then=QUIET + PAST)
+    result = _run(BUSY)
+    assert (result.verdict, result.requirement) == (Verdict.FAIL, "R-RSP-31"), result

@@ -11,7 +11,7 @@ import statistics
 from collections.abc import Awaitable, Callable
 
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.awaited import came, must_come
+from rcmlconf.conformance.probes.awaited import came, may_come, must_come
 from rcmlconf.conformance.probes.rsp_buffer import BUSY_MS, keyframe, not_held, take
 from rcmlconf.conformance.probes.rsp_datagram import (
     ENCRYPTION_AT,
@@ -62,11 +62,24 @@ async def _busy(ctx: Context) -> tuple[RspProbe, RawSession, Device, int]:
     probe, raw = await raw_session(ctx)
     memory = first(probe.model, DeviceKind.MEMORY_COMMAND)
     raw.standing = flags(probe.model, reported(probe.model, 1)[0])  # an UPLINK every T
+    since = probe.now
     taken_at = (await take(ctx, probe, raw, memory, 0)).header.buffer
     # #0 leaves the buffer when the robot starts to execute it, at a control tick of its own
     # (D-RSP-19): wait for an UPLINK that says so, not a fixed time a loaded machine overruns.
-    await probe.next(
-        PacketType.UPLINK, where=lambda d: d.header.buffer > taken_at, wait=probe.quiet
+    # None may come (#0 may wait behind an earlier session's memory command: nothing says a new
+    # session stops it), but one the harness's holds kept it from reading is waited for as much
+    # longer as they add up to (D-RSP-26): a count read before #0 left would find the buffer
+    # not held once it had.
+    start = probe.mark()
+    await may_come(
+        ctx,
+        probe,
+        lambda wait: probe.next(
+            PacketType.UPLINK, after=start, where=lambda d: d.header.buffer > taken_at, wait=wait
+        ),
+        since,
+        probe.quiet,
+        f"UPLINK with more than {taken_at} free buffers ({memory.name} #0 executing)",
     )
     await probe.listen(2 * raw.period)
     return probe, raw, memory, probe.received[-1].header.buffer

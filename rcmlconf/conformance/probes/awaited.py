@@ -8,6 +8,9 @@ their sum).
   excused as far as the harness's holds add up to how late it came, or, when it never came, to
   how long the case waited past the window. On a machine that holds nothing, a peer that never
   sends it fails, and so does one that sends it that late.
+- `may_come`: what the peer may send or not (the spec sets no bound for it), awaited within a
+  window and as much longer as the harness's holds add up to: what a held harness did not read
+  in its window, it reads then.
 """
 
 from __future__ import annotations
@@ -17,7 +20,9 @@ from typing import TypeVar
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.datagrams import DatagramLog
+from rcmlconf.conformance.probes.held import held
 from rcmlconf.conformance.probes.rsp_datagram import Datagram, Where
+from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.rsp.codec import PacketType
 
 T = TypeVar("T")
@@ -109,3 +114,23 @@ async def came(
         at=lambda found: found.at,
         instead=instead,
     )
+
+
+async def may_come(
+    ctx: Context, probe: DatagramLog, look: Look[T], since: float, window: float, what: str
+) -> T | None:
+    """What `look` finds within `window`, and past it for as long as the holds of the harness's
+    loop since loop time `since` (when the case asked for it) add up to, as they grow while it
+    waits; None if it did not come. Inconclusive when the case's time ran out before the holds
+    were waited out (they may have hidden `what`)."""
+    due = probe.now + window
+    found = await look(window)
+    while found is None and probe.now < due + held(ctx, since) and _room(ctx) > 0:
+        found = await look(min(due + held(ctx, since) - probe.now, _room(ctx)))
+    hold = held(ctx, since)
+    if found is None and probe.now < due + hold:
+        raise Inconclusive(
+            f"no {what} within {probe.now - since:.2f} s; but the harness's event loop was held"
+            f" {hold * 1000:.0f} ms: it may have hidden it"
+        )
+    return found
