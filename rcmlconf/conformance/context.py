@@ -303,23 +303,26 @@ class Context:
         by: float | None = None,
     ) -> None:
         """Fail the case unless `holds`. A check of `timing` read off the harness's clock that
-        fails while the harness's event loop was held LATE or longer during the case is
-        inconclusive instead: the datagrams were read late, so the gaps measured are the
-        harness's, not the target's. `by`, where the check can say it: how far (seconds of the
-        harness's clock) what was seen lies past its bound. Holds that add up to less cannot
-        have moved it that far, and the check fails however long the longest was: a target
-        that sends for half a second after it should stop is not excused by a 250 ms hold."""
+        fails while the harness's event loop was held during the case is inconclusive instead,
+        as far as the holds explain it: the datagrams were read late, so the gaps measured are
+        the harness's, not the target's. `by`, where the check can say it: how far (seconds of
+        the harness's clock) what was seen lies past its bound. The holds must add up to that
+        much (D-RSP-26, D-RCTP-33: each delays what the harness reads by its length at most,
+        several by their sum: a process short of CPU is held many times a little), and to LATE
+        at least: a target that sends for half a second after it should stop is not excused by
+        a 250 ms hold. Without `by`, one hold of LATE or longer excuses it."""
         if holds:
             return
         watch = self.loop_watch if timing else None
-        held = watch.held(self.started) if watch else 0.0
-        explained = watch is not None and (by is None or watch.total(self.started) >= by)
-        if explained and held >= LATE * self.scale:
-            wanted = " or ".join((expected,) if isinstance(expected, str) else expected)
-            raise Inconclusive(
-                f"expected {wanted}; got {actual}; but the harness's event loop was held"
-                f" {held * 1000:.0f} ms during the case: its clock cannot judge the target's timing"
-            )
+        if watch is not None:
+            held = watch.held(self.started) if by is None else watch.total(self.started)
+            if held >= max(by or 0.0, LATE * self.scale):
+                wanted = " or ".join((expected,) if isinstance(expected, str) else expected)
+                raise Inconclusive(
+                    f"expected {wanted}; got {actual}; but the harness's event loop was held"
+                    f" {held * 1000:.0f} ms during the case: its clock cannot judge the target's"
+                    " timing"
+                )
         raise Failed(self.requirement(requirement), expected, actual)
 
     def expect_status(
