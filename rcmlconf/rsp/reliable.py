@@ -10,9 +10,10 @@ between sends (R-RSP-27, R-RSP-28). Events are not acknowledged: they ride three
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 
+from rcmlconf.rsp.codec import Item
 from rcmlconf.rsp.model import Device, DeviceKind
 from rcmlconf.values import Value
 
@@ -139,6 +140,15 @@ class ReliableSender:
         if head.sends == 1:  # Karn's rule: only an occurrence sent once times the round trip
             self.timer.sample(now - head.first_sent)
         return head
+
+    def acknowledge(self, items: Iterable[Item], now: float) -> Iterator[tuple[Occurrence, float]]:
+        """An ACK's items (R-RSP-26): each occurrence one ends, with the time since it was first
+        sent (a stale ACK ends none)."""
+        for item in items:
+            assert item.id is not None  # an ACK's items name occurrences (D-RSP-14)
+            done = self.acknowledged(item.device, item.id, now)
+            if done is not None and done.first_sent is not None:
+                yield done, now - done.first_sent
 
     def in_flight(self) -> list[Occurrence]:
         """Sent and not yet acknowledged."""

@@ -269,12 +269,8 @@ class LocalEndpoint:
             self._uplink(body, header.timestamp, arrival, now)
         elif kind is PacketType.ACK:
             assert isinstance(body, MapBody)
-            for item in body.items:
-                assert item.id is not None
-                done = self._sender.acknowledged(item.device, item.id, now)
-                if done is not None and done.first_sent is not None:
-                    name = self.model.devices[item.device].name
-                    self._events.append(events.Acknowledged(name, item.id, now - done.first_sent))
+            for done, taken in self._sender.acknowledge(body.items, now):
+                self._events.append(events.Acknowledged(done.device.name, done.id, taken))
         elif kind is PacketType.BYE:
             assert isinstance(body, Bye)
             self.state = "closed"

@@ -272,12 +272,8 @@ class RobotEndpoint:
             self._downlink(session, header, body, arrival, now)
         elif kind is PacketType.ACK:
             assert isinstance(body, MapBody)
-            for item in body.items:
-                assert item.id is not None
-                done = self._memory_events.acknowledged(item.device, item.id, now)
-                if done is not None and done.first_sent is not None:
-                    name = self.model.devices[item.device].name
-                    self._events.append(events.Acknowledged(name, item.id, now - done.first_sent))
+            for done, taken in self._memory_events.acknowledge(body.items, now):
+                self._events.append(events.Acknowledged(done.device.name, done.id, taken))
         elif kind is PacketType.PERIOD:
             assert isinstance(body, Period)
             if arrival is _NEWER:
