@@ -14,6 +14,7 @@ from rcmlconf.conformance.cases.rctp_client import client_case
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.flaws import Flaw, flawed
 from rcmlconf.conformance.probes.clients import Served, case_path
+from rcmlconf.conformance.probes.held import longest_hold
 from rcmlconf.conformance.probes.played import (
     SCENARIO_TIME,
     Own,
@@ -210,7 +211,7 @@ async def bye_unanswered_closes(ctx: Context) -> None:
     # Read off the harness's clock: a loop held when the BYE came makes the wait look short, one
     # held at its end long. Only a hold as long as the bound's least slack, half a second, can
     # explain a miss (the holds `expect(timing=True)` excuses are those of tighter checks).
-    held = ctx.loop_watch.held(ctx.started) if ctx.loop_watch is not None else 0.0
+    held = longest_hold(ctx, ctx.started)
     if not within and not after.startswith("it sent") and held >= 0.5 * ctx.scale:
         raise Inconclusive(
             f"the connection {after} after {waited:.2f} s, but the harness's event loop was held"

@@ -12,7 +12,7 @@ import math
 
 from rcmlconf.conformance.cases.rsp_local import local_case, occurrence, played_model, session
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.held import margin, seen_by
+from rcmlconf.conformance.probes.held import longest_hold, margin, seen_by
 from rcmlconf.conformance.probes.local_probe import LocalProbe
 from rcmlconf.conformance.probes.local_scenario import SCENARIO_LIFETIME
 from rcmlconf.conformance.probes.pace import paced
@@ -171,7 +171,7 @@ async def kept_until_bye(ctx: Context) -> None:
     since, until = max(itertools.pairwise(marks), key=lambda gap: gap[1] - gap[0])
     # Over a 10 s watch the harness's loop is often held a little (`timing=True` would excuse
     # any failure then); a hold delays what the harness reads by its length at most.
-    held = ctx.loop_watch.held(since) if ctx.loop_watch is not None else 0.0
+    held = longest_hold(ctx, since)
     ctx.expect(
         until - since < silent + held,
         f"a packet of session {probe.session_id:#x} at least every {KEEPALIVE_PERIODS} periods"

@@ -30,6 +30,12 @@ def held(ctx: Context, since: float) -> float:
     return ctx.loop_watch.total(since) if ctx.loop_watch is not None else 0.0
 
 
+def longest_hold(ctx: Context, since: float) -> float:
+    """The longest single hold of the harness's loop (seconds) since loop time `since`: for a
+    check whose slack only one hold that long could explain (a long watch sees many short ones)."""
+    return ctx.loop_watch.held(since) if ctx.loop_watch is not None else 0.0
+
+
 def came_by(
     ctx: Context, at: float, since: float, due: float, expected: str, requirement: str | None
 ) -> None:
