@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Protocol, TypeVar
 
 from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.probes.local_probe import LocalProbe
+from rcmlconf.conformance.probes.outstanding import Outstanding
 from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.run_defaults import SESSION_WAIT
 from rcmlconf.conformance.targets import Target
@@ -73,6 +74,8 @@ class Context:
     impair: Impairment | None = None
     transcript: Transcript = field(default_factory=Transcript)
     _closers: list[Callable[[], None]] = field(default_factory=list)
+    #: The requests of the case's control connections waiting for answers (`answers_in_place`).
+    _outstanding: list[Outstanding] = field(default_factory=list)
     #: Whether the client started for the case is stopped when it closes (`client`).
     _finishing: bool = False
     #: The impairment channels of the case's probes (`watch`), for `excuse`.
@@ -207,6 +210,7 @@ class Context:
             raise NotApplicable("no RCTP server under test (--target)")
         probe = await ControlProbe.open(self.target.server, self.transcript, self.wait)
         self._closers.append(probe.close)
+        self._outstanding.append(probe.outstanding)
         return probe
 
     async def session(self) -> ControlProbe:
@@ -225,6 +229,7 @@ class Context:
             raise NotApplicable("no RCTP client under test (--role client)")
         probe = await listener.accept(self.case.id, self.transcript, self.wait)
         self._closers.append(probe.close)
+        self._outstanding.append(probe.outstanding)
         if not self._finishing:  # the client started for the case: stopped, and how it ran
             self._finishing = True
             self._closers.insert(0, lambda: self.transcript.notes(listener.finish(self.case.id)))
@@ -286,6 +291,14 @@ class Context:
     def close(self) -> None:
         while self._closers:
             self._closers.pop()()
+
+    def answers_in_place(self) -> None:
+        """Raise the first answer out of place that a control connection of the case read
+        (`Outstanding`: R-RCTP-3, R-RCTP-5, D-RCTP-10). It fails the case whatever the case
+        made of it: a case that took it for silence, or went on, was misled by it."""
+        for outstanding in self._outstanding:
+            if outstanding.failure is not None:
+                raise outstanding.failure
 
     # -- checks --------------------------------------------------------------------------------
 

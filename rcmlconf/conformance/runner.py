@@ -114,8 +114,12 @@ async def _judged(
             return _result(case, ctx, started, run, Verdict.NOT_APPLICABLE, _lacks(missing))
         try:
             await asyncio.wait_for(case.run(ctx), ctx.timeout)
+        except Exception:
+            ctx.answers_in_place()  # an answer out of place comes before what it led to
+            raise
         finally:
             ctx.close()  # first: what closing notes (a client command's end) is in the exchange
+        ctx.answers_in_place()
     except Failed as failed:
         excuse = ctx.excuse()
         return Result(

@@ -15,7 +15,7 @@ from typing import Protocol
 
 from rcmlconf.errors import ValueTextError
 from rcmlconf.rctp.fields import SessionField, parse_cseq, parse_session
-from rcmlconf.rctp.messages import METHODS, SERVER_METHODS, VERSION, Request
+from rcmlconf.rctp.messages import METHODS, SERVER_METHODS, VERSION, Message, Request
 from rcmlconf.rctp.states import (
     PUSH_STATES,
     STREAM_METHODS,
@@ -62,10 +62,11 @@ class Agreed(Protocol):
     def streams(self) -> Mapping[str, StreamState]: ...
 
 
-def request_cseq(request: Request) -> int | None:
-    """The request's `CSeq`, or None without one single valid field (R-RCTP-3, R-RCTP-11)."""
+def request_cseq(message: Message) -> int | None:
+    """The message's `CSeq` (a request's, or the one a response echoes), or None without one
+    single valid field (R-RCTP-3, R-RCTP-11)."""
     try:
-        return _cseq(request)
+        return _cseq(message)
     except ValueTextError:
         return None
 
@@ -104,8 +105,8 @@ def first_refusal(
     )
 
 
-def _cseq(request: Request) -> int:
-    texts = request.headers.get_all("CSeq")
+def _cseq(message: Message) -> int:
+    texts = message.headers.get_all("CSeq")
     if len(texts) != 1:
         raise ValueTextError("the request has no single CSeq")
     return parse_cseq(texts[0])

@@ -80,7 +80,7 @@ class ControlProxy:
                         writer.write(out)
                         await writer.drain()
         held.put_nowait(None)
-        await sender
+        await asyncio.wait({sender})  # cancelled by close(): this connection's end, not an error
         self._tasks.discard(sender)
         _close(writer)
 

@@ -7,6 +7,7 @@ import asyncio
 import contextlib
 from collections.abc import Sequence
 
+from rcmlconf.conformance.probes.outstanding import Outstanding
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Failed, HarnessError
 from rcmlconf.errors import ValueTextError
@@ -48,6 +49,8 @@ class ControlProbe:
         #: (D-RCTP-6 lets either side send requests between answers): a server's WRITE, STOP or
         #: BYE 200, as a client must (R-RCTP-24); `serving` sets how a client's are answered.
         self.own_requests: tuple[int, str] = (200, "OK")
+        #: The probe's requests waiting for their answers, which every response read is matched to.
+        self.outstanding = Outstanding()
 
     def serving(self) -> ControlProbe:
         """This probe plays the server of a client under test: the client's own requests that
@@ -72,6 +75,7 @@ class ControlProbe:
         """`data` exactly as given (one write, one TCP segment as far as the kernel lets it)."""
         self.transcript.sent(f"{self.name} {what}".rstrip(), data)
         self.transcript.packet("tcp", self.local, self.peer, data)
+        self.outstanding.sent(data)
         try:
             self._writer.write(data)
             await self._writer.drain()
@@ -162,9 +166,13 @@ class ControlProbe:
             self.transcript.packet("tcp", self.peer, self.local, data)
             self._messages.feed(data)
 
-    async def message(self, wait: float | None = None) -> Message | None:
+    async def message(
+        self, wait: float | None = None, cseq_rule: str | None = None
+    ) -> Message | None:
         """The next whole message; None if the target closed the connection first. Waiting
-        longer than `wait` (the probe's by default) is a failure of R-RCTP-5."""
+        longer than `wait` (the probe's by default) is a failure of R-RCTP-5. A response must
+        answer the oldest request waiting (`Outstanding.answered`; `cseq_rule`: the requirement
+        a case judges its CSeq under)."""
         deadline = asyncio.get_running_loop().time() + (self.wait if wait is None else wait)
         while True:
             try:
@@ -177,6 +185,8 @@ class ControlProbe:
                 ) from None
             if found is not None:
                 self._record(found)
+                if isinstance(found, Response):
+                    self.outstanding.answered(found, cseq_rule)
                 return found
             if self._eof:
                 return None
@@ -199,12 +209,14 @@ class ControlProbe:
             self.transcript.packet("tcp", self.peer, self.local, data)
             self._messages.feed(data)
 
-    async def response(self, wait: float | None = None, closed: str = "R-RCTP-5") -> Response:
-        """The next message, which must be a response: the target's own requests in between are
-        answered (`own_requests`) and skipped, as D-RCTP-6 allows them. A connection closed
-        first breaks `closed`."""
+    async def response(
+        self, wait: float | None = None, closed: str = "R-RCTP-5", cseq_rule: str | None = None
+    ) -> Response:
+        """The next message, which must be a response (to the oldest request waiting, as
+        `message` says): the target's own requests in between are answered (`own_requests`)
+        and skipped, as D-RCTP-6 allows them. A connection closed first breaks `closed`."""
         for _ in range(64):
-            found = await self.message(wait)
+            found = await self.message(wait, cseq_rule)
             if found is None:
                 raise Failed(closed, "an answer", CLOSED)
             if isinstance(found, Response):
@@ -230,17 +242,21 @@ class ControlProbe:
         try:
             found = await self.message(max(wait, 0.0))
         except Failed as failed:
-            if failed.requirement != "R-RCTP-5":
+            if failed.requirement != "R-RCTP-5" or failed is self.outstanding.failure:
                 raise
             return "silent"
         return "closed" if found is None else f"it sent {describe(found)}"
 
     async def closes(self, wait: float | None = None) -> bool:
-        """Whether the target closes the connection within `wait` (messages before are read)."""
-        with contextlib.suppress(Failed):
+        """Whether the target closes the connection within `wait` (messages before are read; an
+        answer among them out of place fails, as `message` says)."""
+        try:
             for _ in range(64):
                 if await self.message(wait) is None:
                     return True
+        except Failed as failed:
+            if failed is self.outstanding.failure:
+                raise
         return self._eof
 
     async def connect(self, target: str = "/", fields: Fields = ()) -> Response:

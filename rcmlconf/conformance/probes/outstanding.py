@@ -1,0 +1,166 @@
+"""Which request of a probe's each answer belongs to (D-RCTP-6), judged as it is read.
+
+The probe shows every byte it sends to `Outstanding.sent`, which reads them with the core's
+`MessageReader` and keeps the requests among them, oldest first. Every response the probe reads
+goes to `answered`: it answers the oldest of them, and must carry that request's CSeq
+(R-RCTP-3); the CSeq of a later one means the peer answered out of order (R-RCTP-5), and a
+response when none waits answers nothing (D-RCTP-10). A wrong answer fails the case whatever
+the case made of it: the first is kept (`failure`), and the runner gives it the last word.
+
+What the probe sent broken on purpose is judged only as far as it can be: an answer to a request
+that could not be framed, or to one not yet whole, may carry any CSeq (the harness cannot tell
+what its receiver read of it), and what was sent after is not known (D-RCTP-10); an answer to
+a request without one readable CSeq carries none, or echoes what the request had.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+from typing import NoReturn
+
+from rcmlconf.conformance.verdicts import Failed
+from rcmlconf.rctp.errors import RemoteProtocolError
+from rcmlconf.rctp.messages import Request, Response
+from rcmlconf.rctp.reader import MessageReader
+from rcmlconf.rctp.request_checks import request_cseq
+
+#: Requests kept waiting at most; past them the probe judges no more answers.
+MAX_WAITING = 1024
+#: Characters of a request's target shown in a failure.
+SHOWN_TARGET = 60
+#: Answered requests kept, to name the one a second answer repeats.
+REMEMBERED = 16
+
+
+@dataclass(frozen=True, slots=True)
+class _Sent:
+    """A request the probe sent: what it was, and the CSeq its answer must carry."""
+
+    #: `ACQUIRE /`, or `bytes that do not frame` for a request that could not be read.
+    what: str
+    #: None without one readable CSeq (R-RCTP-11), or when the request did not frame.
+    cseq: int | None = None
+    #: The request's CSeq fields as written, which an answer may echo.
+    texts: tuple[str, ...] = ()
+    framed: bool = True
+
+    @classmethod
+    def of(cls, request: Request) -> _Sent:
+        target = request.target
+        if len(target) > SHOWN_TARGET:
+            target = target[:SHOWN_TARGET] + "…"
+        texts = tuple(request.headers.get_all("CSeq"))
+        return cls(f"{request.method} {target}", request_cseq(request), texts)
+
+    def __str__(self) -> str:
+        if not self.framed:
+            return self.what
+        if self.cseq is not None:
+            return f"CSeq {self.cseq} ({self.what})"
+        return f"{self.what}, sent without one readable CSeq"
+
+
+class Outstanding:
+    """One control connection's requests from the probe still waiting for their answers."""
+
+    def __init__(self) -> None:
+        self._reader: MessageReader | None = MessageReader()
+        self._waiting: deque[_Sent] = deque()
+        self._answered: deque[_Sent] = deque(maxlen=REMEMBERED)
+        #: Whether what was sent after the requests waiting is unknown (it did not frame).
+        self._blind = False
+        #: The first answer out of place (R-RCTP-3, R-RCTP-5); no answer is judged after it.
+        self.failure: Failed | None = None
+
+    def sent(self, data: bytes) -> None:
+        """Bytes the probe sent: the requests among them wait for their answers."""
+        reader = self._reader
+        if reader is None:
+            return
+        reader.feed(data)
+        while True:
+            try:
+                message = reader.next_message()
+            except RemoteProtocolError as error:
+                # D-RCTP-10: a broken request is answered, a broken response is not; either way
+                # where the next message starts is unknown.
+                if error.answerable:
+                    self._wait(_Sent("bytes that do not frame", framed=False))
+                self._go_blind()
+                return
+            if message is None:
+                return
+            if isinstance(message, Request):
+                self._wait(_Sent.of(message))
+
+    def answered(self, response: Response, requirement: str | None = None) -> None:
+        """`response`, just read, answers the oldest request waiting, or the probe fails the
+        case: `requirement` names what a wrong CSeq breaks, when a case judges that under its
+        own (R-RCTP-3, or R-RCTP-5 for a later request's CSeq, by default)."""
+        if self.failure is not None:
+            return
+        if not self._waiting:
+            if self._blind:
+                return
+            if self._reader is not None and self._reader.buffered:
+                self._go_blind()  # the answer to a request not yet whole: to its start, say
+                return
+            self._fail(
+                requirement or "R-RCTP-3",
+                "no response: no request waits for one (D-RCTP-10)",
+                response,
+            )
+        oldest = self._waiting[0]
+        if not oldest.framed:
+            self._waiting.popleft()
+            return
+        if self._belongs(response, oldest):
+            self._waiting.popleft()
+            self._answered.append(oldest)
+            return
+        given = request_cseq(response)
+        later = given is not None and any(s.cseq == given for s in list(self._waiting)[1:])
+        self._fail(
+            requirement or ("R-RCTP-5" if later else "R-RCTP-3"),
+            f"the answer to {oldest}",
+            response,
+        )
+
+    def _wait(self, sent: _Sent) -> None:
+        if len(self._waiting) >= MAX_WAITING:
+            self._go_blind()
+            return
+        self._waiting.append(sent)
+
+    def _go_blind(self) -> None:
+        self._reader = None
+        self._blind = True
+
+    @staticmethod
+    def _belongs(response: Response, request: _Sent) -> bool:
+        """Whether `response` may answer `request` by its CSeq (R-RCTP-3, D-RCTP-10)."""
+        if request.cseq is not None:
+            return request_cseq(response) == request.cseq
+        texts = response.headers.get_all("CSeq")
+        return all(text in request.texts for text in texts)
+
+    def _fail(self, requirement: str, expected: str, response: Response) -> NoReturn:
+        self.failure = Failed(requirement, expected, self._shown(response))
+        raise self.failure
+
+    def _shown(self, response: Response) -> str:
+        """`200 OK with CSeq 1 (CONNECT /rover, answered already)`: the response, by CSeq."""
+        texts = response.headers.get_all("CSeq")
+        shown = f"{response.status} {response.reason}"
+        if not texts:
+            return f"{shown} without CSeq"
+        shown += f" with CSeq {', '.join(text[:20] for text in texts)}"
+        given = request_cseq(response)
+        later = next((s for s in list(self._waiting)[1:] if s.cseq == given), None)
+        if given is not None and later is not None:
+            return f"{shown} ({later.what}, sent after it: answered out of order)"
+        done = next((s for s in reversed(self._answered) if s.cseq == given), None)
+        if given is not None and done is not None:
+            return f"{shown} ({done.what}, answered already)"
+        return shown
