@@ -15,11 +15,15 @@ from support.server_cases import run_through
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.ics import EVERYTHING
+from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.registry import Case
 from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.runner import RunOptions, run_case
 from rcmlconf.conformance.targets import embedded_reference
+from rcmlconf.conformance.transcript import Transcript
 from rcmlconf.conformance.verdicts import Failed, Result, Verdict
+from rcmlconf.rctp.messages import Response
+from rcmlconf.rctp.reader import MessageReader
 
 BOUND = 30.0
 #: The cases run through each server, quick ones that read several answers.
@@ -107,3 +111,39 @@ def test_a_wrong_answer_fails_a_case_that_took_it_for_something_else() -> None:
     result = asyncio.run(asyncio.wait_for(scenario(), BOUND))
     assert (result.verdict, result.requirement) == (Verdict.FAIL, "R-RCTP-3"), result.reason
     assert "CSeq 2 (ACQUIRE /)" in result.reason
+
+
+def test_a_server_bye_before_any_session_is_refused_454() -> None:
+    """D-RCTP-13: in idle only CONNECT is valid. A server that sends BYE before it answers the
+    CONNECT gets 454 from the harness playing the client; once the session is open, 200."""
+    answers: list[int] = []
+
+    async def server(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        messages = MessageReader()
+        session = "Session: abcdefgh12345678;timeout=60\r\n"
+        writer.write(b"BYE * RCTP/2.0\r\nCSeq: 1\r\n\r\n")
+        while len(answers) < 2 and (data := await reader.read(65536)):
+            messages.feed(data)
+            while (message := messages.next_message()) is not None:
+                if isinstance(message, Response):
+                    answers.append(message.status)
+                    continue
+                writer.write(
+                    f"RCTP/2.0 200 OK\r\nCSeq: {message.headers.get('CSeq')}\r\n{session}\r\n"
+                    f"BYE * RCTP/2.0\r\nCSeq: 2\r\n{session}\r\n".encode()
+                    if message.method == "CONNECT"
+                    else f"RCTP/2.0 200 OK\r\nCSeq: {message.headers.get('CSeq')}\r\n\r\n".encode()
+                )
+        writer.close()
+
+    async def scenario() -> None:
+        listening = await asyncio.start_server(server, "127.0.0.1", 0)
+        address = listening.sockets[0].getsockname()[:2]
+        probe = await ControlProbe.open(address, Transcript(), 2.0)
+        assert (await probe.connect("/rover")).status == 200  # the first BYE answered first
+        assert (await probe.request("READ", "/a")).status == 200  # the second BYE first
+        probe.close()
+        listening.close()
+
+    asyncio.run(asyncio.wait_for(scenario(), BOUND))
+    assert answers == [454, 200]

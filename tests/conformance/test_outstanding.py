@@ -9,7 +9,7 @@ import pytest
 
 from rcmlconf.conformance.probes.outstanding import Outstanding
 from rcmlconf.conformance.verdicts import Failed
-from rcmlconf.rctp.messages import Headers, Response
+from rcmlconf.rctp.messages import Headers, Request, Response
 
 
 def _request(method: str, target: str, *fields: str) -> bytes:
@@ -122,3 +122,15 @@ def test_answers_of_the_probes_own_do_not_wait_for_answers() -> None:
     outstanding = _sent(b"RCTP/2.0 200 OK\r\nCSeq: 1\r\n\r\n")
     with pytest.raises(Failed, match="no request waits"):
         outstanding.answered(_answer("1"))
+
+
+def test_a_servers_request_before_the_session_is_refused_454() -> None:
+    """D-RCTP-13: in idle only CONNECT is valid, as the core's checks say, for a client too."""
+    bye = Request("BYE", "*", Headers((("CSeq", "1"),)))
+    outstanding = _sent(_request("CONNECT", "/rover", "CSeq: 1"))
+    assert outstanding.idle_refusal(bye) == (454, "Session Not Found")
+    outstanding.answered(_answer("1", status=400))
+    assert outstanding.idle_refusal(bye) == (454, "Session Not Found")
+    outstanding.sent(_request("CONNECT", "/rover", "CSeq: 2"))
+    outstanding.answered(_answer("2"))
+    assert outstanding.idle_refusal(bye) is None

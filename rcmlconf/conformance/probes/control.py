@@ -15,6 +15,7 @@ from rcmlconf.rctp.errors import RemoteProtocolError
 from rcmlconf.rctp.fields import parse_nodes
 from rcmlconf.rctp.messages import Message, Request, Response
 from rcmlconf.rctp.reader import MessageReader
+from rcmlconf.rctp.states import Role
 from rcmlconf.rctp.targets import parse_target
 
 #: R-RCTP-1: a reply the core's parser rejects without naming a rule breaks the grammar.
@@ -47,7 +48,8 @@ class ControlProbe:
         self.name = transcript.label("c")
         #: How the probe answers the peer's own requests that come while it waits for an answer
         #: (D-RCTP-6 lets either side send requests between answers): a server's WRITE, STOP or
-        #: BYE 200, as a client must (R-RCTP-24); `serving` sets how a client's are answered.
+        #: BYE 200, as a client must (R-RCTP-24), once a session is open (before, 454:
+        #: `Outstanding.idle_refusal`); `serving` sets how a client's are answered.
         self.own_requests: tuple[int, str] = (200, "OK")
         #: The probe's requests waiting for their answers, which every response read is matched to.
         self.outstanding = Outstanding()
@@ -57,6 +59,7 @@ class ControlProbe:
         come while a case waits for an answer are answered 503, as a server whose robot cannot
         be reached now (D-RCTP-15); the case's own exchange goes on."""
         self.own_requests = (503, "Service Unavailable")
+        self.outstanding.side = Role.SERVER
         return self
 
     @classmethod
@@ -213,15 +216,16 @@ class ControlProbe:
         self, wait: float | None = None, closed: str = "R-RCTP-5", cseq_rule: str | None = None
     ) -> Response:
         """The next message, which must be a response (to the oldest request waiting, as
-        `message` says): the target's own requests in between are answered (`own_requests`)
-        and skipped, as D-RCTP-6 allows them. A connection closed first breaks `closed`."""
+        `message` says): the target's own requests in between are answered (`own_requests`;
+        before a session, refused as D-RCTP-13 says) and skipped, as D-RCTP-6 allows them. A
+        connection closed first breaks `closed`."""
         for _ in range(64):
             found = await self.message(wait, cseq_rule)
             if found is None:
                 raise Failed(closed, "an answer", CLOSED)
             if isinstance(found, Response):
                 return found
-            await self.answer(found, *self.own_requests)
+            await self.answer(found, *(self.outstanding.idle_refusal(found) or self.own_requests))
         raise Failed("R-RCTP-5", "an answer", "64 requests of the target's and no answer")
 
     async def next_request(

@@ -11,19 +11,25 @@ What the probe sent broken on purpose is judged only as far as it can be: an ans
 that could not be framed, or to one not yet whole, may carry any CSeq (the harness cannot tell
 what its receiver read of it), and what was sent after is not known (D-RCTP-10); an answer to
 a request without one readable CSeq carries none, or echoes what the request had.
+
+It also knows when the connection's session opens (a CONNECT answered 200): until then a server's
+request is refused as the core's own checks say, 454 (D-RCTP-13), not answered 200.
 """
 
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import NoReturn
 
 from rcmlconf.conformance.verdicts import Failed
 from rcmlconf.rctp.errors import RemoteProtocolError
-from rcmlconf.rctp.messages import Request, Response
+from rcmlconf.rctp.fields import SessionField
+from rcmlconf.rctp.messages import REASONS, Request, Response
 from rcmlconf.rctp.reader import MessageReader
-from rcmlconf.rctp.request_checks import request_cseq
+from rcmlconf.rctp.request_checks import first_refusal, request_cseq
+from rcmlconf.rctp.states import Role, SessionState, StreamState
 
 #: Requests kept waiting at most; past them the probe judges no more answers.
 MAX_WAITING = 1024
@@ -39,6 +45,7 @@ class _Sent:
 
     #: `ACQUIRE /`, or `bytes that do not frame` for a request that could not be read.
     what: str
+    method: str = ""
     #: None without one readable CSeq (R-RCTP-11), or when the request did not frame.
     cseq: int | None = None
     #: The request's CSeq fields as written, which an answer may echo.
@@ -51,7 +58,8 @@ class _Sent:
         if len(target) > SHOWN_TARGET:
             target = target[:SHOWN_TARGET] + "…"
         texts = tuple(request.headers.get_all("CSeq"))
-        return cls(f"{request.method} {target}", request_cseq(request), texts)
+        method = request.method
+        return cls(f"{method} {target}", method, request_cseq(request), texts)
 
     def __str__(self) -> str:
         if not self.framed:
@@ -59,6 +67,18 @@ class _Sent:
         if self.cseq is not None:
             return f"CSeq {self.cseq} ({self.what})"
         return f"{self.what}, sent without one readable CSeq"
+
+
+@dataclass(frozen=True, slots=True)
+class _Idle:
+    """What a connection shares before its CONNECT is answered 200 (D-RCTP-13: idle)."""
+
+    session_state: SessionState = SessionState.IDLE
+    session: SessionField | None = None
+    streams: Mapping[str, StreamState] = field(default_factory=dict)
+
+
+_IDLE = _Idle()
 
 
 class Outstanding:
@@ -72,6 +92,10 @@ class Outstanding:
         self._blind = False
         #: The first answer out of place (R-RCTP-3, R-RCTP-5); no answer is judged after it.
         self.failure: Failed | None = None
+        #: Whether a CONNECT of this connection was answered 200 (D-RCTP-13: idle to open).
+        self.session_open = False
+        #: The side the probe plays: a client's requests are refused in idle (`idle_refusal`).
+        self.side = Role.CLIENT
 
     def sent(self, data: bytes) -> None:
         """Bytes the probe sent: the requests among them wait for their answers."""
@@ -118,6 +142,8 @@ class Outstanding:
         if self._belongs(response, oldest):
             self._waiting.popleft()
             self._answered.append(oldest)
+            if oldest.method == "CONNECT" and response.status == 200:
+                self.session_open = True
             return
         given = request_cseq(response)
         later = given is not None and any(s.cseq == given for s in list(self._waiting)[1:])
@@ -126,6 +152,18 @@ class Outstanding:
             f"the answer to {oldest}",
             response,
         )
+
+    def idle_refusal(self, request: Request) -> tuple[int, str] | None:
+        """The status and reason phrase a client whose CONNECT is not yet answered 200 refuses
+        the server's `request` with, as the core's own checks say (D-RCTP-13: in idle only
+        CONNECT is valid, anything else 454); None once the session is open, or when the probe
+        plays the server."""
+        if self.session_open or self.side is Role.SERVER:
+            return None
+        refusal = first_refusal(request, Role.CLIENT, None, _IDLE)
+        if refusal is None or refusal.status is None:
+            return None
+        return refusal.status, REASONS[refusal.status]
 
     def _wait(self, sent: _Sent) -> None:
         if len(self._waiting) >= MAX_WAITING:
