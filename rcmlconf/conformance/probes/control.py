@@ -233,7 +233,17 @@ class ControlProbe:
     ) -> Request:
         """The peer's next message, which must be a request (a client under test speaks
         first)."""
-        found = await self.message(wait)
+        try:
+            found = await self.message(wait)
+        except Failed as failed:
+            if failed.requirement != "R-RCTP-5":  # not "nothing within the wait"
+                raise
+            waited = self.wait if wait is None else wait
+            sent = self._messages.offset + self._messages.buffered
+            what = "sent no whole request" if sent else "connected and sent nothing"
+            within = f"within {waited:.3g} s"
+            reason = f"the client {what} {within} (expected a request)"
+            raise Failed(requirement, "a request", f"nothing {within}", reason) from None
         if found is None:
             raise Failed(requirement, "a request", "the connection closed")
         if not isinstance(found, Request):

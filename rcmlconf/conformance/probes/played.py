@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 
 from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.probes.played_stream import PlayedStream
-from rcmlconf.conformance.verdicts import Failed
+from rcmlconf.conformance.verdicts import Failed, Inconclusive
 from rcmlconf.errors import ProtocolError, ValueTextError
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode
 from rcmlconf.rctp.bodies import ValuesCodec
@@ -157,9 +157,14 @@ class PlayedServer:
             try:
                 found = await self.probe.message(left)
             except Failed as failed:
-                if failed.requirement == "R-RCTP-5":
-                    return None  # nothing came in time: the case judges what is missing
-                raise
+                if failed.requirement != "R-RCTP-5":
+                    raise
+                if not self.seen:  # not even CONNECT: no step of the scenario to judge
+                    raise Inconclusive(
+                        f"the client connected and sent no request within {wait:.3g} s"
+                        " (D-RCTP-31 step 2: it sends CONNECT)"
+                    ) from None
+                return None  # nothing came in time: the case judges what is missing
             if found is None or isinstance(found, Request):
                 return found
             # A response to nothing the played server asked (a case that sent a request of its
