@@ -75,6 +75,7 @@ async def client_target(external: ClientTarget, output: Output) -> AsyncIterator
         summon=command,
         stop=None if command is None else command.stop,
         on_wait=waiting,
+        owners=None if command is None else command.owners,
     )
     await listener.start(*external.listen)
     try:

@@ -1,7 +1,8 @@
 """`run --client-command 'CMD {url}'`: the implementation under test started by the harness once
 per case, as the embedded reference's client is, and stopped by its process group when the case
 ends. What it printed last and how it ended go into the case's report: a client that crashed on
-start is then one line away from its traceback, not an inconclusive with no why."""
+start is then one line away from its traceback, not an inconclusive with no why. Each run leads
+a session of its own, so `owners` tells which run opened a connection (D-RCTP-31)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,8 @@ import shlex
 import signal
 from collections import deque
 from dataclasses import dataclass, field
+
+from rcmlconf.conformance.owners import Owners
 
 #: Lines of a run's output kept for the report (its last ones), and the length of each, at most.
 TAIL_LINES = 20
@@ -75,6 +78,8 @@ class Command:
         command_words(template, "x")  # refused at once, before any case
         self.template = template
         self.runs: dict[str, CommandRun] = {}
+        #: Which run holds the other end of a connection: each run's session, by its URL.
+        self.owners = Owners()
         self._processes: dict[str, asyncio.subprocess.Process] = {}
         self._killed: list[asyncio.subprocess.Process] = []
 
@@ -94,6 +99,7 @@ class Command:
             return
         run.pid = process.pid
         self._processes[url] = process
+        self.owners.started(url, process.pid)
         try:
             assert process.stdout is not None
             while line := await process.stdout.readline():
@@ -101,6 +107,7 @@ class Command:
             run.status = await process.wait()
         finally:
             self._processes.pop(url, None)
+            self.owners.ended(process.pid)
             if process.returncode is None:  # cancelled: `close` waits for its end
                 _signal(process, signal.SIGKILL)
                 self._killed.append(process)

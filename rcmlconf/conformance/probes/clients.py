@@ -4,12 +4,18 @@ D-RCTP-31's scenario.
 
 Each case has its own URL, `rctp://HOST:PORT/<case id>`, and its own files at
 `http://HOST:PORT+1/<case id>/` (D-RCTP-29 with the case's path): the robot's RCML, whose `site` is
-the case's URL, and whatever else the case serves. A connection belongs to the case its CONNECT
-names, so a late client never lands in the next case; one whose first request names no case (a
-client that breaks the grammar, or CONNECTs elsewhere) is the running case's, whose checks then
-say so. `/cases` lists the URLs in the order the cases run, for a client that loops over them
-itself. The embedded reference has a `summon` that starts one reference client on the case's URL
-whenever a case waits for a connection.
+the case's URL, and whatever else the case serves. `/cases` lists the URLs in the order the cases
+run, for a client that loops over them itself. The embedded reference has a `summon` that starts
+one reference client on the case's URL whenever a case waits for a connection; `--client-command`
+one process (`command.Command`).
+
+Whose each connection is (D-RCTP-31, `_route`): the case whose started process holds its other
+end, when `owners` can tell (`owners.Owners`), so a client that breaks the grammar, CONNECTs
+elsewhere or sends nothing is judged by its own case, beside the others; else the case its
+CONNECT names, so a late client never lands in the next case; else a running case still waiting
+for its first connection (the one that began first), or the one case running, or, when the
+harness starts no client, the next case to run; else nobody's: it is closed. Each case keeps
+MAX_WAITING connections waiting, so a flood from one case's client closes only its own.
 """
 
 from __future__ import annotations
@@ -21,8 +27,9 @@ from collections import Counter
 from collections.abc import Awaitable, Callable, Mapping, Sequence
 from pathlib import Path
 from typing import cast
-from urllib.parse import quote, unquote
+from urllib.parse import quote, unquote, urlsplit
 
+from rcmlconf.conformance.owners import Owners
 from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Inconclusive
@@ -41,13 +48,21 @@ HARNESS_RCML = Path(__file__).resolve().parent.parent / "robot" / "harness.rcml"
 CASE_LIST = "/cases"
 #: The name of the robot's RCML among a case's files.
 RCML_NAME = "harness.rcml"
-#: How long a new connection has to send the head of its first request before it is given to
-#: the case running, unread: a client that sends nothing is that case's to judge.
+#: How long a connection whose owner is unknown has to send the head of its first request
+#: before it is given to a case unread (D-RCTP-31): one that sends nothing is that case's to
+#: judge.
 FIRST_REQUEST_WAIT = 2.0
 #: The head of a first request, at most (D-RCTP-9's header section).
 MAX_HEAD = 16384
-#: Connections (and file requests) waiting for a case not yet reached, at most; more are closed.
+#: D-RCTP-31: connections waiting for their case, at most, each case; more are closed.
 MAX_WAITING = 16
+#: D-RCTP-31: connections (and file requests) waiting for cases not yet reached, at most in all.
+MAX_EARLY = 16
+#: D-RCTP-31: connections whose first head is being read, at most at once.
+MAX_READING = 64
+#: Connections the kernel holds for the listener to accept: room for a client's burst, so that
+#: its connects are not dropped and retried a second later (asyncio's default is 100).
+BACKLOG = 1024
 #: How long a file request for a case not yet reached waits for it.
 FILES_WAIT = 60.0
 _HEAD_END = re.compile(rb"\n\r?\n")
@@ -69,6 +84,7 @@ class ClientListener:
         summon: Summon | None = None,
         stop: Callable[[str], list[str]] | None = None,
         on_wait: Callable[[str], None] | None = None,
+        owners: Owners | None = None,
     ) -> None:
         #: The robot the harness plays, and its RCML as written: each case's copy names the
         #: case's URL as `site`.
@@ -80,6 +96,8 @@ class ClientListener:
         self._stop = stop
         #: Told of each case that waits for a client it does not start itself (the CLI's line).
         self._on_wait = on_wait
+        #: Which started client holds a connection's other end, by the URL it was started on.
+        self._owners = owners
         self._arrived: dict[str, asyncio.Event] = {}
         self._summoned: dict[str, asyncio.Future[None]] = {}
         self._ever_connected = False
@@ -90,7 +108,11 @@ class ClientListener:
         #: The runs of client cases planned (`plan`).
         self.runs = 0
         self._order: list[str] = []
-        self._running: str | None = None
+        #: The cases running, in the order they began, and those of them that have had a
+        #: connection; of each case, its connections closed past MAX_WAITING.
+        self._running: dict[str, None] = {}
+        self._connected: set[str] = set()
+        self._over: Counter[str] = Counter()
         self._reached: dict[str, asyncio.Event] = {}
         self._queues: dict[str, asyncio.Queue[_Accepted]] = {}
         self._served: dict[str, Served] = {}
@@ -98,7 +120,10 @@ class ClientListener:
         #: The first sequence number of each stream of the client's the played server saw, case
         #: after case: R-RCTP-41's random start shows only over several runs.
         self.stream_starts: list[int] = []
-        self._waiting = 0
+        #: File requests waiting for their case; connections whose first head is being read.
+        self._files_waiting = 0
+        self._reading = 0
+        self._read = asyncio.Event()
         self._tasks: set[asyncio.Task[None]] = set()
 
     @property
@@ -136,12 +161,12 @@ class ClientListener:
         """The case has ended: its connections still waiting are closed, and once its last run
         has ended a CONNECT that names it is answered 404 (D-RCTP-31)."""
         self._planned[case_id] -= 1
-        if self._running == case_id:
-            self._running = None
+        self._running.pop(case_id, None)
+        self._connected.discard(case_id)
+        self._over.pop(case_id, None)
         queue = self._queues.get(case_id)
         while queue is not None and not queue.empty():
             _, writer, _ = queue.get_nowait()
-            self._waiting -= 1
             writer.close()
         self._arrived.pop(case_id, None)
         self._summoned.pop(case_id, None)
@@ -154,7 +179,7 @@ class ClientListener:
         """Listen on `port` (RCTP) and the port after it (the files, D-RCTP-29); port 0 picks a
         free pair."""
         for _ in range(20 if port == 0 else 1):
-            self._server = await asyncio.start_server(self._accepted, host, port)
+            self._server = await asyncio.start_server(self._accepted, host, port, backlog=BACKLOG)
             rctp_port = self._server.sockets[0].getsockname()[1]
             try:
                 files = _CaseFiles(self)
@@ -184,23 +209,73 @@ class ClientListener:
         return task
 
     async def _route(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        """Give the connection to the case its first request names."""
-        head = await _first_head(reader)
-        named = _connect_target(head)
-        case_id = named if named in self._reached else None
+        """Give the connection to its case (D-RCTP-31): its owner's, else the one its first
+        request names, else one waiting for its first connection; or close it."""
+        ours, peer = _address(writer, "sockname"), _address(writer, "peername")
+        case_id = self._owned(ours, peer)
+        head = b""
         if case_id is None:
-            case_id = self._running or next((c for c in self._order if self._planned[c]), None)
-        if case_id is None or self._planned[case_id] <= 0 or self._waiting >= MAX_WAITING:
+            if self._reading >= MAX_READING:
+                writer.close()
+                return
+            self._reading += 1
+            self._read.clear()
+            try:
+                head = await _first_head(reader)
+            finally:
+                self._reading -= 1
+                if not self._reading:
+                    self._read.set()
+            # The owner again: a client may connect before the harness knows its process.
+            case_id = self._owned(ours, peer) or self._named(_connect_target(head))
             if case_id is not None and self._planned[case_id] <= 0:
-                writer.write(_not_found(head))
+                writer.write(_not_found(head))  # D-RCTP-31: a case already run
                 with contextlib.suppress(OSError):
                     await writer.drain()
+                writer.close()
+                return
+            case_id = case_id or self._unclaimed()
+        if case_id is None or self._planned[case_id] <= 0:
             writer.close()
             return
-        self._waiting += 1
+        queue = self._queues[case_id]
+        early = not self._reached[case_id].is_set()
+        if queue.qsize() >= MAX_WAITING or (early and self._early() >= MAX_EARLY):
+            self._over[case_id] += 1
+            writer.close()
+            return
         self._ever_connected = True
-        self._queues[case_id].put_nowait((reader, writer, head))
+        self._connected.add(case_id)
+        queue.put_nowait((reader, writer, head))
         self._arrived.setdefault(case_id, asyncio.Event()).set()
+
+    def _owned(self, ours: Address | None, peer: Address | None) -> str | None:
+        """The case whose started client holds the other end of the connection, if known."""
+        if self._owners is None or ours is None or peer is None:
+            return None
+        url = self._owners.owner(ours, peer)
+        return None if url is None else self._named(unquote(urlsplit(url).path)[1:])
+
+    def _named(self, case_id: str | None) -> str | None:
+        return case_id if case_id in self._reached else None
+
+    def _unclaimed(self) -> str | None:
+        """Whose a connection is that nothing else attributes (D-RCTP-31): the running case
+        that began first of those without a connection yet, else the one case running, else,
+        when the harness starts no client, the next case to run."""
+        waiting = (c for c in self._running if c not in self._connected)
+        if (first := next(waiting, None)) is not None:
+            return first
+        if len(self._running) == 1:
+            return next(iter(self._running))
+        if self._running or self.starts_clients:
+            return None
+        return next((c for c in self._order if self._planned[c]), None)
+
+    def _early(self) -> int:
+        """Connections and file requests waiting for cases not yet reached."""
+        queued = (q.qsize() for c, q in self._queues.items() if not self._reached[c].is_set())
+        return sum(queued) + self._files_waiting
 
     async def arrival(self, case_id: str, wait: float) -> str | None:
         """Before the case's clock starts: its first connection, from a client summoned if the
@@ -223,6 +298,9 @@ class ClientListener:
             either.append(cast("asyncio.Future[object]", summoned))
         try:
             await asyncio.wait(either, timeout=wait, return_when=asyncio.FIRST_COMPLETED)
+            if queue.empty() and self._reading:  # it may be one whose first head is read
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(self._read.wait(), FIRST_REQUEST_WAIT)
         finally:
             arrived.cancel()
         if not queue.empty():
@@ -233,14 +311,20 @@ class ClientListener:
         return f"no client connected for {self.url(case_id)} within {wait:g} s"
 
     def finish(self, case_id: str) -> list[str]:
-        """The client started for the case is stopped if it still runs: how it ran, for the
-        case's report."""
-        return self._stop(self.url(case_id)) if self._stop is not None else []
+        """The client started for the case is stopped if it still runs: how it ran, and how
+        many of its connections were closed past MAX_WAITING, for the case's report."""
+        lines = self._stop(self.url(case_id)) if self._stop is not None else []
+        if over := self._over[case_id]:
+            lines.append(
+                f"{over} more connections of the case's client were closed unread: a case keeps"
+                f" {MAX_WAITING} waiting at most (D-RCTP-31)"
+            )
+        return lines
 
     def _begin(self, case_id: str) -> asyncio.Queue[_Accepted]:
         """The case runs: its connections are its own, and a client is started for it if the
         harness starts them and none is waiting."""
-        self._running = case_id
+        self._running.setdefault(case_id, None)
         self._reached.setdefault(case_id, asyncio.Event()).set()
         queue = self._queues.setdefault(case_id, asyncio.Queue())
         if self._summon is not None and queue.empty():
@@ -253,10 +337,11 @@ class ClientListener:
         try:
             reader, writer, head = await asyncio.wait_for(queue.get(), wait)
         except TimeoutError:
-            raise Inconclusive(
-                f"no client connected for {self.url(case_id)} within {wait:g} s"
-            ) from None
-        self._waiting -= 1
+            if case_id in self._connected:
+                why = f"the client opened no other connection for {self.url(case_id)}"
+            else:
+                why = f"no client connected for {self.url(case_id)}"
+            raise Inconclusive(f"{why} within {wait:g} s") from None
         if queue.empty():
             self._arrived.setdefault(case_id, asyncio.Event()).clear()
         probe = ControlProbe(reader, writer, transcript, wait).serving()
@@ -294,15 +379,15 @@ class ClientListener:
         self._fetched.setdefault(case_id, []).append(path)
         reached = self._reached[case_id]
         if not reached.is_set():  # the case's own files are set when it starts: wait for it
-            if self._waiting >= MAX_WAITING:
+            if self._early() >= MAX_EARLY:
                 return 503, b"too many requests waiting for their case\n", "text/plain"
-            self._waiting += 1
+            self._files_waiting += 1
             try:
                 await asyncio.wait_for(reached.wait(), FILES_WAIT)
             except TimeoutError:
                 return 503, b"the case did not start in time\n", "text/plain"
             finally:
-                self._waiting -= 1
+                self._files_waiting -= 1
         files = self.case_files(case_id)
         name = unquote(path[len(case_path(case_id)) + 1 :])
         if not name:
@@ -354,6 +439,12 @@ async def _first_head(reader: asyncio.StreamReader) -> bytes:
             break
         head += data
     return head
+
+
+def _address(writer: asyncio.StreamWriter, which: str) -> Address | None:
+    """The connection's `sockname` or `peername`; None once it is gone (reset at once)."""
+    found = writer.get_extra_info(which)
+    return (str(found[0]), int(found[1])) if isinstance(found, tuple) else None
 
 
 def _connect_target(head: bytes) -> str | None:
