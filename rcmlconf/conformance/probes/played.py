@@ -17,7 +17,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from rcmlconf.conformance.probes.control import ControlProbe
+from rcmlconf.conformance.probes.control import ControlProbe, waited_out
 from rcmlconf.conformance.probes.played_stream import PlayedStream
 from rcmlconf.conformance.verdicts import Failed, Inconclusive
 from rcmlconf.errors import ProtocolError, ValueTextError
@@ -159,7 +159,7 @@ class PlayedServer:
             except Failed as failed:
                 if failed.requirement != "R-RCTP-5":
                     raise
-                if not self.seen:  # not even CONNECT: no step of the scenario to judge
+                if not self.seen and waited_out(failed):  # not even CONNECT: nothing to judge
                     raise Inconclusive(
                         f"the client connected and sent no request within {wait:.3g} s"
                         " (D-RCTP-31 step 2: it sends CONNECT)"
