@@ -18,7 +18,8 @@ from urllib.parse import unquote, urljoin, urlsplit
 from rcmlconf.diagnostics import Diagnostic, Severity
 from rcmlconf.errors import RcmlconfError
 from rcmlconf.rcml.model import RcmlDocument
-from rcmlconf.reference.client.files import NoModel, Unfetched, fetch, is_http_url, load_rcml
+from rcmlconf.reference.client.fetching import Deadline, Unfetched, fetch
+from rcmlconf.reference.client.files import NoModel, is_http_url, load_rcml
 from rcmlconf.rxid.model import RxidDocument
 from rcmlconf.rxid.sessions import Broken, SessionTarget, Unresolved
 from rcmlconf.validate.validator import FileReport, Validator, read_document
@@ -61,14 +62,16 @@ class Sources:
 
 
 def load_sources(source: str, timeout: float) -> Sources:
-    """The RXID that `source` (a path or an http(s) URL) names and the RCML of each session.
+    """The RXID that `source` (a path or an http(s) URL) names and the RCML of each session,
+    every one fetched within `timeout` seconds of the start: one deadline bounds them all.
 
     Raises Unreadable when the RXID cannot be had, Invalid when it or an RCML is not valid."""
-    base_url, base_dir, data = _read(source, timeout)
+    within = Deadline(timeout)
+    base_url, base_dir, data = _read(source, within)
     robots: dict[str, Robot] = {}
 
     def resolve(href: str) -> SessionTarget:
-        found = _resolve(validator, href, base_url, base_dir, timeout)
+        found = _resolve(validator, href, base_url, base_dir, within)
         if isinstance(found, Robot):
             robots[href] = found
             return found.model
@@ -86,11 +89,11 @@ def load_sources(source: str, timeout: float) -> Sources:
     return Sources(model, source, robots, report)
 
 
-def _read(source: str, timeout: float) -> tuple[str | None, Path | None, bytes]:
+def _read(source: str, within: Deadline) -> tuple[str | None, Path | None, bytes]:
     """(base URL, base directory, bytes) of the RXID."""
     if is_http_url(source):
         try:
-            return source, None, fetch(source, timeout)
+            return source, None, fetch(source, within)
         except Unfetched as exc:
             raise Unreadable(str(exc)) from None
     path = Path(source)
@@ -101,7 +104,7 @@ def _read(source: str, timeout: float) -> tuple[str | None, Path | None, bytes]:
 
 
 def _resolve(
-    validator: Validator, href: str, base_url: str | None, base_dir: Path | None, timeout: float
+    validator: Validator, href: str, base_url: str | None, base_dir: Path | None, within: Deadline
 ) -> Robot | Unresolved | Broken:
     try:
         parts = urlsplit(href)
@@ -110,7 +113,7 @@ def _resolve(
         return Broken(f"{href!r} is not a URL: {exc}")
     if is_http_url(url):
         try:
-            return Robot(href, url, load_rcml(url, timeout))
+            return Robot(href, url, load_rcml(url, within))
         except NoModel as exc:
             return Broken(str(exc))
     if base_dir is None or parts.scheme or parts.netloc:

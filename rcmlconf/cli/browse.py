@@ -90,7 +90,8 @@ def _connect(
     default=5.0,
     show_default=True,
     metavar="S",
-    help="Seconds to wait for a file, a connection or an answer.",
+    help="Seconds to fetch the panel and its RCML files (all together), and to wait for a"
+    " connection or an answer.",
 )
 @click.option(
     "--ready-file",

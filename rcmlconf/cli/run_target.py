@@ -16,6 +16,7 @@ from rcmlconf.cli.console import Output
 from rcmlconf.cli.hosts import Address
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rcml.url import RctpUrl
+from rcmlconf.reference.client.fetching import Deadline
 from rcmlconf.reference.client.files import NoModel, from_index
 
 #: How long the first connection may take, before --timeout-scale (a case's own bound).
@@ -81,10 +82,12 @@ def _unknown(address: Address, error: socket.gaierror) -> str:
 
 def fetched_robot(output: Output, address: Address, wait: float) -> RcmlDocument:
     """--target's RCML when --rcml is not given: the one the server's files list (D-RCTP-29), as
-    a client given only an RCTP URL looks for it; or the run ends now (status 2): without the
-    robot's nodes the cases could test little, and CONNECT's site path would be a guess."""
+    a client given only an RCTP URL looks for it, the index and the RCML within `wait` seconds
+    together; or the run ends now (status 2): without the robot's nodes the cases could test
+    little, and CONNECT's site path would be a guess."""
+    files = RctpUrl(*address, "/").files_url
     try:
-        robot = from_index(RctpUrl(*address, "/").files_url, wait, hint="give --rcml ROBOT.rcml")
+        robot = from_index(files, Deadline(wait), hint="give --rcml ROBOT.rcml")
     except NoModel as problem:
         output.problem("run", f"--target {described(address)} without --rcml: {problem}")
         sys.exit(2)

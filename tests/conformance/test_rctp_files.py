@@ -25,7 +25,7 @@ from rcmlconf.conformance.ics import EVERYTHING
 from rcmlconf.conformance.registry import all_cases, select
 from rcmlconf.conformance.runner import RunOptions, run_cases
 from rcmlconf.conformance.targets import REFERENCE, REFERENCE_RCML, Target, embedded_reference
-from rcmlconf.reference.client.files import fetch
+from rcmlconf.reference.client.fetching import Deadline, fetch
 from rcmlconf.reference.server.files import index_page, robot_files
 from rcmlconf.validate.validator import load_robot
 
@@ -152,8 +152,8 @@ def test_the_embedded_reference_serves_its_files_on_the_port_after_rctp() -> Non
             host, port = target.server
             files = f"http://{host}:{port + 1}/"
             return await asyncio.gather(
-                asyncio.to_thread(fetch, files, 5.0),
-                asyncio.to_thread(fetch, files + "rover.rxid", 5.0),
+                asyncio.to_thread(fetch, files, Deadline(5.0)),
+                asyncio.to_thread(fetch, files + "rover.rxid", Deadline(5.0)),
             )
 
     page, rxid = asyncio.run(asyncio.wait_for(index(), BOUND))

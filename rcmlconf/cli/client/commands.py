@@ -68,8 +68,8 @@ _tree_path = _paths(parse_tree_path)
     default=5.0,
     show_default=True,
     metavar="S",
-    help="Seconds to wait for the connection, each answer, and the RCML; at most an hour (a"
-    " server that has not answered by then is not going to).",
+    help="Seconds to wait for the connection, each answer, and the RCML (its index and file"
+    " together); at most an hour (a server that has not answered by then is not going to).",
 )
 @click.option(
     "--format",

@@ -22,6 +22,7 @@ from rcmlconf.errors import ValueTextError
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rcml.url import RctpUrl
 from rcmlconf.reference.client.adapter import Client, RctpError
+from rcmlconf.reference.client.fetching import Deadline
 from rcmlconf.reference.client.files import NoModel, load_model
 
 #: What a command does in its session; its exit status.
@@ -48,7 +49,7 @@ def run(options: Options, plan: Callable[[RcmlDocument], Work]) -> NoReturn:
 
     def start() -> Coroutine[Any, Any, int]:
         url = _url(options)
-        model = load_model(url, options.rcml, options.timeout)
+        model = load_model(url, options.rcml, Deadline(options.timeout))
         return _session(url, options, model, plan(model))
 
     _finish(options.output, start)

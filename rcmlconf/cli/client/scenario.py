@@ -17,7 +17,8 @@ from rcmlconf.cli.interrupts import Interrupts
 from rcmlconf.errors import ValueTextError
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rcml.url import RctpUrl
-from rcmlconf.reference.client.files import NoModel, Unfetched, fetch, is_http_url, load_rcml
+from rcmlconf.reference.client.fetching import Deadline, Unfetched, fetch
+from rcmlconf.reference.client.files import NoModel, is_http_url, load_rcml
 from rcmlconf.reference.client.scenario import ScenarioResult, run_scenario
 
 #: The most of a case list the client takes: URLs, and bytes.
@@ -36,19 +37,20 @@ def run_cases(options: Options) -> NoReturn:
     except ValueTextError as exc:
         lists = "" if listed else " (nor the http URL of a case list)"
         raise click.BadParameter(f"{exc}{lists}", param_hint="'URL'") from None
+    within = Deadline(options.timeout)
     try:
-        model = None if options.rcml is None else load_rcml(options.rcml, options.timeout)
-        cases = cases or _listed(options.url, options.timeout)
+        model = None if options.rcml is None else load_rcml(options.rcml, within)
+        cases = cases or _listed(options.url, within)
     except (NoModel, Unfetched, ValueTextError) as exc:
         options.output.problem("client", str(exc))
         sys.exit(2)
     sys.exit(asyncio.run(_run(options, cases, model)))
 
 
-def _listed(url: str, timeout: float) -> list[RctpUrl]:
+def _listed(url: str, within: Deadline) -> list[RctpUrl]:
     """The case URLs of a harness's list: text/plain, one a line (D-RCTP-31)."""
     try:
-        text = fetch(url, timeout, MAX_LIST_BYTES).decode("utf-8")
+        text = fetch(url, within, MAX_LIST_BYTES).decode("utf-8")
     except UnicodeDecodeError as exc:
         raise ValueTextError(f"{shown(url)} is not UTF-8 text (at offset {exc.start})") from None
     lines = [(n, line.strip()) for n, line in enumerate(text.splitlines(), 1) if line.strip()]

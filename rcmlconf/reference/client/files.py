@@ -3,24 +3,22 @@
 From a file or an http(s) URL the user names, or else the way a browser finds it (paper Fig. 5):
 a server lists the robot's files on HTTP at the port after RCTP's (D-RCTP-29), so the client
 reads that index and takes its one `.rcml` link. Nothing fetched may exceed a document's limit
-(16 MiB, D-XML-5), and every fetched document is validated like a local one. The reference
-client's command line, its conformance scenario (a case's index, D-RCTP-31) and the conformance
-run (`run --target` without `--rcml`) use it.
+(16 MiB, D-XML-5), one deadline bounds the index and the file together (`fetching`), and every
+fetched document is validated like a local one. The reference client's command line, its
+conformance scenario (a case's index, D-RCTP-31) and the conformance run (`run --target` without
+`--rcml`) use it.
 """
 
 from __future__ import annotations
 
-import http.client
-import urllib.error
-import urllib.request
 from html.parser import HTMLParser
 from pathlib import Path
 from urllib.parse import urljoin, urlsplit
 
 from rcmlconf.errors import RcmlconfError
-from rcmlconf.markup.failure import MAX_DOCUMENT_BYTES
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rcml.url import RctpUrl
+from rcmlconf.reference.client.fetching import Deadline, Unfetched, fetch
 from rcmlconf.validate.validator import InvalidRobot, Validator, load_robot
 from rcmlconf.wording import plural
 
@@ -32,28 +30,24 @@ class NoModel(RcmlconfError):
     """The RCML could not be had or is not valid; the message says which and why."""
 
 
-class Unfetched(RcmlconfError):
-    """A GET that failed or gave more than its limit; the message names the URL and why."""
-
-
 def is_http_url(text: str) -> bool:
     """Whether `text` names an http(s) URL rather than a file."""
     scheme, colon, _ = text.partition(":")
     return bool(colon) and scheme.lower() in ("http", "https")
 
 
-def load_model(url: RctpUrl, rcml: str | None, timeout: float) -> RcmlDocument:
+def load_model(url: RctpUrl, rcml: str | None, within: Deadline) -> RcmlDocument:
     """The model `rcml` names (a file or an http(s) URL), or else the one the robot's files
-    index links to (D-RCTP-29)."""
+    index links to (D-RCTP-29), fetched by the deadline `within`."""
     if rcml is None:
-        return from_index(url.files_url, timeout)  # D-RCTP-29
-    return load_rcml(rcml, timeout)
+        return from_index(url.files_url, within)  # D-RCTP-29
+    return load_rcml(rcml, within)
 
 
-def load_rcml(rcml: str, timeout: float) -> RcmlDocument:
-    """The model in the file or at the http(s) URL `rcml` names."""
+def load_rcml(rcml: str, within: Deadline) -> RcmlDocument:
+    """The model in the file or at the http(s) URL `rcml` names (fetched by `within`)."""
     if is_http_url(rcml):
-        return _from_url(rcml, timeout)
+        return _from_url(rcml, within)
     try:
         return load_robot(Path(rcml))
     except InvalidRobot as exc:
@@ -61,14 +55,15 @@ def load_rcml(rcml: str, timeout: float) -> RcmlDocument:
 
 
 def from_index(
-    index: str, timeout: float, hint: str | None = _HINT, files: str = _ROBOT_FILES
+    index: str, within: Deadline, hint: str | None = _HINT, files: str = _ROBOT_FILES
 ) -> RcmlDocument:
     """The model that the files index at the http URL `index` links to: a robot's at the port
-    after RCTP's (`RctpUrl.files_url`, D-RCTP-29), or a conformance case's (D-RCTP-31). An error
-    says what the index is (`files`) and what to do instead (`hint`)."""
+    after RCTP's (`RctpUrl.files_url`, D-RCTP-29), or a conformance case's (D-RCTP-31); both
+    fetched by the deadline `within`. An error says what the index is (`files`) and what to do
+    instead (`hint`)."""
     advice = "" if hint is None else f"; {hint}"
     try:
-        page = fetch(index, timeout)
+        page = fetch(index, within)
     except Unfetched as exc:
         raise NoModel(f"{exc} ({files}){advice}") from None
     links = _Links()
@@ -76,7 +71,7 @@ def from_index(
     found = sorted({link for href in links.hrefs if (link := _rcml_link(index, href))})
     if len(found) != 1:
         raise NoModel(f"{index} links to {plural(len(found), 'RCML file')}, not one{advice}")
-    return _from_url(found[0], timeout)
+    return _from_url(found[0], within)
 
 
 def _rcml_link(index: str, href: str) -> str | None:
@@ -88,9 +83,9 @@ def _rcml_link(index: str, href: str) -> str | None:
         return None
 
 
-def _from_url(url: str, timeout: float) -> RcmlDocument:
+def _from_url(url: str, within: Deadline) -> RcmlDocument:
     try:
-        data = fetch(url, timeout)
+        data = fetch(url, within)
     except Unfetched as exc:
         raise NoModel(str(exc)) from None
     # No directory: the document's relative links are not followed (D-RXID-3's rule for URLs).
@@ -101,23 +96,6 @@ def _from_url(url: str, timeout: float) -> RcmlDocument:
         raise NoModel(f"{url} is not an RCML document; {_HINT}")
     first = report.diagnostics[0].to_text() if report.diagnostics else "checking was cut short"
     raise NoModel(f"{url} is not valid RCML ({plural(report.errors, 'error')}): {first}")
-
-
-def fetch(url: str, timeout: float, limit: int = MAX_DOCUMENT_BYTES) -> bytes:
-    """The body of a GET, at most `limit` bytes (a document's by default); `timeout` bounds
-    each wait for the peer."""
-    try:
-        with urllib.request.urlopen(url, timeout=timeout) as response:
-            data: bytes = response.read(limit + 1)
-    except urllib.error.HTTPError as exc:
-        raise Unfetched(f"cannot fetch {url}: {exc.code} {exc.reason}") from None
-    except urllib.error.URLError as exc:
-        raise Unfetched(f"cannot fetch {url}: {exc.reason}") from None
-    except (OSError, ValueError, http.client.HTTPException) as exc:
-        raise Unfetched(f"cannot fetch {url}: {exc or type(exc).__name__}") from None
-    if len(data) > limit:
-        raise Unfetched(f"{url} is larger than it may be ({limit:,} bytes)")
-    return data
 
 
 class _Links(HTMLParser):

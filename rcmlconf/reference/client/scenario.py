@@ -18,6 +18,7 @@ from typing import NoReturn, TypeVar
 from rcmlconf.rcml.model import AccessNode, AccessType, DataNode, Permission, RcmlDocument
 from rcmlconf.rcml.url import FILES_PORT_OFFSET, RctpUrl, http_base, parse_rctp_url
 from rcmlconf.reference.client.adapter import Client, RctpError
+from rcmlconf.reference.client.fetching import Deadline
 from rcmlconf.reference.client.files import NoModel, from_index
 from rcmlconf.reference.client.session import ClientEvent, Closed, ServerRequest
 from rcmlconf.values import DATA_TYPES, Value, ValueType
@@ -118,11 +119,12 @@ def index_url(case: RctpUrl) -> str:
 
 
 async def _files(case: RctpUrl, timeout: float) -> RcmlDocument:
-    """Step 1, in a thread the run's limit can give up on (a server may feed it a byte at a
-    time) without waiting for it."""
+    """Step 1, in a thread, so that the loop goes on while urllib waits: the index and the
+    RCML within `timeout` together (a server may feed them a byte at a time), or the run's
+    limit first."""
     pool = ThreadPoolExecutor(1, thread_name_prefix="scenario-files")
     try:
-        fetched = pool.submit(from_index, index_url(case), timeout, None, _FILES)
+        fetched = pool.submit(from_index, index_url(case), Deadline(timeout), None, _FILES)
         return await asyncio.wrap_future(fetched)
     except NoModel as exc:
         raise _Ended(Ending.NO_FILES, str(exc)) from None
