@@ -1,20 +1,24 @@
 """Our own clients against hostile peers on 127.0.0.1 (issue 27): `client`, `browse` and `run
---target` without --rcml fetch files from a port that trickles them or never ends them. Each
-command ends by itself, within its deadline and a margin, with one clear line and a non-zero
-status; never a traceback.
+--target` without --rcml fetch files from a port that trickles them or never ends them, and the
+reference client meets a server that closes at once. Each command ends by itself, within its
+deadline and a margin, with one clear line and a non-zero status; never a traceback.
 
 The commands of a test run at once, each in its own process: what a test waits for is the
 longest of them, not their sum."""
 
 from __future__ import annotations
 
+import asyncio
 import subprocess
 from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 
-from support.hostile_files import endless, rctp_and_files, trickle
+from support.hostile_files import close_at_once, endless, rctp_and_files, tcp_peer, trickle
 from support.processes import COMMAND
+from support.robots import CAMERA
+
+from rcmlconf.reference.client.adapter import Client, RctpError
 
 #: The deadline the commands are given (--timeout, or the target wait of --timeout-scale 0.2).
 DEADLINE = 1.0
@@ -103,3 +107,28 @@ def test_client_browse_and_run_end_by_their_deadline_against_hostile_files() -> 
                 ),
             }
         )
+
+
+def test_the_client_against_a_server_that_closes_at_once_says_so() -> None:
+    """Before, about 1 connection in 6 closed before the client set its socket's options,
+    and the client crashed on the closed socket: "internal error: OSError: [Errno 9] Bad file
+    descriptor". 200 tries catch that all but always."""
+
+    async def tries(port: int) -> set[str]:
+        said: set[str] = set()
+        for _ in range(200):
+            try:
+                await Client.connect(f"rctp://127.0.0.1:{port}/camera", timeout=DEADLINE)
+            except RctpError as error:
+                said.add(str(error))
+        return said
+
+    with tcp_peer(close_at_once) as port:
+        said = asyncio.run(tries(port))
+        url = f"rctp://127.0.0.1:{port}/camera"
+        read = ("client", "--rcml", str(CAMERA), url, "read", "/status/lens")
+        ended({"client": Hostile(read, 2, "the server closed the connection")})
+    assert said <= {
+        "CONNECT /camera: not sent: the server closed the connection",
+        "CONNECT /camera: no answer: the server closed the connection",
+    }, said

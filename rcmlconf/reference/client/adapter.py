@@ -73,6 +73,13 @@ class _Control(asyncio.Protocol):
     def __init__(self, client: Client) -> None:
         self.client = client
 
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        """The client writes on the transport from now on: the server may answer, or close,
+        before `create_connection` returns. asyncio has set TCP_NODELAY on its socket (each
+        request goes out at once) before anything could close it."""
+        assert isinstance(transport, asyncio.Transport)
+        self.client._transport = transport
+
     def data_received(self, data: bytes) -> None:
         self.client._feed(data)
 
@@ -146,16 +153,14 @@ class Client:
         client = cls(parsed, session, loop, timeout)
         port = parsed.port_or_default
         try:
-            transport, _ = await asyncio.wait_for(
+            await asyncio.wait_for(
                 loop.create_connection(lambda: _Control(client), parsed.host, port), timeout
             )
         except (OSError, TimeoutError) as exc:
+            client._abort()  # a connection made as the wait ran out is not left open
             raise RctpError(
                 f"cannot connect to {parsed.host}:{port}: {exc or 'timed out'}"
             ) from None
-        assert isinstance(transport, asyncio.Transport)
-        transport.get_extra_info("socket").setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        client._transport = transport
         try:
             await client.request("CONNECT", site, [("User-Agent", USER_AGENT)], timeout=timeout)
         except BaseException:
@@ -206,7 +211,7 @@ class Client:
         if timeout is None:
             timeout = self.timeout
         if self.closed is not None:
-            raise RctpError(f"{method} {path}: the session is over ({self.closed.reason})")
+            raise RctpError(f"{method} {path}: not sent: {self.closed.reason}")
         request = self.session.send(method, path, headers, body, now=self.loop.time())
         future: asyncio.Future[Answered] = self.loop.create_future()
         self._waiting[id(request)] = future
@@ -215,6 +220,8 @@ class Client:
             answered = await asyncio.wait_for(future, timeout)
         except TimeoutError:
             raise RctpError(f"{method} {path}: no answer within {timeout:g} s") from None
+        except RctpError as exc:  # the session closed first: `_fail_waiting` says why
+            raise RctpError(f"{method} {path}: no answer: {exc}") from None
         finally:
             self._waiting.pop(id(request), None)
         response = answered.response
