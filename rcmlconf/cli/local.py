@@ -4,15 +4,16 @@ Every option is checked against the model, and what it asks for handed to the si
 HELLO: a bad one is a usage error and no packet. Once the robot has opened a session, whatever
 ends the command (--duration, Ctrl-C or SIGTERM, the output's reader going away) ends it with BYE,
 or the robot would refuse every local system as busy until its 10 s timeout (D-RSP-12, R-RSP-22).
+A session that ends first (the robot's BYE, 10 s without a packet from it: D-RSP-13) ends the
+command too, as a failure: whatever the robot does, the command ends by itself.
 """
 
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import sys
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Awaitable, Callable, Mapping, Sequence
 from pathlib import Path
 
 import click
@@ -26,7 +27,7 @@ from rcmlconf.cli.params import DAY, Bounded, seconds
 from rcmlconf.cli.rsp_options import ENCRYPTIONS, psk_option, read_psk
 from rcmlconf.errors import EncodeError, ValueTextError
 from rcmlconf.reference.rsp.robot import DEFAULT_PORT
-from rcmlconf.reference.rsp.simulacrum import NoSession, Simulacrum
+from rcmlconf.reference.rsp.simulacrum import NoSession, Simulacrum, session_end
 from rcmlconf.rsp.codec.bodies import MAX_PERIOD_MS, MIN_PERIOD_MS
 from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
 from rcmlconf.rsp.reliable import Backlog
@@ -140,7 +141,8 @@ def local(
     the session gets BYE and a summary of the packets goes to standard error.
 
     \b
-    Exit status: 0 done; 1 invalid model, or no session (refused or no answer);
+    Exit status: 0 done; 1 invalid model, no session (refused or no answer), or a session
+      that ended first (the robot's BYE, or 10 s without a packet from it);
       2 usage error or unreadable model.
 
     \b
@@ -332,20 +334,26 @@ async def _run(
                     (f" with {target}, T = {opened.period * 1000:g} ms", ""),
                 ]
             )
-            await interrupts.race(_until(printer.stopped, duration))
+            await interrupts.race(_until(duration, printer.stopped.wait(), simulacrum.ended()))
+            ended = simulacrum.closed  # before BYE: over by itself, or not
         finally:
             await simulacrum.aclose()
-    ended = simulacrum.closed
     _summary(simulacrum, output)
-    if isinstance(ended, events.SessionClosed) and ended.by_peer:
-        output.notice(f"the robot ended the session: {ended.reason.name.lower()}")
+    if ended is not None:
+        output.problem("local", f"{target}: {session_end(ended)}")
+        return 1
     return 0
 
 
-async def _until(stopped: asyncio.Event, duration: float | None) -> None:
-    """Until `stopped` is set or `duration` seconds have passed (without it, until stopped)."""
-    with contextlib.suppress(TimeoutError):
-        await asyncio.wait_for(stopped.wait(), duration)
+async def _until(duration: float | None, *ends: Awaitable[object]) -> None:
+    """Until one of `ends` is done or `duration` seconds have passed (without it, until one
+    is done)."""
+    waits = [asyncio.ensure_future(end) for end in ends]
+    try:
+        await asyncio.wait(waits, timeout=duration, return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        for wait in waits:
+            wait.cancel()
 
 
 def _summary(simulacrum: Simulacrum, output: Output) -> None:

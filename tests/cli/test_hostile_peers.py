@@ -1,7 +1,8 @@
 """Our own clients against hostile peers on 127.0.0.1 (issue 27): `client`, `browse` and `run
---target` without --rcml fetch files from a port that trickles them or never ends them, and the
-reference client meets a server that closes at once. Each command ends by itself, within its
-deadline and a margin, with one clear line and a non-zero status; never a traceback.
+--target` without --rcml fetch files from a port that trickles them or never ends them, the
+reference client meets a server that closes at once, and `local` robots that never answer,
+flood it or end the session at once. Each command ends by itself, within its deadline and a
+margin, with one clear line and a non-zero status, its memory bounded; never a traceback.
 
 The commands of a test run at once, each in its own process: what a test waits for is the
 longest of them, not their sum."""
@@ -9,14 +10,25 @@ longest of them, not their sum."""
 from __future__ import annotations
 
 import asyncio
+import os
 import subprocess
+import tempfile
+import time
 from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 
-from support.hostile_files import close_at_once, endless, rctp_and_files, tcp_peer, trickle
+from support.hostile_files import (
+    close_at_once,
+    endless,
+    hostile_robot,
+    rctp_and_files,
+    tcp_peer,
+    trickle,
+)
 from support.processes import COMMAND
 from support.robots import CAMERA
+from support.rsp_models import EVERY_KIND, robot_model
 
 from rcmlconf.reference.client.adapter import Client, RctpError
 
@@ -25,6 +37,8 @@ DEADLINE = 1.0
 #: What a command may take past its deadline: starting Python, a loaded machine. A command
 #: still running after that hangs, and is killed.
 MARGIN = 15.0
+#: The most memory a command may take against any of them (issue 27's bound for `run`).
+MAX_RSS = 150 * 2**20
 #: A trickle's pace: a byte each 0.2 s answers every wait of a client bounded per read.
 PACE = 0.2
 
@@ -39,28 +53,50 @@ class Hostile:
 
 
 def ended(commands: dict[str, Hostile]) -> None:
-    """Run every command at once; each ends by itself, as it must."""
-    started = {
-        name: subprocess.Popen(
-            [*COMMAND, *command.args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
-        )
-        for name, command in commands.items()
-    }
+    """Run every command at once; each ends by itself, as it must, its memory bounded."""
     failures: list[str] = []
-    for name, process in started.items():
-        try:
-            _, err = process.communicate(timeout=DEADLINE + MARGIN)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.communicate()
-            failures.append(f"{name}: still running after {DEADLINE + MARGIN:g} s")
-            continue
-        expected = commands[name]
-        if "Traceback" in err or "internal error" in err:
-            failures.append(f"{name}: {err}")
-        elif process.returncode != expected.status or expected.says not in err:
-            failures.append(f"{name}: exit {process.returncode}: {err!r}")
+    with ExitStack() as stack:
+        started = {}
+        for name, command in commands.items():
+            err = stack.enter_context(tempfile.TemporaryFile("w+"))
+            process = subprocess.Popen(
+                [*COMMAND, *command.args],
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=err,
+                text=True,
+            )
+            started[name] = (process, err)
+        deadline = time.monotonic() + DEADLINE + MARGIN
+        for name, (process, err) in started.items():
+            status, peak = _waited(process, deadline)
+            err.seek(0)
+            said = err.read()
+            expected = commands[name]
+            if status is None:
+                failures.append(f"{name}: still running after {DEADLINE + MARGIN:g} s")
+            elif "Traceback" in said or "internal error" in said:
+                failures.append(f"{name}: {said}")
+            elif status != expected.status or expected.says not in said:
+                failures.append(f"{name}: exit {status}: {said!r}")
+            elif peak > MAX_RSS:
+                failures.append(f"{name}: {peak / 2**20:.0f} MiB at its peak")
     assert not failures, "\n".join(failures)
+
+
+def _waited(process: subprocess.Popen[str], deadline: float) -> tuple[int | None, int]:
+    """The exit status of `process` and its peak RSS in bytes, once it ended; None when it
+    was still running at `deadline` (it is killed then)."""
+    while True:
+        pid, status, usage = os.wait4(process.pid, os.WNOHANG)
+        if pid:
+            process.returncode = os.waitstatus_to_exitcode(status)
+            return process.returncode, usage.ru_maxrss * 1024  # KiB on Linux
+        if time.monotonic() > deadline:
+            process.kill()
+            process.wait()
+            return None, 0
+        time.sleep(0.02)
 
 
 @contextmanager
@@ -132,3 +168,30 @@ def test_the_client_against_a_server_that_closes_at_once_says_so() -> None:
         "CONNECT /camera: not sent: the server closed the connection",
         "CONNECT /camera: no answer: the server closed the connection",
     }, said
+
+
+def test_local_ends_by_itself_against_hostile_robots() -> None:
+    """A robot that never answers HELLO, or answers it with garbage, is no session; one that
+    welcomes and says BYE at once ended it (before, `local` went on until Ctrl-C); one that
+    floods UPLINKs leaves the command's memory bounded and its --duration kept. A robot that
+    welcomes and then says nothing ends the session in 10 s (D-RSP-13), the same way as BYE:
+    too long a wait for this test."""
+    model = robot_model(EVERY_KIND)
+    with ExitStack() as stack:
+        port = {
+            mode: stack.enter_context(hostile_robot(model, mode))
+            for mode in ("silent", "garbage", "bye", "uplinks")
+        }
+
+        def local(mode: str, *options: str) -> tuple[str, ...]:
+            return ("local", str(EVERY_KIND), "--robot", f"127.0.0.1:{port[mode]}", *options)
+
+        no_answer = "no answer to HELLO"
+        ended(
+            {
+                "silent": Hostile(local("silent"), 1, no_answer),
+                "garbage": Hostile(local("garbage"), 1, no_answer),
+                "bye": Hostile(local("bye"), 1, "the robot ended the session: shutdown"),
+                "uplinks": Hostile(local("uplinks", "--duration", "1"), 0, "received"),
+            }
+        )

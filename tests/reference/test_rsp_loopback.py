@@ -110,6 +110,29 @@ def test_blocking_reads_from_another_thread() -> None:
         thread.join(5)
 
 
+def test_a_read_the_session_s_end_cuts_short_says_why_in_words() -> None:
+    """When the robot says BYE, a waiting read ends with NoSession, which says so in words, not
+    as the event's repr ("SessionClosed(reason=<ByeReason.SHUTDOWN: 2>, by_peer=True)")."""
+
+    async def main() -> None:
+        robot = await robot_on_loopback()
+        local = Simulacrum(robot.model, robot.address)
+        await asyncio.wait_for(local.open(), 5)
+        local.set_active("armActual", True)
+        reading = asyncio.get_running_loop().run_in_executor(
+            None, lambda: [local.read("armActual", timeout=5) for _ in range(10**4)]
+        )
+        await asyncio.sleep(0.05)
+        robot.stop()
+        with pytest.raises(NoSession) as ended:
+            await asyncio.wait_for(reading, 5)
+        assert str(ended.value) == "the robot ended the session: shutdown"
+        assert await asyncio.wait_for(local.ended(), 5) == local.closed
+        await local.aclose()
+
+    asyncio.run(main())
+
+
 def test_a_new_session_keeps_its_own_pace_not_the_one_before() -> None:
     """After a session at T = 1.2 s ends, the next one, at the model's period, gets its first
     control tick within its own period (it had waited out the old 1.2 s)."""

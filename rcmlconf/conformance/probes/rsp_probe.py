@@ -42,6 +42,7 @@ from rcmlconf.conformance.verdicts import Failed, HarnessError, Inconclusive, No
 from rcmlconf.errors import EncodeError, ProtocolError
 from rcmlconf.impair import ImpairedChannel, Impairment, derive_seed
 from rcmlconf.rctp.datastream.order import SequenceTracker
+from rcmlconf.reference.rsp.simulacrum import session_end
 from rcmlconf.rsp.codec import (
     Encryption,
     Header,
@@ -363,7 +364,10 @@ class RspProbe(DatagramLog):
             return found
         if isinstance(found, events.SessionRefused) and found.reason is not None:
             raise Inconclusive(f"the robot refused the session: {found.reason.name}")
-        raise Inconclusive(f"no session with the robot within {self.wait:.2g} s ({found})")
+        if found is None:
+            raise Inconclusive(f"no session with the robot within {self.wait:.2g} s")
+        assert isinstance(found, events.SessionRefused | events.SessionClosed)
+        raise Inconclusive(f"no session with the robot: {session_end(found)}")
 
     @property
     def session(self) -> LocalEndpoint:

@@ -28,11 +28,12 @@ from rcmlconf.errors import RcmlconfError
 from rcmlconf.reference.rsp.batch import Batch, Datagrams, Timer
 from rcmlconf.reference.timers import LoopTimer
 from rcmlconf.rsp.api import Values
-from rcmlconf.rsp.codec import Encryption
+from rcmlconf.rsp.codec import ByeReason, Encryption
 from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
 from rcmlconf.rsp.session import events
 from rcmlconf.rsp.session.devices import device
 from rcmlconf.rsp.session.local import LocalEndpoint
+from rcmlconf.rsp.session.timing import SESSION_TIMEOUT
 
 Address = tuple[str, int]
 #: A listener and the values it is to be called with.
@@ -84,6 +85,8 @@ class Simulacrum:
         self._timer_at: float | None = None
         self._opened: asyncio.Future[events.SessionOpened] | None = None
         self.closed: events.SessionClosed | events.SessionRefused | None = None
+        #: Set once `closed` is: what `ended` waits for.
+        self._over = asyncio.Event()
         #: Every event except states, for those who watch the session (bounded).
         self.history: deque[events.Event] = deque(maxlen=10_000)
         #: Told every datagram the session sends, as it goes (under the session's lock: keep it
@@ -118,6 +121,13 @@ class Simulacrum:
         except NoSession:
             self._close_socket()
             raise
+
+    async def ended(self) -> events.SessionClosed | events.SessionRefused:
+        """Once the session is over: BYE from either side, or its timeout (D-RSP-13); or once
+        it was refused."""
+        await self._over.wait()
+        assert self.closed is not None
+        return self.closed
 
     async def aclose(self) -> None:
         """BYE, and the socket closed."""
@@ -200,7 +210,7 @@ class Simulacrum:
             if not self._changed.wait_for(lambda: bool(unread) or self._ended(), timeout):
                 raise TimeoutError(f"no {device} within {timeout} s")
             if not unread:
-                raise NoSession(f"the session ended: {self.closed}")
+                raise NoSession(self._ending())
             return unread.popleft()
         seen = self._read_counts.get(device, 0)
         if not self._changed.wait_for(
@@ -208,7 +218,7 @@ class Simulacrum:
         ):
             raise TimeoutError(f"no new value of {device} within {timeout} s")
         if self._counts.get(device, 0) == seen:
-            raise NoSession(f"the session ended: {self.closed}")
+            raise NoSession(self._ending())
         self._read_counts[device] = self._counts[device]
         return self._latest[device]
 
@@ -249,6 +259,10 @@ class Simulacrum:
 
     def _ended(self) -> bool:
         return self.closed is not None
+
+    def _ending(self) -> str:
+        assert self.closed is not None
+        return session_end(self.closed)
 
     def _soon(self) -> None:
         """Flush from the loop's thread, whichever thread asked."""
@@ -343,8 +357,9 @@ class Simulacrum:
                 self._opened.set_result(event)
         elif isinstance(event, events.SessionRefused | events.SessionClosed):
             self.closed = event
+            self._over.set()
             if self._opened is not None and not self._opened.done():
-                self._opened.set_exception(NoSession(_refusal(event)))
+                self._opened.set_exception(NoSession(session_end(event)))
 
 
 def _call(calls: list[Call]) -> None:
@@ -354,12 +369,19 @@ def _call(calls: list[Call]) -> None:
         listener(values)
 
 
-def _refusal(event: events.SessionRefused | events.SessionClosed) -> str:
+def session_end(event: events.SessionRefused | events.SessionClosed) -> str:
+    """Why a local system's session did not open, or is over, in words (not the event's
+    repr): "no answer to HELLO ...", "the robot refused: ...", "the robot ended the session:
+    shutdown", "nothing from the robot for 10 s: the session timed out (D-RSP-13)"."""
     if isinstance(event, events.SessionRefused):
         if event.reason is None:
             return "no answer to HELLO (sent 6 times, D-RSP-12)"
         return f"the robot refused: {event.reason.name.lower().replace('_', ' ')}"
-    return f"the session ended: {event.reason.name.lower()}"
+    if event.reason is ByeReason.TIMEOUT and not event.by_peer:
+        silence = f"{SESSION_TIMEOUT:g} s"
+        return f"nothing from the robot for {silence}: the session timed out (D-RSP-13)"
+    who = "the robot" if event.by_peer else "the local system"
+    return f"{who} ended the session: {event.reason.name.lower()}"
 
 
 class _Protocol(asyncio.DatagramProtocol):
