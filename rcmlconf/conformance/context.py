@@ -219,7 +219,8 @@ class Context:
         probe = await self.control()
         answer = await probe.connect(self.target.site_path)
         if answer.status != 200 or probe.session is None:
-            raise Inconclusive(f"CONNECT was answered {answer.status} {answer.reason}")
+            missing = " without a Session" if answer.status == 200 else ""  # D-RCTP-11
+            raise Inconclusive(f"CONNECT was answered {answer.status} {answer.reason}{missing}")
         return probe
 
     async def client(self) -> ControlProbe:

@@ -37,7 +37,10 @@ _VERSION = re.compile(rb"(?i:RCTP)/[0-9]+\.[0-9]+")
 _STATUS = re.compile(rb"[0-9]{3}")
 # field-vchar, SP and HTAB (RFC 9110 field-value): no other control character.
 _FIELD_VALUE = re.compile(rb"[\t\x20-\x7e\x80-\xff]*")
-_DIGITS = re.compile(rb"[0-9]{1,10}")
+_DIGITS = re.compile(rb"[0-9]+")
+#: The digits a Content-Length may have (the grammar's `1*10DIGIT`, D-RCTP-9's 4,194,304 in
+#: reach): one of more does not parse, and is refused without being converted or shown whole.
+MOST_DIGITS = 10
 _LINE_ENDING_FAULT = re.compile(rb"\r(?!\n)|(?<!\r)\n")
 
 
@@ -228,9 +231,21 @@ class MessageReader:
         lengths = headers.get_all("Content-Length")
         if not lengths:
             return 0
-        if len(lengths) > 1 or _DIGITS.fullmatch(lengths[0].encode("latin-1")) is None:
-            self._fail("Content-Length is not one decimal number", 0, 400, is_response, "R-RCTP-6")
-        length = int(lengths[0])
+        if len(lengths) > 1:
+            self._fail("Content-Length is given more than once", 0, 400, is_response, "R-RCTP-6")
+        digits = lengths[0].encode("latin-1")
+        if _DIGITS.fullmatch(digits) is None:
+            self._fail("Content-Length is not a decimal number", 0, 400, is_response, "R-RCTP-6")
+        if len(digits) > MOST_DIGITS:
+            self._fail(
+                f"Content-Length has {len(digits):,} digits, more than the {MOST_DIGITS} of its"
+                " grammar (1*10DIGIT)",
+                0,
+                400,
+                is_response,
+                "R-RCTP-6",
+            )
+        length = int(digits)
         if length > self.limits.body:
             self._fail(
                 f"body of {length:,} bytes is above the limit of {self.limits.body:,}",

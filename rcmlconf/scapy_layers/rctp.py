@@ -50,7 +50,7 @@ from scapy.packet import Packet, bind_bottom_up, bind_layers, bind_top_down
 
 from rcmlconf.rcml.url import DEFAULT_PORT
 from rcmlconf.rctp.messages import REASONS, VERSION
-from rcmlconf.rctp.reader import LIMITS
+from rcmlconf.rctp.reader import LIMITS, MOST_DIGITS
 
 # The numbers of specs/rctp-2.0.md, taken from the core so that the layer and the codec it is
 # checked against cannot disagree on them.
@@ -120,7 +120,7 @@ _TOKEN = re.compile(rb"[!#$%&'*+\-.^_`|~0-9A-Za-z]+")
 _VERSION = re.compile(rb"(?i:RCTP)/[0-9]+\.[0-9]+")  # rctp/2.0 parses: another version
 _STATUS = re.compile(rb"[0-9]{3}")
 _FIELD_VALUE = re.compile(rb"[\t\x20-\x7e\x80-\xff]*")
-_DIGITS = re.compile(rb"[0-9]{1,10}")
+_DIGITS = re.compile(rb"[0-9]+")
 _BARE = re.compile(rb"\r(?!\n)|(?<!\r)\n")
 
 
@@ -186,8 +186,15 @@ def _body_length(lines: list[bytes], first: int) -> int:
         offset += len(line) + 2
     if not lengths:
         return 0
-    if len(lengths) > 1 or not _DIGITS.fullmatch(lengths[0]):
-        raise FramingError("Content-Length is not one decimal number")
+    if len(lengths) > 1:
+        raise FramingError("Content-Length is given more than once")
+    if not _DIGITS.fullmatch(lengths[0]):
+        raise FramingError("Content-Length is not a decimal number")
+    if len(lengths[0]) > MOST_DIGITS:
+        raise FramingError(
+            f"Content-Length has {len(lengths[0]):,} digits, more than the {MOST_DIGITS} of its"
+            " grammar (1*10DIGIT)"
+        )
     length = int(lengths[0])
     if length > MAX_BODY:
         raise FramingError(f"a body of {length} bytes, above {MAX_BODY}")

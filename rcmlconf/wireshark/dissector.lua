@@ -381,9 +381,17 @@ local function dissect_message(tvb, pinfo, tree, offset, infos)
         end
         if field.lower == "content-length" then
             lengths = lengths + 1
-            if lengths > 1 or not field.value:find("^%d+$") or #field.value > 10 then
-                return fail(field.at, field.length, "Content-Length is not one decimal number",
+            if lengths > 1 then
+                return fail(field.at, field.length, "Content-Length is given more than once",
                     "R-RCTP-6", 0)
+            end
+            if not field.value:find("^%d+$") then
+                return fail(field.at, field.length, "Content-Length is not a decimal number",
+                    "R-RCTP-6", 0)
+            end
+            if #field.value > 10 then
+                return fail(field.at, field.length, "Content-Length has " .. #field.value ..
+                    " digits, more than the 10 of its grammar (1*10DIGIT)", "R-RCTP-6", 0)
             end
             body_length = tonumber(field.value)
             if body_length > C.limits.body then

@@ -124,6 +124,26 @@ def test_framing_errors_are_refused_with_their_status(data: bytes, status: int) 
     assert failure.value.fatal
 
 
+@pytest.mark.parametrize(
+    ("length", "status", "reason"),
+    [
+        (b"99999999999", 400, "Content-Length has 11 digits, more than the 10 of its grammar"),
+        (b"1" * 4000, 400, "Content-Length has 4,000 digits, more than the 10 of its grammar"),
+        (b"00000000003", 400, "Content-Length has 11 digits, more than the 10 of its grammar"),
+        (b"4194305", 413, "body of 4,194,305 bytes is above the limit of 4,194,304"),
+        (b"3.0", 400, "Content-Length is not a decimal number"),
+        (b"3\r\nContent-Length: 3", 400, "Content-Length is given more than once"),
+    ],
+)
+def test_a_bad_content_length_is_refused_for_what_it_is(
+    length: bytes, status: int, reason: str
+) -> None:
+    """Each is refused for what it is: an 11-digit length was "not one decimal number"."""
+    with pytest.raises(RemoteProtocolError) as failure:
+        read_all(b"WRITE / RCTP/2.0\r\nCSeq: 1\r\nContent-Length: " + length + b"\r\n\r\n", [])
+    assert (failure.value.status, failure.value.reason[: len(reason)]) == (status, reason)
+
+
 def test_limits_are_seen_before_the_bytes_are_buffered() -> None:
     """R-RCTP-16: an endless start line is refused at the limit, not at the end of memory."""
     reader = MessageReader()
