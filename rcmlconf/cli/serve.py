@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import asyncio
+import errno
 import os
+import socket
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import click
@@ -25,6 +28,9 @@ from rcmlconf.validate.validator import load_robot
 from rcmlconf.wording import plural
 
 _PORT = click.IntRange(0, 65535)
+#: Free pairs of ports `--port 0` tries, at most: another process may take one before the
+#: server binds it.
+_PAIR_TRIES = 5
 
 
 @click.command()
@@ -41,7 +47,8 @@ _PORT = click.IntRange(0, 65535)
     "--http-port",
     type=_PORT,
     metavar="N",
-    help="The HTTP port of the robot's files. Default: --port + 1. 0 picks a free one.",
+    help="The HTTP port of the robot's files. Default: --port + 1 (with --port 0, the port"
+    " after the one picked). 0 picks a free one.",
 )
 @click.option("--no-http", is_flag=True, help="Serve no files over HTTP.")
 @click.option(
@@ -129,22 +136,28 @@ def serve(
     except DriverError as exc:
         raise click.UsageError(str(exc)) from None
     tcp = model.site.port_or_default if port is None else port
-    settings = ServerSettings(
-        host=host,
-        port=tcp,
-        http_port=None if no_http else _http_port(tcp, http_port),
-        seed=seed,
-        session_timeout=session_timeout,
-        faults=faults_named(faults),
-        limits=limits_from(
-            max_connections, max_connections_per_peer, max_sessions_per_peer, slow_timeout
-        ),
+    limits = limits_from(
+        max_connections, max_connections_per_peer, max_sessions_per_peer, slow_timeout
     )
-    for below in settings.limits.below_floor():
+    for below in limits.below_floor():
         output.notice(f"{below}: below R-RCTP-67's floor, clients may be refused or cut off")
-    server = ReferenceServer(rcml, model, chosen, settings)
+    paired = tcp == 0 and http_port is None and not no_http
+
+    def server() -> ReferenceServer:
+        rctp, files = (_free_pair(host), None) if paired else (tcp, http_port)
+        settings = ServerSettings(
+            host=host,
+            port=rctp,
+            http_port=None if no_http else _http_port(rctp, files),
+            seed=seed,
+            session_timeout=session_timeout,
+            faults=faults_named(faults),
+            limits=limits,
+        )
+        return ReferenceServer(rcml, model, chosen, settings)
+
     with log_lines(output, verbose, "rcmlconf.server"):
-        status = asyncio.run(_serve(server, output, ready_file))
+        status = asyncio.run(_serve(server, _PAIR_TRIES if paired else 1, output, ready_file))
     sys.exit(status)
 
 
@@ -152,15 +165,49 @@ def _http_port(tcp: int, http_port: int | None) -> int:
     """--http-port, else the port after RCTP's (where `rcmlconf client` looks), else any."""
     if http_port is not None:
         return http_port
-    return tcp + FILES_PORT_OFFSET if 0 < tcp + FILES_PORT_OFFSET <= 65535 else 0
+    return tcp + FILES_PORT_OFFSET if tcp > 0 and tcp + FILES_PORT_OFFSET <= 65535 else 0
 
 
-async def _serve(server: ReferenceServer, output: Output, ready_file: Path | None) -> int:
+def _free_pair(host: str) -> int:
+    """For --port 0: a port P of `host` free for RCTP (TCP and UDP) with P + 1 free for the
+    files, where a client given only the RCTP URL looks (D-RCTP-29); 0 (any port, the files
+    on any other) when none is found, or `host` does not resolve (the server says so)."""
     try:
-        await server.start()
-    except OSError as exc:
-        output.problem("serve", _cannot_listen(server.settings, exc))
-        return 2
+        family, _, _, _, address = socket.getaddrinfo(host, 0, type=socket.SOCK_STREAM)[0]
+    except OSError:
+        return 0
+    for _ in range(20):
+        with (
+            socket.socket(family, socket.SOCK_STREAM) as rctp,
+            socket.socket(family, socket.SOCK_DGRAM) as data,
+            socket.socket(family, socket.SOCK_STREAM) as files,
+        ):
+            try:
+                rctp.bind(address)
+                port: int = rctp.getsockname()[1]
+                data.bind((address[0], port, *address[2:]))
+                files.bind((address[0], port + FILES_PORT_OFFSET, *address[2:]))
+            except OSError:  # taken, or past 65535: another
+                continue
+            return port
+    return 0
+
+
+async def _serve(
+    make: Callable[[], ReferenceServer], tries: int, output: Output, ready_file: Path | None
+) -> int:
+    """Serve until a signal, once a server `make` makes could listen: on the ports it was
+    given, or on another of `tries` free pairs when a port of the last was taken first."""
+    for left in reversed(range(tries)):
+        server = make()
+        try:
+            await server.start()
+            break
+        except OSError as exc:
+            if left and exc.errno == errno.EADDRINUSE:
+                continue
+            output.problem("serve", _cannot_listen(server.settings, exc))
+            return 2
     url = server.url
     settle()  # the process serves: fewer collector pauses under load (D-RCTP-32)
     _banner(server, output, url)

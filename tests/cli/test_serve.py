@@ -75,6 +75,20 @@ def test_the_banner_and_the_ready_file_say_where_everything_is(tmp_path: Path) -
         assert words in err
 
 
+def test_port_0_serves_the_files_at_the_port_after_the_one_picked(tmp_path: Path) -> None:
+    """Where a client given only the RCTP URL looks (D-RCTP-29); they were on port 1 (0 + 1),
+    and the ready file said http://127.0.0.1:1/."""
+    with running(tmp_path, "serve", "--port", "0", str(ROVER)) as server:
+        rctp = server.rctp_port
+        assert server.ready["http"] == f"http://127.0.0.1:{rctp + 1}/"
+        index = urllib.request.urlopen(str(server.ready["http"]), timeout=BOUND).read()
+        assert b"rover.rcml" in index
+        done = run_command("client", f"rctp://127.0.0.1:{rctp}/rover", "read", "/drive/settings")
+        status, _, err = server.stop()
+    assert (status, done.returncode) == (0, 0), done.stderr
+    assert f"http://127.0.0.1:{rctp + 1}/rover.rcml" in err
+
+
 def test_no_http_serves_no_files(tmp_path: Path) -> None:
     with serving(tmp_path, ROVER, http=False) as server:
         assert server.ready["http"] is None
