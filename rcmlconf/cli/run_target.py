@@ -2,7 +2,8 @@
 case runs. One that is not there is then one line and status 2 (the harness cannot do its job),
 not every case in error, or, for a robot that never answers HELLO, failing R-RSP-20.
 
-An RCTP server gets a TCP connection, closed at once. An RSP robot gets one empty datagram, which
+An RCTP server gets a TCP connection, closed at once; one it takes and resets is there too
+(D-RCTP-1), and its cases say what it did. An RSP robot gets one empty datagram, which
 it drops unanswered, as every packet shorter than the 20-byte header (D-RSP-10, R-RSP-18): a host
 where nothing listens on the port answers it with ICMP "port unreachable", which the socket
 reports; a silent host says nothing, and the cases go on to find out."""
@@ -14,6 +15,7 @@ import sys
 
 from rcmlconf.cli.console import Output
 from rcmlconf.cli.hosts import Address
+from rcmlconf.conformance.probes.lost import by_target
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rcml.url import RctpUrl
 from rcmlconf.reference.client.fetching import Deadline
@@ -37,6 +39,8 @@ def server_problem(address: Address, wait: float) -> str | None:
     except TimeoutError:
         return f"no answer within {wait:g} s; {_RUNNING}"
     except OSError as error:
+        if by_target(error):  # it took the connection, then reset it: it is there (D-RCTP-1)
+            return None
         return f"{(error.strerror or str(error)).lower()}; {_RUNNING}"
 
 

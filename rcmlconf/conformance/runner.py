@@ -12,6 +12,7 @@ from pathlib import Path
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.loopwatch import LoopWatch
+from rcmlconf.conformance.probes.lost import stop
 from rcmlconf.conformance.registry import Case
 from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.run_defaults import CONNECT_TIMEOUT, SESSION_WAIT
@@ -121,21 +122,9 @@ async def _judged(
             ctx.close()  # first: what closing notes (a client command's end) is in the exchange
         ctx.answers_in_place()
     except Failed as failed:
-        excuse = ctx.excuse()
-        return Result(
-            case.id,
-            Verdict.INCONCLUSIVE if excuse else Verdict.FAIL,
-            time.monotonic() - started,
-            f"{failed.reason}; but {excuse}" if excuse else failed.reason,
-            failed.requirement,
-            failed.expected,
-            failed.actual,
-            _exchange(ctx),
-            run,
-            entries=_entries(ctx),
-        )
-    except CaseStop as stop:
-        return _result(case, ctx, started, run, stop.verdict, stop.reason)
+        return _failure(case, ctx, started, run, failed)
+    except CaseStop as stopped:
+        return _result(case, ctx, started, run, stopped.verdict, stopped.reason)
     except TimeoutError:
         seconds = ctx.timeout
         return Result(
@@ -150,9 +139,11 @@ async def _judged(
             run,
             entries=_entries(ctx),
         )
-    except OSError as error:
-        reason = f"network error: {error}"
-        return _result(case, ctx, started, run, Verdict.ERROR, reason)
+    except OSError as error:  # what no probe caught: a reset fails, the rest is an error
+        judged = stop(error, case.requirements[0])
+        if isinstance(judged, Failed):
+            return _failure(case, ctx, started, run, judged)
+        return _result(case, ctx, started, run, judged.verdict, judged.reason)
     except Exception as error:  # a harness bug: reported as an error, never a traceback
         reason = f"harness fault: {type(error).__name__}: {error}"
         return _result(case, ctx, started, run, Verdict.ERROR, reason)
@@ -161,6 +152,23 @@ async def _judged(
             _capture(options.capture, case, run, ctx)
     partly = "; ".join(ctx.unchecked)
     return _result(case, ctx, started, run, Verdict.PASS, partly and f"{PARTLY}{partly}")
+
+
+def _failure(case: Case, ctx: Context, started: float, run: int, failed: Failed) -> Result:
+    """A failure, or inconclusive where the harness's own holds may explain it."""
+    excuse = ctx.excuse()
+    return Result(
+        case.id,
+        Verdict.INCONCLUSIVE if excuse else Verdict.FAIL,
+        time.monotonic() - started,
+        f"{failed.reason}; but {excuse}" if excuse else failed.reason,
+        failed.requirement,
+        failed.expected,
+        failed.actual,
+        _exchange(ctx),
+        run,
+        entries=_entries(ctx),
+    )
 
 
 async def _absent(case: Case, target: Target, options: RunOptions, run: int) -> Result | None:

@@ -7,9 +7,10 @@ import asyncio
 import contextlib
 from collections.abc import Sequence
 
+from rcmlconf.conformance.probes.lost import RESET, by_target, named, network, unreached
 from rcmlconf.conformance.probes.outstanding import Outstanding
 from rcmlconf.conformance.transcript import Address, Transcript
-from rcmlconf.conformance.verdicts import Failed, HarnessError
+from rcmlconf.conformance.verdicts import Failed
 from rcmlconf.errors import ValueTextError
 from rcmlconf.rctp.errors import RemoteProtocolError
 from rcmlconf.rctp.fields import parse_nodes
@@ -29,21 +30,28 @@ class ControlProbe:
     def __init__(
         self,
         reader: asyncio.StreamReader,
-        writer: asyncio.StreamWriter,
+        writer: asyncio.StreamWriter | None,
         transcript: Transcript,
         wait: float,
+        peer: Address | None = None,
     ) -> None:
+        """`writer` None: the target reset the connection as it was made (`open`). `peer`: the
+        address connected to, where the socket no longer knows it (a reset)."""
         self._reader, self._writer = reader, writer
         self.transcript = transcript
         #: Seconds to wait for an answer (the case's timeout scale applied).
         self.wait = wait
         self._messages = MessageReader()
-        self._eof = False
+        self._eof = writer is None
+        #: "open", "closed" or "reset" (D-RCTP-1).
+        self.end = "open" if writer is not None else "reset"
         self.cseq = 0
         #: The session ID once a CONNECT opened one (`Session` is then sent on every request).
         self.session: str | None = None
-        self.local: Address = writer.get_extra_info("sockname")[:2]
-        self.peer: Address = writer.get_extra_info("peername")[:2]
+        # Read now, before any await: a reset takes the peer's name from the socket.
+        extra = writer.get_extra_info if writer is not None else lambda _: None
+        self.peer = named(extra("peername"), peer or ("0.0.0.0", 0))
+        self.local = named(extra("sockname"), ("::" if ":" in self.peer[0] else "0.0.0.0", 0))
         #: `c1`, `c2`, ...: which connection of the case a transcript line is about.
         self.name = transcript.label("c")
         #: How the probe answers the peer's own requests that come while it waits for an answer
@@ -64,18 +72,28 @@ class ControlProbe:
 
     @classmethod
     async def open(cls, address: Address, transcript: Transcript, wait: float) -> ControlProbe:
+        """A connection to `address`; an error if it cannot be made. One the target resets as
+        it is made is made (D-RCTP-1): the probe reads it as ended."""
+        writer: asyncio.StreamWriter | None = None
         try:
             reader, writer = await asyncio.wait_for(asyncio.open_connection(*address), wait)
-        except (OSError, TimeoutError) as error:
-            raise HarnessError(f"cannot connect to {address[0]}:{address[1]}: {error}") from None
-        probe = cls(reader, writer, transcript, wait)
+        except OSError as error:  # TimeoutError too
+            if not by_target(error):
+                raise unreached(address, error) from None
+            reader = asyncio.StreamReader()
+            reader.feed_eof()
+        probe = cls(reader, writer, transcript, wait, address)
         transcript.note(f"{probe.name} connected to {address[0]}:{address[1]}")
+        if writer is None:
+            transcript.note(f"{probe.name} <- the peer reset the connection")
         return probe
 
     # -- sending -------------------------------------------------------------------------------
 
     async def send(self, data: bytes, what: str = "") -> None:
         """`data` exactly as given (one write, one TCP segment as far as the kernel lets it)."""
+        if self._writer is None:
+            return  # reset as it was made: nothing goes out
         self.transcript.sent(f"{self.name} {what}".rstrip(), data)
         self.transcript.packet("tcp", self.local, self.peer, data)
         self.outstanding.sent(data)
@@ -202,12 +220,16 @@ class ControlProbe:
                     "an answer",
                     f"nothing within {self.wait if wait is None else wait:g} s",
                 ) from None
-            except (ConnectionError, OSError) as error:
-                self.transcript.note(f"{self.name} connection failed: {error}")
+            except OSError as error:
+                if not by_target(error):
+                    raise network(error, self.name) from None
+                self.end = "reset"
                 data = b""
             if not data:
                 self._eof = True
-                self.transcript.note(f"{self.name} <- the peer closed the connection")
+                if self.end == "open":
+                    self.end = "closed"
+                self.transcript.note(f"{self.name} <- the peer {self.end} the connection")
                 continue
             self.transcript.packet("tcp", self.peer, self.local, data)
             self._messages.feed(data)
@@ -222,7 +244,7 @@ class ControlProbe:
         for _ in range(64):
             found = await self.message(wait, cseq_rule)
             if found is None:
-                raise Failed(closed, "an answer", CLOSED)
+                raise Failed(closed, "an answer", RESET if self.end == "reset" else CLOSED)
             if isinstance(found, Response):
                 return found
             await self.answer(found, *(self.outstanding.idle_refusal(found) or self.own_requests))
@@ -281,8 +303,9 @@ class ControlProbe:
         return answer
 
     def close(self) -> None:
-        with contextlib.suppress(Exception):
-            self._writer.close()
+        if self._writer is not None:
+            with contextlib.suppress(Exception):
+                self._writer.close()
 
     def _record(self, message: Message) -> None:
         if isinstance(message, Request):

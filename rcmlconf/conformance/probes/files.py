@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import h11
 
 from rcmlconf import __version__
+from rcmlconf.conformance.probes.lost import RESET, by_target, named, network, said
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Failed
 from rcmlconf.markup.failure import MAX_DOCUMENT_BYTES
@@ -66,14 +67,17 @@ class FilesProbe:
         transcript: Transcript,
         wait: float,
         host: str,
+        peer: Address,
     ) -> None:
+        """`host`: the Host field's; `peer`: the address connected to."""
         self._reader, self._writer = reader, writer
         self.transcript = transcript
         self.wait = wait
         self._host = host
         self._conn = h11.Connection(h11.CLIENT, max_incomplete_event_size=MAX_HEAD)
-        self.local: Address = writer.get_extra_info("sockname")[:2]
-        self.peer: Address = writer.get_extra_info("peername")[:2]
+        # Read now, before any await: a reset takes the peer's name from the socket.
+        self.peer = named(writer.get_extra_info("peername"), peer)
+        self.local = named(writer.get_extra_info("sockname"), ("0.0.0.0", 0))
         self.name = transcript.label("h")
 
     @classmethod
@@ -85,15 +89,15 @@ class FilesProbe:
         host, port = address
         try:
             reader, writer = await asyncio.wait_for(asyncio.open_connection(host, port), wait)
-        except (OSError, TimeoutError) as error:
+        except OSError as error:  # TimeoutError too
+            got = RESET if by_target(error) else f"no connection: {said(error)}"
             raise Failed(
                 requirement,
                 f"the robot's files on HTTP at {host}:{port}, the port after RCTP's (D-RCTP-29)",
-                f"no connection: {error or type(error).__name__} (a server that does not offer"
-                " its files says so in its ICS: files = false)",
+                f"{got} (a server that does not offer its files says so in its ICS: files = false)",
             ) from None
         name = f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
-        probe = cls(reader, writer, transcript, wait, name)
+        probe = cls(reader, writer, transcript, wait, name, address)
         transcript.note(f"{probe.name} connected to {name} (the robot's files)")
         return probe
 
@@ -173,6 +177,7 @@ class FilesProbe:
                 ) from None
             if event is not h11.NEED_DATA:
                 return event
+            reset = False
             try:
                 data = await asyncio.wait_for(self._reader.read(_READ_SIZE), self.wait)
             except TimeoutError:
@@ -181,16 +186,15 @@ class FilesProbe:
                     requirement, f"{asked}: an answer", f"{what} not within {self.wait:g} s"
                 ) from None
             except OSError as error:
-                self.transcript.note(f"{self.name} connection failed: {error}")
-                data = b""
+                data, reset = self._lost(error), True
             if data:
                 self.transcript.packet("tcp", self.peer, self.local, data)
             else:
-                self.transcript.note(f"{self.name} <- the server closed the connection")
+                how = "reset" if reset else "closed"
+                self.transcript.note(f"{self.name} <- the server {how} the connection")
                 if not started:  # h11 would call it a protocol error; it is no answer
-                    raise Failed(
-                        requirement, f"{asked}: an answer", "the connection closed without one"
-                    )
+                    got = RESET if reset else "the connection closed without one"
+                    raise Failed(requirement, f"{asked}: an answer", got)
             self._conn.receive_data(data)
 
     async def closed(self, wait: float) -> tuple[bytes, bool]:
@@ -207,14 +211,21 @@ class FilesProbe:
                 )
             except TimeoutError:
                 return extra, False
-            except OSError:
-                data = b""
+            except OSError as error:
+                data = self._lost(error)
             if not data:
                 self.transcript.note(f"{self.name} <- the server closed the connection")
                 return extra, True
             self.transcript.packet("tcp", self.peer, self.local, data)
             extra += data
         return extra, False
+
+    def _lost(self, error: OSError) -> bytes:
+        """What a read that failed with `error` read: nothing, once the server reset the
+        connection (D-RCTP-1); any other failure is the network's, an error."""
+        if not by_target(error):
+            raise network(error, self.name)
+        return b""
 
     def close(self) -> None:
         self._writer.close()
