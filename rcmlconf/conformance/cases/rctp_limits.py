@@ -118,6 +118,18 @@ def _first(wrong: list[str]) -> str:
     return "; ".join(wrong[:3]) + more
 
 
+async def _kept(seconds: float, *probes: ControlProbe) -> None:
+    """`seconds` pass, or fewer once the target ends a connection of `probes` (closed or
+    reset): it broke the floor then, and no answer can come on it to wait for."""
+    watches = [asyncio.ensure_future(probe.closes(seconds)) for probe in probes]
+    try:
+        await asyncio.wait(watches, timeout=seconds, return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        for watch in watches:
+            watch.cancel()
+        await asyncio.gather(*watches, return_exceptions=True)
+
+
 async def _connected(probe: ControlProbe, site: str) -> str:
     """The status of the answer to CONNECT (which keeps its session), or what came instead."""
     try:
@@ -140,8 +152,7 @@ async def slow_client_kept(ctx: Context) -> None:
     # bytes now and the rest in SLOW_FOR seconds, the quiet one's all then.
     request = slow.request_bytes("CONNECT", ctx.target.site_path)
     await slow.send(request[:9])
-    if quiet.end == slow.end == "open":  # not one the target reset as it was made
-        await asyncio.sleep(SLOW_FOR)
+    await _kept(SLOW_FOR, quiet, slow)
     await slow.send(request[9:])
     await quiet.send(quiet.request_bytes("CONNECT", ctx.target.site_path))
     for probe, what in (
