@@ -42,6 +42,7 @@ from rcmlconf.cli.run_target import (
     server_problem,
 )
 from rcmlconf.conformance.files import shown
+from rcmlconf.conformance.giveup import NOT_RUN
 from rcmlconf.conformance.ics import EVERYTHING, Ics, load_ics
 from rcmlconf.conformance.probes.clients import HARNESS_RCML
 from rcmlconf.conformance.registry import Case, all_cases
@@ -364,6 +365,10 @@ def _report(
             " requirement, as the target could not show the rest (run -v or --json says which"
             " part and why)"
         )
+    skipped = [r for r in results if r.reason.startswith(NOT_RUN)]
+    if skipped:  # GiveUp: the same reason for each
+        not_run = f"{plural(len(skipped), 'case')} {skipped[0].reason}"
+        output.notice(f"gave up on {target.name}: {not_run}")
     found = counts(results)
     fresh = new_failures(results)
     line = ", ".join(f"{n} {v.value}" for v, n in found.items() if n)

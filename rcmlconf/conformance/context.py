@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Protocol, TypeVar
 
 from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.conformance.probes.local_probe import LocalProbe
+from rcmlconf.conformance.probes.lost import Contact
 from rcmlconf.conformance.probes.outstanding import Outstanding
 from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.run_defaults import SESSION_WAIT
@@ -90,6 +91,8 @@ class Context:
     unchecked: list[str] = field(default_factory=list)
     #: When the case started, in loop time.
     started: float = field(default_factory=lambda: asyncio.get_running_loop().time())
+    #: The case's control connections to the server and how they went (the runner's give-up).
+    contact: Contact = field(default_factory=Contact)
 
     @property
     def timeout(self) -> float:
@@ -208,7 +211,9 @@ class Context:
         """A new control connection to the RCTP server under test."""
         if self.target.server is None:
             raise NotApplicable("no RCTP server under test (--target)")
-        probe = await ControlProbe.open(self.target.server, self.transcript, self.wait)
+        probe = await ControlProbe.open(
+            self.target.server, self.transcript, self.wait, self.contact
+        )
         self._closers.append(probe.close)
         self._outstanding.append(probe.outstanding)
         return probe

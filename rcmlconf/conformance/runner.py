@@ -11,8 +11,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from rcmlconf.conformance.context import Context
+from rcmlconf.conformance.giveup import GiveUp
 from rcmlconf.conformance.loopwatch import LoopWatch
-from rcmlconf.conformance.probes.lost import stop
+from rcmlconf.conformance.probes.lost import Contact, stop
 from rcmlconf.conformance.registry import Case
 from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.run_defaults import CONNECT_TIMEOUT, SESSION_WAIT
@@ -91,12 +92,15 @@ async def run_case(
     robots: asyncio.Queue[Address] | None = None,
     watch: LoopWatch | None = None,
     robot: Address | None = None,
+    contact: Contact | None = None,
 ) -> Result:
     """One case, its timeout counted from now. `robot`: the RSP robot taken for it already (a
     robot serves one session at a time, D-RSP-12, so a case may have waited for its turn; that
-    wait is not the case's time), else it takes one from `robots` when it asks."""
+    wait is not the case's time), else it takes one from `robots` when it asks. `contact`: where
+    its control connections are kept (`GiveUp`)."""
     pool = robots or robot_pool(target)
     ctx = Context(case, target, options.timeout_scale, options.seed, pool, options.impair)
+    ctx.contact = contact or ctx.contact
     ctx.loop_watch = watch
     ctx.taken = robot
     ctx.session_wait = options.session_wait
@@ -110,9 +114,9 @@ async def _judged(
     """The case run in `ctx`: its verdict, every exception turned into one."""
     started = time.monotonic()
     try:
-        missing = [f for f in case.features if f not in target.features]
-        if missing:
-            return _result(case, ctx, started, run, Verdict.NOT_APPLICABLE, _lacks(missing))
+        lacks = _lacks(case, target)
+        if lacks:
+            return _result(case, ctx, started, run, Verdict.NOT_APPLICABLE, lacks)
         try:
             await asyncio.wait_for(case.run(ctx), ctx.timeout)
         except Exception:
@@ -217,6 +221,7 @@ async def run_cases(
     gate = asyncio.Semaphore(max(1, options.concurrency))
     robots = robot_pool(target)
     watch = LoopWatch()
+    dead = GiveUp()
 
     async def one(case: Case, run: int) -> None:
         # A robot case waits for a free robot before it takes a slot, and its clock starts
@@ -228,9 +233,14 @@ async def run_cases(
             await target.locals.settled()
         try:
             async with gate:  # a client waiting in line would wait on its own timers
-                result = await _absent(case, target, options, run)
+                result = await _absent(case, target, options, run) or _dead(case, target, run, dead)
                 if result is None:
-                    result = await run_case(case, target, options, run, robots, watch, robot)
+                    contact = dead.begin() if case.role is Role.SERVER else None
+                    result = await run_case(
+                        case, target, options, run, robots, watch, robot, contact
+                    )
+                    if contact is not None:
+                        dead.ended(contact, result.verdict)
         finally:
             if robot is not None:
                 robots.put_nowait(robot)
@@ -280,6 +290,13 @@ async def run_cases(
     return sorted(results, key=lambda r: (r.run, order[r.case]))
 
 
+def _dead(case: Case, target: Target, run: int, dead: GiveUp) -> Result | None:
+    """Why a server case that applies is not run: the run gave up on a dead target."""
+    if case.role is not Role.SERVER or dead.reason is None or _lacks(case, target):
+        return None
+    return Result(case.id, Verdict.INCONCLUSIVE, 0.0, dead.reason, run=run)
+
+
 def _result(
     case: Case, ctx: Context, started: float, run: int, verdict: Verdict, reason: str
 ) -> Result:
@@ -304,5 +321,7 @@ def _entries(ctx: Context) -> tuple[Entry, ...]:
     return tuple(ctx.transcript.entries[-2 * EXCHANGE_LINES :])
 
 
-def _lacks(features: list[str]) -> str:
-    return "the ICS does not declare " + ", ".join(repr(f) for f in features)
+def _lacks(case: Case, target: Target) -> str:
+    """Why the case does not apply (the target's ICS lacks a feature it needs), or ""."""
+    missing = [f for f in case.features if f not in target.features]
+    return "the ICS does not declare " + ", ".join(repr(f) for f in missing) if missing else ""

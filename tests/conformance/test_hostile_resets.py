@@ -1,6 +1,7 @@
-"""`run --target` against servers that reset connections (tests/support/hostile_resets.py): each
-case that waited on the target fails for what it did (D-RCTP-1), never with a harness fault or a
-network error."""
+"""`run --target` against servers that reset, ignore or stop taking connections
+(tests/support/hostile_resets.py): each case that waited on the target fails for what it did,
+never with a harness fault or a network error; a target that answers nothing is given up on
+after IN_A_ROW cases, so the run ends in a second or two, not a timeout a case."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from support.hostile_resets import hostile
 from support.processes import free_port, run_command
 
 from rcmlconf.cli.run_target import server_problem
+from rcmlconf.conformance.giveup import NOT_RUN
 from rcmlconf.conformance.probes.lost import RESET
 from rcmlconf.conformance.targets import REFERENCE_RCML
 
@@ -29,7 +31,15 @@ def judged(port: int, report: Path, *options: str) -> tuple[subprocess.Completed
     return done, json.loads(report.read_text())["results"]
 
 
-def test_a_target_that_resets_every_connection_fails(tmp_path: Path) -> None:
+def given_up(done: subprocess.CompletedProcess[str], port: int, why: str) -> None:
+    """The summary says once that the rest were not run, and why."""
+    said = [line for line in done.stderr.splitlines() if line.startswith("gave up on")]
+    assert len(said) == 1, done.stderr
+    assert said[0].startswith(f"gave up on 127.0.0.1:{port}: "), said
+    assert why in said[0], said
+
+
+def test_a_target_that_resets_every_connection_fails_and_is_given_up_on(tmp_path: Path) -> None:
     """The whole suite. Before: 170 errors 'cannot connect to ...: [Errno 104]', a harness
     fault (TypeError), or status 2 'connection reset' from the reachability check."""
     with hostile("reset") as port:
@@ -37,18 +47,48 @@ def test_a_target_that_resets_every_connection_fails(tmp_path: Path) -> None:
     verdicts = {r["verdict"] for r in results}
     assert verdicts <= {"fail", "inconclusive", "not applicable"}, done.stdout
     failed = [r for r in results if r["verdict"] == "fail" and r["actual"] == RESET]
-    assert len(failed) > len(results) / 2, done.stdout
+    assert failed, done.stdout
     assert all(r["requirement"] for r in failed), done.stdout
-    assert done.returncode == 1
+    not_run = [r for r in results if r["reason"].startswith(NOT_RUN)]
+    assert len(not_run) > len(results) / 2
+    assert {r["reason"] for r in not_run} == {
+        f"{NOT_RUN}the target reset every connection of the 8 cases before"
+    }
+    given_up(done, port, f"{len(not_run)} cases {NOT_RUN}")
+    assert done.returncode == 1  # its cases failed
 
 
 def test_a_reset_after_the_request_fails_the_answer_it_waited_for(tmp_path: Path) -> None:
     """Before: 'the connection closed without one', a reset taken for a plain close."""
     with hostile("reset-after-request") as port:
         done, results = judged(port, tmp_path / "r.json", "--only", MSG)
-    assert {r["verdict"] for r in results} == {"fail"}, done.stdout
-    assert {r["actual"] for r in results} == {RESET}, done.stdout
+    ran = [r for r in results if not r["reason"].startswith(NOT_RUN)]
+    assert {r["verdict"] for r in ran} == {"fail"}, done.stdout
+    assert {r["actual"] for r in ran} == {RESET}, done.stdout
     assert done.returncode == 1
+
+
+def test_a_silent_target_is_given_up_on(tmp_path: Path) -> None:
+    """It takes every connection and never sends a byte: each case would wait out its answer."""
+    with hostile("silent") as port:
+        options = ("--only", "rctp/msg/*", "--timeout-scale", "0.1")
+        done, results = judged(port, tmp_path / "r.json", *options)
+    assert {r["verdict"] for r in results} == {"fail", "inconclusive"}, done.stdout
+    given_up(done, port, "not run: the target sent nothing on any connection of the 8 cases")
+    assert done.returncode == 1
+
+
+def test_a_target_that_stops_taking_connections_is_given_up_on(tmp_path: Path) -> None:
+    """It answers its first connections (the reachability check's and three cases', one case
+    at a time), then refuses: those cases are errors (nothing listens), the rest are not run."""
+    with hostile("dies", after=4) as port:
+        options = ("--only", "rctp/msg/*", "--concurrency", "1", "--timeout-scale", "0.2")
+        done, results = judged(port, tmp_path / "r.json", *options)
+    errors = [r for r in results if r["verdict"] == "error"]
+    assert errors, done.stdout
+    assert all("connection refused" in r["reason"] for r in errors), done.stdout
+    given_up(done, port, "refused every connection of the 8 cases before, having answered")
+    assert done.returncode != 0
 
 
 def test_the_reachability_check_takes_a_reset_for_a_target_that_is_there() -> None:

@@ -32,6 +32,14 @@ def _reset(connection: socket.socket) -> None:
     connection.close()
 
 
+def _read_then_reset(connection: socket.socket) -> None:
+    """The connection's first bytes read (a second at most), then it is reset."""
+    connection.settimeout(1.0)
+    with suppress(OSError):
+        connection.recv(65536)
+    _reset(connection)
+
+
 def _answer_503(connection: socket.socket, stop: threading.Event) -> None:
     """Each request of the connection answered 503 with its CSeq, until the peer closes."""
     connection.settimeout(0.2)
@@ -65,10 +73,7 @@ def _serve(listening: socket.socket, mode: str, after: int, stop: threading.Even
             if mode == "reset":
                 _reset(connection)
             elif mode == "reset-after-request":
-                connection.settimeout(1.0)
-                with suppress(OSError):
-                    connection.recv(65536)
-                _reset(connection)
+                threading.Thread(target=_read_then_reset, args=(connection,), daemon=True).start()
             elif mode == "silent" and len(held) < HELD:
                 held.append(connection)
             elif mode == "dies":

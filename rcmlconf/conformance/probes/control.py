@@ -7,7 +7,7 @@ import asyncio
 import contextlib
 from collections.abc import Sequence
 
-from rcmlconf.conformance.probes.lost import RESET, by_target, named, network, unreached
+from rcmlconf.conformance.probes.lost import RESET, Contact, by_target, named, network, unreached
 from rcmlconf.conformance.probes.outstanding import Outstanding
 from rcmlconf.conformance.transcript import Address, Transcript
 from rcmlconf.conformance.verdicts import Failed
@@ -43,8 +43,9 @@ class ControlProbe:
         self.wait = wait
         self._messages = MessageReader()
         self._eof = writer is None
-        #: "open", "closed" or "reset" (D-RCTP-1).
+        #: "open", "closed" or "reset" (D-RCTP-1); and the bytes the peer sent (`lost.Contact`).
         self.end = "open" if writer is not None else "reset"
+        self.heard = 0
         self.cseq = 0
         #: The session ID once a CONNECT opened one (`Session` is then sent on every request).
         self.session: str | None = None
@@ -71,18 +72,23 @@ class ControlProbe:
         return self
 
     @classmethod
-    async def open(cls, address: Address, transcript: Transcript, wait: float) -> ControlProbe:
+    async def open(
+        cls, address: Address, transcript: Transcript, wait: float, contact: Contact | None = None
+    ) -> ControlProbe:
         """A connection to `address`; an error if it cannot be made. One the target resets as
-        it is made is made (D-RCTP-1): the probe reads it as ended."""
+        it is made is made (D-RCTP-1): the probe reads it as ended. `contact` hears of it."""
+        contact = contact or Contact()
         writer: asyncio.StreamWriter | None = None
         try:
             reader, writer = await asyncio.wait_for(asyncio.open_connection(*address), wait)
         except OSError as error:  # TimeoutError too
             if not by_target(error):
+                contact.failed(error)
                 raise unreached(address, error) from None
             reader = asyncio.StreamReader()
             reader.feed_eof()
         probe = cls(reader, writer, transcript, wait, address)
+        contact.made.append(probe)
         transcript.note(f"{probe.name} connected to {address[0]}:{address[1]}")
         if writer is None:
             transcript.note(f"{probe.name} <- the peer reset the connection")
@@ -184,6 +190,7 @@ class ControlProbe:
         """Bytes of the peer's read before the probe had the connection (the client role reads
         a first request's head to know its case): read first, as if they came now."""
         if data:
+            self.heard += len(data)
             self.transcript.packet("tcp", self.peer, self.local, data)
             self._messages.feed(data)
 
@@ -231,6 +238,7 @@ class ControlProbe:
                     self.end = "closed"
                 self.transcript.note(f"{self.name} <- the peer {self.end} the connection")
                 continue
+            self.heard += len(data)
             self.transcript.packet("tcp", self.peer, self.local, data)
             self._messages.feed(data)
 

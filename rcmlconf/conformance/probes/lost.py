@@ -1,11 +1,17 @@
 """What a probe's failed connection to the target means, in one place. A connection the target
 took and then reset (D-RCTP-1), at connect or later, ended by the target's doing: the case judges
 it as a connection closed, with the words `RESET`. Any other failure is not the target's: refused
-(nothing listens), no route, no name, no handshake in time. That is the network's, an error."""
+(nothing listens), no route, no name, no handshake in time. That is the network's, an error.
+
+`Contact` keeps what a case's connections found: whether the target sent a byte on any, and how
+each ended. The runner gives up on a dead target from it (`conformance.giveup`)."""
 
 from __future__ import annotations
 
 import os
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Protocol
 
 from rcmlconf.conformance.transcript import Address
 from rcmlconf.conformance.verdicts import CaseStop, Failed, HarnessError
@@ -59,3 +65,41 @@ def named(name: object, known: Address) -> Address:
     if isinstance(name, tuple) and len(name) >= 2:
         return str(name[0]), int(name[1])
     return known
+
+
+class Connection(Protocol):
+    """A connection as `Contact` reads it (`ControlProbe`)."""
+
+    @property
+    def heard(self) -> int:
+        """Bytes the target sent on it."""
+        ...
+
+    @property
+    def end(self) -> str:
+        """How it ended: open (not yet), closed or reset."""
+        ...
+
+
+@dataclass(eq=False)
+class Contact:
+    """One case's connections to the target: those made and why the rest were not."""
+
+    made: list[Connection] = field(default_factory=list)
+    #: For each connection never made: "refused", or "unreached" (no handshake, no route).
+    unmade: list[str] = field(default_factory=list)
+
+    def failed(self, error: OSError) -> None:
+        self.unmade.append("refused" if isinstance(error, ConnectionRefusedError) else "unreached")
+
+    @property
+    def heard(self) -> bool:
+        """Whether the target sent a byte on any of them."""
+        return any(connection.heard for connection in self.made)
+
+    def ends(self) -> Counter[str]:
+        """How each connection tried ended, the target having sent nothing on it: "reset",
+        "closed", "silent" (still open), "refused", "unreached"."""
+        found = Counter("silent" if c.end == "open" else c.end for c in self.made if not c.heard)
+        found.update(self.unmade)
+        return found
