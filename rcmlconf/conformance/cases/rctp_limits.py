@@ -36,7 +36,9 @@ _SERVED = ("200", "503")
 )
 async def peer_floors(ctx: Context) -> None:
     # Alone in the run (`exclusive`, after the other cases): their connections come from the
-    # harness's address too and would count against the server's caps.
+    # harness's address too and would count against the server's caps. Alone, its connections
+    # fill no cap in all (at least 64, D-RCTP-32), so none is closed to make room; the one more
+    # of `_beyond` comes once all hold sessions, which are never closed so.
     probes: list[ControlProbe] = []
     try:
         await _floors(ctx, probes)
@@ -147,6 +149,9 @@ async def _connected(probe: ControlProbe, site: str) -> str:
 )
 async def slow_client_kept(ctx: Context) -> None:
     # The floors of connections and sessions, and the 503, are peer-floors': it runs alone.
+    # These two connections hold no session for SLOW_FOR s: a server whose connections fill its
+    # cap in all may close them sooner, to make room (D-RCTP-32). The harness's cases beside
+    # this one hold fewer than the 64 connections such a cap is at least: they never fill it.
     quiet, slow = await ctx.control(), await ctx.control()
     # Without a session yet, so that no session timeout is in play: the slow CONNECT's first
     # bytes now and the rest in SLOW_FOR seconds, the quiet one's all then.
