@@ -23,7 +23,9 @@ _OPTIONS: tuple[tuple[str, click.ParamType[Any], str, str], ...] = (
         _COUNT,
         "connections",
         "Open connections at once, RCTP's and the files' together (fewer if the process may "
-        "not open that many files); one beyond is closed as soon as it is accepted.",
+        "not open that many files); one beyond closes, to make room, the oldest connection "
+        "without a session of the address holding the most, or is closed at once when every "
+        "connection holds a session.",
     ),
     (
         "--max-connections-per-peer",

@@ -8,16 +8,18 @@ sends what it has and closes the connection once it is finished.
 
 A peer that does not read what it is sent cannot make the server buffer without bound: when a
 connection's write buffer is full, the server stops reading from it until the buffer drains, and
-resets it if it does not drain within the slow timeout (also once closed). Nor can one peer hold
-the others up (D-RCTP-32, `limits`): connections are accepted a few a turn of the loop, and one
-beyond the caps (RCTP's and the files' counted together) is closed as soon as it is accepted; a
-burst of pipelined requests is handed to its session a slice per turn of the loop (reading the
-connection paused meanwhile); the connections' work takes a budget of each turn, a peer address's
-connections a share of it, and what is left waits, shared fairly among the addresses (`turns`); a
-connection with a large request under way waits, unread, for one of a few places (a wait not
-counted against it as slowness); the data socket is read several datagrams a wake-up, so that a
-flood of them does not crowd the sessions' out; and an accept that fails for want of file
-descriptors is one line in the log now and then, not a traceback each time.
+resets it if it does not drain within the slow timeout (also once closed). Nor can one peer hold the
+others up (D-RCTP-32, `limits`): connections are accepted a few a turn of the loop, and one beyond
+its address's cap is closed as soon as it is accepted; one beyond the cap in all (RCTP's and the
+files' counted together) closes a connection without a session to make room, or is closed itself
+when every connection holds a session (`PeerCount`); a burst of pipelined requests is handed to its
+session a slice per turn of the loop (reading the connection paused meanwhile); the connections'
+work takes a budget of each turn, a peer address's connections a share of it, and what is left
+waits, shared fairly among the addresses (`turns`); a connection with a large request under way
+waits, unread, for one of a few places (a wait not counted against it as slowness); the data socket
+is read several datagrams a wake-up, so that a flood of them does not crowd the sessions' out; and
+an accept that fails for want of file descriptors is one line in the log now and then, not a
+traceback each time.
 """
 
 from __future__ import annotations
@@ -98,23 +100,31 @@ class _Control(asyncio.Protocol):
         self._waiting = False
         #: The connection is lost: its session's end is under way (`_lost`), nothing else.
         self._ended = False
+        #: No CONNECT answered 200 on it yet: a full table may close it (D-RCTP-32).
+        self._idle = True
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         assert isinstance(transport, asyncio.Transport)
         self.transport = transport
         peer = transport.get_extra_info("peername") or ("?", 0)
         server = self.server
-        if not server.connections.admit(peer[0]):
+        self.peer = peer[0]
+        if not server.connections.admit(self.peer, self, server.loop.time()):
             # D-RCTP-32: beyond a cap there is no request to answer: closed at once.
-            server.refused.happened(server.loop.time(), f"{peer[0]} (a cap of D-RCTP-32)")
             transport.abort()
             return
-        self.peer = peer[0]
         loop = server.loop
         self.session = ServerSession(server.robot, (peer[0], peer[1]), loop.time())
         self.timer = LoopTimer(loop, self._timer_fired)
         self.timer.set(self.session.maintenance_timer())  # D-RCTP-32: from the first moment
         server.controls[self.session] = self
+
+    def evict(self) -> None:
+        """Closed to make room in a full table (D-RCTP-32, `PeerCount`): it holds no session,
+        and what it was sent is dropped with it."""
+        self.closing = True
+        if self.transport is not None:
+            _reset(self.transport)
 
     def data_received(self, data: bytes) -> None:
         if self.session is None or self.transport is None:
@@ -148,6 +158,9 @@ class _Control(asyncio.Protocol):
             room = self._has_room(session)
             if time.perf_counter() >= until:
                 break
+        if self._idle and session.id is not None:  # its CONNECT answered 200
+            self._idle = False
+            self.server.connections.seated(self.peer, self)
         self.server.flush(self)
         if not room:
             transport.pause_reading()
@@ -215,7 +228,7 @@ class _Control(asyncio.Protocol):
         _uncycle(self.transport)
         if self.session is not None and not self._ended:
             self._ended = True
-            self.server.connections.leave(self.peer)
+            self.server.connections.leave(self.peer, self)
             self.server.turns.run(self.peer, self._lost)
 
     def _lost(self) -> None:
@@ -343,11 +356,10 @@ class ReferenceServer:
         self._turns: Turns | None = None
         self.files: FileServer | None = None
         limits = settings.limits
-        #: Open control connections against D-RCTP-32's caps, and the log of those refused.
+        #: Open connections, RCTP's and the files', against D-RCTP-32's caps.
         self.connections = PeerCount(
             connection_cap(limits.connections), limits.connections_per_peer
         )
-        self.refused = Throttled(log, "connections refused")
         #: The connections with a large request under way (D-RCTP-32).
         self.large: Places[_Control] = Places(limits.large_requests)
         self._accept_failed = Throttled(log, "cannot accept connections")

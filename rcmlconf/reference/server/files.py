@@ -78,6 +78,19 @@ def index_page(title: str, files: dict[str, Document]) -> bytes:
     return page.encode("utf-8")
 
 
+class _Held:
+    """A files connection among the open connections: it never holds a session, so a full
+    table may close it to make room (D-RCTP-32)."""
+
+    __slots__ = ("transport",)
+
+    def __init__(self, transport: asyncio.WriteTransport) -> None:
+        self.transport = transport
+
+    def evict(self) -> None:
+        self.transport.abort()  # its reader then ends, and `handle` lets it go
+
+
 class FileServer:
     """Serves `files` (from `robot_files`); `/` lists them."""
 
@@ -101,7 +114,8 @@ class FileServer:
 
     async def handle(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         peer = (writer.get_extra_info("peername") or ("?",))[0]
-        if not self.connections.admit(peer):
+        held = _Held(writer.transport)
+        if not self.connections.admit(peer, held, asyncio.get_running_loop().time()):
             writer.transport.abort()  # D-RCTP-32: beyond a cap, closed at once
             return
         try:
@@ -112,7 +126,7 @@ class FileServer:
             # an error of the server's, so not a traceback on its standard error.
             log.debug("HTTP connection ended: %s", error.strerror or type(error).__name__)
         finally:
-            self.connections.leave(peer)
+            self.connections.leave(peer, held)
             writer.close()
 
     async def _converse(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:

@@ -10,12 +10,17 @@ once, never meets them; a server behind a NAT that many clients share raises the
 from __future__ import annotations
 
 import errno
+import logging
 import resource
 from collections import Counter
 from dataclasses import dataclass
-from typing import Generic, TypeVar
+from typing import Generic, Protocol, TypeVar
+
+from rcmlconf.reference.throttled import Throttled
 
 T = TypeVar("T")
+
+log = logging.getLogger("rcmlconf.server")
 
 #: R-RCTP-67's floor: a server that limits its peers serves at least this many of one address.
 MIN_CONNECTIONS_PER_PEER = 64
@@ -100,30 +105,117 @@ def connection_cap(wanted: int) -> int:
     return max(1, min(wanted, soft - RESERVED_FDS))
 
 
-class PeerCount:
-    """Open connections, in all and by peer address, against their caps."""
+class Evictable(Protocol):
+    """A connection the table may close to make room (D-RCTP-32)."""
 
-    __slots__ = ("_by_peer", "cap", "per_peer", "total")
+    def evict(self) -> None:
+        """Close the connection at once: it has no request to answer."""
+
+
+class PeerCount:
+    """Open connections, in all and by peer address, against their caps; and those without a
+    session, by address and oldest first, of which a full table closes one to take a new one
+    (D-RCTP-32): one of the address that holds the most, so that a peer flooding the table with
+    idle connections makes room with its own.
+
+    Each change is O(1): the addresses are kept in buckets by how many connections without a
+    session they hold, and the fullest bucket is known (a count moves by one at a time)."""
+
+    __slots__ = (
+        "_by_peer",
+        "_evicted_log",
+        "_fullest",
+        "_idle",
+        "_ranked",
+        "_refused_log",
+        "cap",
+        "evicted",
+        "per_peer",
+        "total",
+    )
 
     def __init__(self, cap: int, per_peer: int) -> None:
         self.cap = cap
         self.per_peer = per_peer
         self.total = 0
+        #: Connections closed to make room, since the start.
+        self.evicted = 0
         self._by_peer: Counter[str] = Counter()
+        #: Each address's connections without a session, oldest first (a dict for an ordered
+        #: set); the addresses by how many of them they hold; the most any address holds.
+        self._idle: dict[str, dict[Evictable, None]] = {}
+        self._ranked: dict[int, dict[str, None]] = {}
+        self._fullest = 0
+        #: Refusals and evictions, a line in the log now and then (`Throttled`).
+        self._refused_log = Throttled(log, "connections refused")
+        self._evicted_log = Throttled(log, "connections closed to make room")
 
-    def admit(self, peer: str) -> bool:
-        """Count a new connection of `peer`, or refuse it (False: close it at once)."""
-        if self.total >= self.cap or self._by_peer[peer] >= self.per_peer:
+    def admit(self, peer: str, connection: Evictable, now: float) -> bool:
+        """Count a new connection of `peer`, without a session, making room if the table is
+        full; or refuse it (False: close it at once): beyond the address's cap, or the table
+        full of sessions."""
+        if self._by_peer[peer] >= self.per_peer or (
+            self.total >= self.cap and not self._evict(now)
+        ):
+            self._refused_log.happened(now, f"{peer} (a cap of D-RCTP-32)")
             return False
         self.total += 1
         self._by_peer[peer] += 1
+        self._add_idle(peer, connection)
         return True
 
-    def leave(self, peer: str) -> None:
+    def seated(self, peer: str, connection: Evictable) -> None:
+        """`connection` holds a session now: it is never closed to make room."""
+        self._drop_idle(peer, connection)
+
+    def leave(self, peer: str, connection: Evictable) -> None:
         self.total -= 1
         self._by_peer[peer] -= 1
         if self._by_peer[peer] <= 0:
             del self._by_peer[peer]
+        self._drop_idle(peer, connection)
+
+    def _evict(self, now: float) -> bool:
+        """Close the oldest connection without a session of the address holding the most of
+        them; False if every connection holds a session. The closed one counts until it
+        leaves, as every connection does while its descriptor is open."""
+        if not self._fullest:
+            return False
+        peer = next(iter(self._ranked[self._fullest]))
+        connection = next(iter(self._idle[peer]))
+        self._drop_idle(peer, connection)
+        self.evicted += 1
+        self._evicted_log.happened(now, f"{peer} (no session, the table full: D-RCTP-32)")
+        connection.evict()
+        return True
+
+    def _add_idle(self, peer: str, connection: Evictable) -> None:
+        idle = self._idle.setdefault(peer, {})
+        idle[connection] = None
+        self._move(peer, len(idle) - 1, len(idle))
+
+    def _drop_idle(self, peer: str, connection: Evictable) -> None:
+        idle = self._idle.get(peer)
+        if idle is None or connection not in idle:
+            return
+        del idle[connection]
+        if not idle:
+            del self._idle[peer]
+        self._move(peer, len(idle) + 1, len(idle))
+
+    def _move(self, peer: str, held: int, now: int) -> None:
+        """`peer` holds `now` connections without a session, one more or one less than `held`:
+        it moves to that bucket, and the fullest is the fullest still."""
+        if held:
+            bucket = self._ranked[held]
+            del bucket[peer]
+            if not bucket:
+                del self._ranked[held]
+                if self._fullest == held:
+                    self._fullest = now
+        if now:
+            self._ranked.setdefault(now, {})[peer] = None
+            self._fullest = max(self._fullest, now)
 
 
 #: What an accept fails with when the process or the system is out of something: asyncio logs
