@@ -35,22 +35,27 @@ NICE = 10
 SLOWLORIS_CONNECTIONS = 1000
 PIPELINED_REQUESTS = 20_000
 CONNECT_FLOOD = 3000
+IDLE_FLOOD = 1100
 MALFORMED_WORKERS = 8
 BIG_BODY = 4 << 20
 BIG_HEADER = 256 << 10
 UDP_RATE = 10_000  # datagrams a second
 UDP_TICK = 0.01
 
-#: Each attack's source addresses (the slowloris's 1,000 connections are 250 an address, under
-#: the default cap of 256 an address: what must close them is the slow timeout).
+#: Each attack's source addresses (the slowloris's 1,000 connections are 250 an address, the
+#: idle flood's 1,100 are 220, under the default cap of 256 an address: what must close them is
+#: the slow timeout, or a full table making room, D-RCTP-32).
 SOURCES: dict[str, tuple[str, ...]] = {
     "slowloris": ("127.0.0.2", "127.0.0.3", "127.0.0.4", "127.0.0.5"),
     "pipelining": ("127.0.0.6",),
     "malformed": ("127.0.0.7",),
     "connect-flood": ("127.0.0.8", "127.0.0.9", "127.0.0.10"),
     "udp": ("127.0.0.11",),
+    "idle-flood": ("127.0.0.12", "127.0.0.13", "127.0.0.14", "127.0.0.15", "127.0.0.16"),
 }
 ATTACKS = tuple(SOURCES)
+#: The mix: issue 18's five attacks at once (the idle flood is judged in its own row).
+MIXED = ("slowloris", "pipelining", "malformed", "connect-flood", "udp")
 
 
 @dataclass(frozen=True)
@@ -296,6 +301,34 @@ async def _knock(attack: Attack, source: str) -> None:
         sock.close()
 
 
+# -- idle flood: 1,100 connections that send nothing, opened again as soon as they are closed --
+
+
+async def idle_flood(attack: Attack) -> None:
+    sources = SOURCES["idle-flood"]
+    each = IDLE_FLOOD // len(sources)
+    await asyncio.gather(*(_idle(attack, source) for source in sources for _ in range(each)))
+
+
+async def _idle(attack: Attack, source: str) -> None:
+    """A connection that sends nothing; once the server closes it, another at once."""
+    while attack.left() > 0:
+        sock = await attack.connect(source, attack.target.rctp_port)
+        if sock is None:
+            await attack.sleep(0.05)
+            continue
+        try:
+            while await attack.receive(sock, timeout=attack.left()):
+                pass
+            attack.counts["closed by the server"] += 1
+        except TimeoutError:
+            pass  # the deadline
+        except OSError:
+            attack.counts["reset by the server"] += 1
+        finally:
+            sock.close()
+
+
 # -- garbage UDP at the data port --------------------------------------------------------------
 
 
@@ -343,6 +376,7 @@ RUNS: dict[str, Callable[[Attack], Coroutine[Any, Any, None]]] = {
     "malformed": malformed,
     "connect-flood": connect_flood,
     "udp": udp,
+    "idle-flood": idle_flood,
 }
 
 

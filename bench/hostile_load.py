@@ -1,4 +1,4 @@
-"""Does the reference server hold up under hostile load? (issue 18, D-RCTP-32)
+"""Does the reference server hold up under hostile load? (issues 18 and 27, D-RCTP-32)
 
 `rcmlconf serve bench/hostile_load.rcml` runs as a real process on loopback with `ulimit -n` 1024
 (--nofile, as in the issue), on any CPU (--pin: the first, this process and the attackers on the
@@ -10,21 +10,26 @@ a stall that STOPs a real writing stream, as the issue saw on the rover.
 Legitimate traffic, from 127.0.0.1 through the reference client library (what an embedding user
 has), in this process: four sessions each playing the stream in mode read, one playing it in mode
 write (ACQUIRE, SETUP, GO: the client sends DATA every 16 ms), and a READ prober (one READ of a data
-node every 50 ms). First alone, then under each attack in turn, then under all of them at once (the
-mix); each attack is followed by a recovery period.
+node every 50 ms). Beside them a newcomer, from an address of its own (127.0.0.17): every 0.25 s a
+new connection, its CONNECT and a READ, timed from the connect to the READ's answer (raw sockets,
+read by the RCTP core). First alone, then under each attack in turn, then under issue 18's five at
+once (the mix); each attack is followed by a recovery period.
 
 The attacks (`hostile_attacks`, raw sockets) run in a process of their own, niced (the legitimate
 clients are woken first): slowloris (1,000 connections that send a byte now and then), a pipelining
 flood (one connection, 20,000 READs without CONNECT, then with), a malformed flood (bad request
 lines, 256 KiB headers, 4 MiB bodies, at RCTP's port and the files' HTTP port), a connect flood
 (waves of 3,000 connections that each CONNECT), garbage UDP at the data port (10,000 datagrams a
-second). They bind source addresses other than 127.0.0.1 (127.0.0.2 to 127.0.0.11): the server's
+second), and an idle flood (1,100 connections from five addresses that send nothing, each opened
+again as soon as the server closes it: more than the table holds, so the newcomer meets a full
+one). They bind source addresses other than 127.0.0.1 (127.0.0.2 to 127.0.0.16): the server's
 per-address caps then separate them from the legitimate clients, as a real network would.
 
 Per row: the read streams' gap between consecutive DATA (ms, p99 and max, by the arrival time in
 this process's loop; `sent` is the same by the server's own send stamps, which this process's delays
-do not touch), the READ prober's round trip (p99), STOP, BYE or a closed connection from the server
-to a legitimate session, streams lost (no DATA for 0.5 s), tracebacks and lines in the server's
+do not touch), the READ prober's round trip (p99), the newcomer's time (p99 and max; a failed try
+counts as infinite), STOP, BYE or a closed connection from the server to a legitimate session,
+streams lost (no DATA for 0.5 s), tracebacks and lines in the server's
 standard error, its RSS and open file descriptors (the most seen, /proc), its CPU, what other
 processes took of the machine's CPUs meanwhile (`others`, in CPUs: the noise of a shared machine),
 the longest the server waited for a CPU within 0.25 s, ready to run (`waited`, ms, the kernel's
@@ -65,10 +70,12 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from children import cpu_seconds
-from hostile_attacks import ATTACKS, SOURCES, Target, attack_process
+from hostile_attacks import ATTACKS, MIXED, SOURCES, Target, attack_process
 from hostile_turns import Traced, summarise, traced_reads
 from scale import load_average, percentile, split_cpus
 
+from rcmlconf.rctp.messages import Response
+from rcmlconf.rctp.reader import MessageReader
 from rcmlconf.reference.client.adapter import Client, RctpError
 from rcmlconf.reference.client.session import Closed, ServerRequest, StreamLost, StreamValues
 from rcmlconf.reference.server.limits import DEFAULT_LIMITS, RESERVED_FDS
@@ -83,9 +90,17 @@ READERS = 4
 PROBE_EVERY = 0.05
 SAMPLE_EVERY = 0.25
 BIN = 0.5
+#: What a failed READ or newcomer's try counts as, sorted among the round trips (ns).
+FAILED = 2**62
 MIX = "mix"
 ROWS = (*ATTACKS, MIX)
 
+#: The newcomer: a client of an address of its own that opens a connection, CONNECTs and READs
+#: every NEWCOMER_EVERY seconds, in every row; a try not answered within NEWCOMER_WAIT failed.
+#: Its goal (issue 27, D-RCTP-32): the READ answered within NEWCOMER_GOAL ms of the connect,
+#: whatever holds the rest of the table.
+NEWCOMER_SOURCE = "127.0.0.17"
+NEWCOMER_EVERY, NEWCOMER_WAIT, NEWCOMER_GOAL = 0.25, 5.0, 1000.0
 #: The issue's goals (under the mix): stream gap p99 and max, READ p99 (ms); open FDs over the
 #: connection cap; RSS growth (MiB); back to the alone figures (s).
 GAP_P99_GOAL, GAP_MAX_GOAL, READ_P99_GOAL = 32.0, 100.0, 20.0
@@ -256,6 +271,8 @@ class Record:
     #: (when the READ was sent, its round trip, the CPU waits meanwhile of the server's loop
     #: and of this process; inf: failed)
     reads: list[tuple[float, float, float, float]] = field(default_factory=list)
+    #: (when the newcomer connected, until its READ's answer (inf: failed), why it failed)
+    newcomers: list[tuple[float, float, str]] = field(default_factory=list)
     #: (when, what): STOP, BYE or a close from the server, a stream lost, a READ failed.
     incidents: list[tuple[float, str]] = field(default_factory=list)
     samples: list[Sample] = field(default_factory=list)
@@ -380,6 +397,53 @@ async def sample(server: Server, record: Record, running: list[bool]) -> None:
         await asyncio.sleep(SAMPLE_EVERY)
 
 
+class NotServed(Exception):
+    """The newcomer's request was answered, but not with 200."""
+
+
+async def newcomers(target: Target, record: Record, running: list[bool]) -> None:
+    """The newcomer's tries, one every NEWCOMER_EVERY seconds, until `running` is cleared."""
+    loop = asyncio.get_running_loop()
+    due = loop.time()
+    while running[0]:
+        start = loop.time()
+        try:
+            await asyncio.wait_for(newcomer(target), NEWCOMER_WAIT)
+            record.newcomers.append((start, loop.time() - start, ""))
+        except (OSError, TimeoutError, NotServed) as error:
+            record.newcomers.append((start, float("inf"), str(error) or type(error).__name__))
+        due = max(due + NEWCOMER_EVERY, loop.time())
+        await asyncio.sleep(due - loop.time())
+
+
+async def newcomer(target: Target) -> None:
+    """A connection from NEWCOMER_SOURCE, its CONNECT and a READ, each answered 200; then a
+    close (the session ends with it)."""
+    reader, writer = await asyncio.open_connection(
+        "127.0.0.1", target.rctp_port, local_addr=(NEWCOMER_SOURCE, 0)
+    )
+    messages = MessageReader()
+    try:
+        writer.write(f"CONNECT {target.site} RCTP/2.0\r\nCSeq: 1\r\n\r\n".encode())
+        session = (await _answered(reader, messages, "CONNECT")).headers.get("Session") or ""
+        read = f"READ {target.node} RCTP/2.0\r\nCSeq: 2\r\nSession: {session.split(';')[0]}"
+        writer.write(read.encode() + b"\r\n\r\n")
+        await _answered(reader, messages, "READ")
+    finally:
+        writer.close()
+
+
+async def _answered(reader: asyncio.StreamReader, messages: MessageReader, what: str) -> Response:
+    while (message := messages.next_message()) is None:
+        data = await reader.read(65536)
+        if not data:
+            raise NotServed(f"closed before {what}'s answer")
+        messages.feed(data)
+    if not isinstance(message, Response) or message.status != 200:
+        raise NotServed(f"{what} answered {getattr(message, 'status', message)}")
+    return message
+
+
 # -- the attackers -----------------------------------------------------------------------------
 
 
@@ -438,6 +502,13 @@ class Row:
     sent_max: float
     read_p99: float
     read_max: float
+    #: The newcomer's tries: from its connect to its READ's answer (ms), and those that failed.
+    newcomer_tries: int
+    newcomer_p99: float
+    newcomer_max: float
+    newcomers_failed: int
+    #: How they failed (the three most frequent).
+    newcomer_failures: dict[str, int]
     #: The same less the CPU waits of the server's loop and the clients' within each (`Waits`).
     gap_p99_less_waits: float
     gap_max_less_waits: float
@@ -496,7 +567,7 @@ def _less_waits(record: Record, start: float, end: float) -> list[int]:
 
 def _reads(record: Record, start: float, end: float, less_waits: bool = False) -> list[int]:
     return sorted(
-        round(max(0.0, rtt - (server + this) * less_waits) * 1e9) if rtt != float("inf") else 2**62
+        round(max(0.0, rtt - (server + this) * less_waits) * 1e9) if rtt != float("inf") else FAILED
         for sent, rtt, server, this in record.reads
         if start <= sent < end
     )
@@ -556,6 +627,12 @@ def measure(
     sent = _gaps(_sent_in(record, start, end), -1e18, 1e18)
     reads = _reads(record, start, end)
     less_waits = _less_waits(record, start, end)
+    tries = sorted(
+        round(took * 1e9) if took != float("inf") else FAILED
+        for at, took, _why in record.newcomers
+        if start <= at < end
+    )
+    why = Counter(why for at, _took, why in record.newcomers if start <= at < end and why)
     incidents = [what for when, what in record.incidents if start <= when < after]
     samples = [s for s in record.samples if start <= s.when < after]
     inside = [s for s in record.samples if start <= s.when <= end]
@@ -578,10 +655,15 @@ def measure(
         sent_max=_max(sent),
         read_p99=percentile(reads, 99),
         read_max=_max(reads),
+        newcomer_tries=len(tries),
+        newcomer_p99=percentile(tries, 99),
+        newcomer_max=_max(tries),
+        newcomers_failed=sum(1 for took in tries if took == FAILED),
+        newcomer_failures=dict(why.most_common(3)),
         gap_p99_less_waits=percentile(less_waits, 99),
         gap_max_less_waits=_max(less_waits),
         read_p99_less_waits=percentile(_reads(record, start, end, less_waits=True), 99),
-        reads_failed=sum(1 for r in reads if r == 2**62),
+        reads_failed=sum(1 for r in reads if r == FAILED),
         stop_bye=sum(1 for i in incidents if "STOP" in i or "BYE" in i or "closed" in i),
         lost=sum(1 for i in incidents if "lost" in i),
         tracebacks=log.count("Traceback"),
@@ -627,6 +709,7 @@ async def run(plan: Plan, server: Server, bench_cpu: int | None) -> tuple[list[R
         site="/" + site,
         node=PROBED,
     )
+    newcomer_tries = asyncio.ensure_future(newcomers(target, record, running))
     rows: list[Row] = []
     try:
         await legitimate.start()
@@ -640,7 +723,7 @@ async def run(plan: Plan, server: Server, bench_cpu: int | None) -> tuple[list[R
         rows.append(alone)
         print(_line(alone), flush=True)
         for name in plan.rows:
-            names = ATTACKS if name == MIX else (name,)
+            names = MIXED if name == MIX else (name,)
             seconds = plan.mix_seconds if name == MIX else plan.seconds
             log = server.log()
             attacked = await attack(names, target, seconds, bench_cpu)
@@ -653,20 +736,21 @@ async def run(plan: Plan, server: Server, bench_cpu: int | None) -> tuple[list[R
         await legitimate.stop()
         running[0] = False
         await sampler
+        await newcomer_tries
     return rows, record
 
 
 # -- the report --------------------------------------------------------------------------------
 
 HEAD = (
-    f"{'row':<14}{'gap p99':>8}{'max':>7}{'sent99':>7}{'READ99':>7}{'max':>7}"
+    f"{'row':<14}{'gap p99':>8}{'max':>7}{'sent99':>7}{'READ99':>7}{'max':>7}{'new99':>7}{'max':>7}"
     f"{'STOP/BYE':>9}{'lost':>5}{'tb':>4}{'log':>6}{'RSS':>6}{'FDs':>6}"
     f"{'srvCPU':>7}{'others':>7}{'waited':>7}{'drops':>7}{'atkCPU':>7}{'back':>7}"
 )
 
 
 def _ms(value: float) -> str:
-    return "inf" if value == float("inf") else f"{value:.1f}"
+    return "inf" if value >= FAILED / 1e6 else f"{value:.1f}"
 
 
 def _line(row: Row) -> str:
@@ -677,7 +761,8 @@ def _line(row: Row) -> str:
     )
     return (
         f"{row.name:<14}{_ms(row.gap_p99):>8}{_ms(row.gap_max):>7}{_ms(row.sent_p99):>7}"
-        f"{_ms(row.read_p99):>7}{_ms(row.read_max):>7}{row.stop_bye:>9}{row.lost:>5}"
+        f"{_ms(row.read_p99):>7}{_ms(row.read_max):>7}{_ms(row.newcomer_p99):>7}"
+        f"{_ms(row.newcomer_max):>7}{row.stop_bye:>9}{row.lost:>5}"
         f"{row.tracebacks:>4}{row.log_lines:>6}{row.rss_mib:>6.0f}{row.fds:>6}"
         f"{row.server_cpu:>7.0%}{row.others_cpu:>7.2f}{_ms(row.waited_ms):>7}{row.udp_drops:>7}{row.attacker_cpu:>7.0%}"
         f"{back:>7}"
@@ -691,6 +776,11 @@ def goals(row: Row, cap: int) -> list[tuple[str, str, bool]]:
         (f"stream gap p99 <= {GAP_P99_GOAL:g} ms", _ms(row.gap_p99), row.gap_p99 <= GAP_P99_GOAL),
         (f"stream gap max <= {GAP_MAX_GOAL:g} ms", _ms(row.gap_max), row.gap_max <= GAP_MAX_GOAL),
         (f"READ p99 <= {READ_P99_GOAL:g} ms", _ms(row.read_p99), row.read_p99 <= READ_P99_GOAL),
+        (
+            f"newcomer's READ max <= {NEWCOMER_GOAL:g} ms",
+            _ms(row.newcomer_max),
+            row.newcomer_max <= NEWCOMER_GOAL,
+        ),
         ("STOP/BYE to legitimate sessions: 0", str(row.stop_bye), row.stop_bye == 0),
         ("tracebacks: 0", str(row.tracebacks), row.tracebacks == 0),
         (
@@ -718,6 +808,17 @@ def report(rows: list[Row], cap: int) -> None:
         for name, counts in row.counts.items():
             said = ", ".join(f"{what} {count:,}" for what, count in sorted(counts.items()))
             print(f"  {row.name:<14}{name:<14}{said}")
+    print(
+        f"\nthe newcomer (from {NEWCOMER_SOURCE}: connect, CONNECT, READ, close; every "
+        f"{NEWCOMER_EVERY:g} s), from its connect to its READ's answer:"
+    )
+    for row in rows:
+        print(
+            f"  {row.name:<14}{row.newcomer_tries} tries, {row.newcomers_failed} failed; p99 "
+            f"{_ms(row.newcomer_p99)} ms, max {_ms(row.newcomer_max)} ms"
+        )
+        for why, count in row.newcomer_failures.items():
+            print(f"  {'':<14}  {count} {why}")
     print("\nincidents of the legitimate sessions (first 20 a row):")
     for row in rows:
         for incident in row.incidents:
@@ -741,7 +842,7 @@ def report(rows: list[Row], cap: int) -> None:
             f"{_ms(row.gap_max_less_waits)} ms; READ p99 {_ms(row.read_p99_less_waits)} ms"
         )
     judged = next((row for row in rows if row.name == MIX), rows[-1])
-    print(f"\ngoals (issue 18), under {judged.name}; every row:")
+    print(f"\ngoals (issues 18 and 27), under {judged.name}; every row:")
     names = [row.name for row in rows[1:]]
     print(f"  {'':<40}{judged.name:>10}  " + " ".join(f"{n[:6]:>6}" for n in names))
     by_row = [goals(row, cap) for row in rows[1:]]
