@@ -21,13 +21,10 @@ from rcmlconf.conformance.targets import Target
 from rcmlconf.conformance.transcript import Address, Entry
 from rcmlconf.conformance.verdicts import CaseStop, Failed, Result, Verdict
 from rcmlconf.impair.spec import Impairment
-from rcmlconf.pcap.writer import write_pcap
+from rcmlconf.pcap.writer import Gap, write_pcap
 
 #: How a pass that could not check all of its requirement begins its reason.
 PARTLY = "checked in part; not checked: "
-#: Lines of the exchange kept with a result, at most (--json has them all; a longer exchange
-#: keeps its last lines, after one that says how many were cut).
-EXCHANGE_LINES = 2000
 
 
 @dataclass(frozen=True, slots=True)
@@ -203,9 +200,15 @@ def capture_path(directory: Path, case: Case, run: int) -> Path:
 
 
 def _capture(directory: Path, case: Case, run: int, ctx: Context) -> None:
+    """The case's payloads as the transcript kept them; pcapng (`.pcapng`) when it left some
+    out, whose blocks say where (rcmlconf.pcap.writer)."""
+    captured = ctx.transcript.capture
+    path = capture_path(directory, case, run)
+    if any(isinstance(item, Gap) for item in captured):
+        path = path.with_suffix(".pcapng")
     try:
-        with capture_path(directory, case, run).open("wb") as file:
-            write_pcap(file, ctx.transcript.packets)
+        with path.open("wb") as file:
+            write_pcap(file, captured)
     except OSError as error:
         ctx.transcript.note(f"capture not written: {error}")
 
@@ -308,17 +311,13 @@ def _result(
 
 
 def _exchange(ctx: Context) -> tuple[str, ...]:
-    lines = ctx.transcript.lines
-    if len(lines) <= EXCHANGE_LINES:
-        return tuple(lines)
-    cut = len(lines) - EXCHANGE_LINES
-    return (f"... {cut} earlier lines of the exchange cut", *lines[-EXCHANGE_LINES:])
+    """The exchange's lines, as the transcript keeps them (its start and its end)."""
+    return tuple(ctx.transcript.lines)
 
 
 def _entries(ctx: Context) -> tuple[Entry, ...]:
-    """The exchange as data: its last entries, room for EXCHANGE_LINES lines and a payload
-    beside each (a longer exchange keeps its end, as `_exchange` does)."""
-    return tuple(ctx.transcript.entries[-2 * EXCHANGE_LINES :])
+    """The exchange as data, as the transcript keeps it."""
+    return tuple(ctx.transcript.entries)
 
 
 def _lacks(case: Case, target: Target) -> str:

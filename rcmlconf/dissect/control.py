@@ -113,12 +113,15 @@ class ControlConnection:
         side.dead = True
 
     def end(self) -> None:
-        """The capture is over: holes never filled, requests never answered."""
+        """The capture is over: holes never filled, requests never answered (but those whose
+        answers would come after a hole the capture has: they cannot be told)."""
         for side in self.sides:
             if side.tcp.waiting and not side.dead:
                 side.tcp.give_up()
                 self._hole(side, side.pieces[-1][1] if side.pieces else 0, self.last_time)
-        for side in self.sides:
+        for side, answering in zip(self.sides, reversed(self.sides), strict=True):
+            if answering.tcp.holes:
+                continue
             for sent in side.pending:
                 if sent.due is not None and sent.due[0] is None:
                     continue  # dropped unanswered, as D-RCTP-13 wants

@@ -5,6 +5,12 @@ The harness sees its TCP traffic as bytes written and read, not as segments. To 
 handshake before its first payload, sequence and acknowledgement numbers that follow the bytes,
 and segments of at most `MSS` bytes; every checksum is computed. UDP datagrams are written as
 they are.
+
+A capture that leaves payloads out (`Gap`: a bounded transcript kept only the first and the last
+of a flood) is pcapng instead, with the same packets, so that it can say so: a comment on the
+block of the flow's next packet, or, for flows none of whose payloads are kept, on the section.
+A TCP flow's sequence numbers go on past the bytes left out: a dissector sees a hole in the
+stream, not bytes spliced together.
 """
 
 from __future__ import annotations
@@ -23,6 +29,11 @@ MSS = 1460
 _SYN, _ACK, _PSH = 0x02, 0x10, 0x08
 #: The first sequence number of each side of a flow: fixed, so a capture is reproducible.
 _ISN = 1000
+#: pcapng: the blocks' types, the byte-order magic, and the options' codes.
+_SHB, _IDB, _EPB = 0x0A0D0D0A, 1, 6
+_BYTE_ORDER = 0x1A2B3C4D
+_OPT_END, _OPT_COMMENT = 0, 1
+_RAW = 101
 
 
 @dataclass(frozen=True, slots=True)
@@ -34,16 +45,52 @@ class Payload:
     data: bytes
 
 
+@dataclass(frozen=True, slots=True)
+class Gap:
+    """Payloads of the flow from `source` to `destination` (of `transport`) that the capture
+    leaves out, `size` bytes in all, before its next payload; `comment` says so. Without
+    endpoints: of flows none of whose payloads the capture holds."""
+
+    source: Address | None
+    destination: Address | None
+    transport: str
+    comment: str
+    size: int = 0
+
+
 class PcapWriter:
-    def __init__(self, file: BinaryIO) -> None:
+    """Payloads as packets, in order; `comments`: pcapng, whose blocks can say what was left
+    out (`leave_out`), `notes` on its section; else classic pcap."""
+
+    def __init__(
+        self, file: BinaryIO, *, comments: bool = False, notes: Iterable[str] = ()
+    ) -> None:
         self._file = file
-        self._file.write(_GLOBAL)
+        self._pcapng = comments
+        if comments:
+            self._file.write(_block(_SHB, struct.pack("<IHHq", _BYTE_ORDER, 1, 0, -1), notes))
+            self._file.write(_block(_IDB, struct.pack("<HHI", _RAW, 0, 65535)))
+        else:
+            self._file.write(_GLOBAL)
         #: (source, destination) -> next sequence number of that direction.
         self._next: dict[tuple[Address, Address], int] = {}
+        #: (source, destination) -> what the block of that direction's next packet says.
+        self._said: dict[tuple[Address, Address], str] = {}
+
+    def leave_out(self, gap: Gap) -> None:
+        """Payloads left out here: said on the block of the flow's next packet (pcapng); a TCP
+        flow's sequence numbers move on past their bytes."""
+        if gap.source is None or gap.destination is None:
+            return
+        forward = (gap.source, gap.destination)
+        self._said[forward] = gap.comment
+        if gap.transport == "tcp" and forward in self._next:
+            self._next[forward] = (self._next[forward] + gap.size) & 0xFFFFFFFF
 
     def write(self, payload: Payload) -> None:
         if payload.transport == "udp":
-            self._record(payload.at, _udp(payload.source, payload.destination, payload.data))
+            packet = _udp(payload.source, payload.destination, payload.data)
+            self._record(payload.at, packet, (payload.source, payload.destination))
             return
         forward = (payload.source, payload.destination)
         if forward not in self._next:
@@ -73,9 +120,17 @@ class PcapWriter:
         seq = self._next[(source, destination)]
         ack = self._next[(destination, source)] if flags & _ACK else 0
         self._next[(source, destination)] = (seq + len(data) + (1 if syn else 0)) & 0xFFFFFFFF
-        self._record(at, _tcp(source, destination, seq, ack, flags, data))
+        self._record(at, _tcp(source, destination, seq, ack, flags, data), (source, destination))
 
-    def _record(self, at: float, packet: bytes) -> None:
+    def _record(self, at: float, packet: bytes, way: tuple[Address, Address] | None = None) -> None:
+        if self._pcapng:
+            said = self._said.pop(way, None) if way is not None else None
+            stamp = round(at * 1_000_000)
+            head = struct.pack(
+                "<IIIII", 0, stamp >> 32, stamp & 0xFFFFFFFF, len(packet), len(packet)
+            )
+            self._file.write(_block(_EPB, head + _padded(packet), [said] if said else []))
+            return
         seconds = int(at)
         micros = round((at - seconds) * 1_000_000)
         if micros >= 1_000_000:
@@ -84,10 +139,33 @@ class PcapWriter:
         self._file.write(packet)
 
 
-def write_pcap(file: BinaryIO, payloads: Iterable[Payload]) -> None:
-    writer = PcapWriter(file)
-    for payload in payloads:
-        writer.write(payload)
+def write_pcap(file: BinaryIO, payloads: Iterable[Payload | Gap]) -> None:
+    """The payloads as a capture: classic pcap, or pcapng that says where any `Gap` is."""
+    payloads = list(payloads)
+    gaps = [g for g in payloads if isinstance(g, Gap)]
+    notes = [g.comment for g in gaps if g.source is None or g.destination is None]
+    writer = PcapWriter(file, comments=bool(gaps), notes=notes)
+    for item in payloads:
+        if isinstance(item, Gap):
+            writer.leave_out(item)
+        else:
+            writer.write(item)
+
+
+def _padded(data: bytes) -> bytes:
+    return data + b"\0" * (-len(data) % 4)
+
+
+def _block(kind: int, body: bytes, comments: Iterable[str] = ()) -> bytes:
+    """A pcapng block (little-endian), `comments` as its opt_comment options."""
+    options = b"".join(
+        struct.pack("<HH", _OPT_COMMENT, len(text)) + _padded(text)
+        for text in (comment.encode() for comment in comments)
+    )
+    if options:
+        options += struct.pack("<HH", _OPT_END, 0)
+    total = 12 + len(body) + len(options)
+    return struct.pack("<II", kind, total) + body + options + struct.pack("<I", total)
 
 
 def _checksum(data: bytes) -> int:

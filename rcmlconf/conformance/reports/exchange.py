@@ -1,7 +1,8 @@
 """A case's exchange as data, for --json and --html: an entry for each line of the transcript
 (when, which way, on which connection, what it said) holding the bytes of the payload it tells
-of, and one for each payload no line tells of (a TCP read that held part of a message, or
-several; a datagram the impairment held back)."""
+of, one for each payload no line tells of (a TCP read that held part of a message, or several;
+a datagram the impairment held back), and a note where the transcript left lines or payloads
+out (`left_out_json`: how many)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import re
 from collections.abc import Sequence
 from typing import Any
 
-from rcmlconf.conformance.transcript import Address, Entry
+from rcmlconf.conformance.transcript import Address, Entry, LeftOut, address_text
 from rcmlconf.pcap.writer import Payload
 
 #: The arrows of the transcript's lines (`Transcript.sent`, the probes' notes).
@@ -27,10 +28,7 @@ _SAME = 0.001
 
 def exchange_json(entries: Sequence[Entry]) -> list[dict[str, Any]]:
     """The entries as JSON objects (the run report's schema, `exchange`), in their order."""
-    found = [
-        _line(e.at, e.text or "") if e.payload is None else _payload(e.at, e.payload)
-        for e in entries
-    ]
+    found = [_entry(e) for e in entries]
     taken = [False] * len(found)
     ours: set[str] = set()
     for index, item in enumerate(found):
@@ -69,6 +67,46 @@ def _way(item: dict[str, Any], ours: set[str]) -> str:
     return "unknown"
 
 
+def left_out_json(entries: Sequence[Entry]) -> list[dict[str, Any]]:
+    """What the transcript left out, place by place (the run report's schema, `left_out`)."""
+    return [
+        {
+            "what": e.left_out.what,
+            "count": e.left_out.count,
+            "bytes": e.left_out.size,
+            "first": round(e.left_out.first, 6),
+            "last": round(e.left_out.last, 6),
+            "source": _address(e.left_out.source),
+            "destination": _address(e.left_out.destination),
+        }
+        for e in entries
+        if e.left_out is not None
+    ]
+
+
+def _entry(entry: Entry) -> dict[str, Any]:
+    if entry.payload is not None:
+        return _payload(entry.at, entry.payload)
+    if entry.left_out is not None:
+        return _left_out(entry.at, entry.left_out)
+    return _line(entry.at, entry.text or "")
+
+
+def _left_out(at: float, left_out: LeftOut) -> dict[str, Any]:
+    """A note where lines or payloads were left out, with the flow's endpoints if of one."""
+    flow = left_out.what in ("tcp", "udp")
+    return {
+        "time": round(at, 6),
+        "direction": "note",
+        "channel": None,
+        "summary": left_out.text,
+        "transport": left_out.what if flow else None,
+        "source": _address(left_out.source),
+        "destination": _address(left_out.destination),
+        "bytes": None,
+    }
+
+
 def _line(at: float, text: str) -> dict[str, Any]:
     parts = _LINE.fullmatch(text)
     assert parts is not None  # every part of the pattern is optional but the rest
@@ -98,6 +136,5 @@ def _payload(at: float, payload: Payload) -> dict[str, Any]:
     }
 
 
-def _address(address: Address) -> str:
-    host, port = address[:2]
-    return f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
+def _address(address: Address | None) -> str | None:
+    return None if address is None else address_text(address)

@@ -134,6 +134,8 @@ def _result(result: Mapping[str, Any], requirements: Mapping[str, str]) -> str:
         facts.append(("why", escape(result["reason"])))
     if result["used"]:
         facts.append(("used", escape(", ".join(result["used"]))))
+    if result["left_out"]:
+        facts.append(("left out", escape("; ".join(_left_out(gap) for gap in result["left_out"]))))
     listed = "".join(f"<dt>{name}</dt><dd>{text}</dd>" for name, text in facts)
     exchange = result["exchange"]
     return "".join(
@@ -148,6 +150,14 @@ def _result(result: Mapping[str, Any], requirements: Mapping[str, str]) -> str:
             "</details>",
         ]
     )
+
+
+def _left_out(gap: Mapping[str, Any]) -> str:
+    """What the exchange shown left out in one place (the JSON report's `left_out`)."""
+    if gap["what"] == "lines":
+        return f"{gap['count']} lines"
+    where = f" {gap['source']} -> {gap['destination']}" if gap["source"] else " past 64 flows"
+    return f"{gap['count']} {gap['what']} payloads ({gap['bytes']} bytes){where}"
 
 
 def _requirement(identifier: str, requirements: Mapping[str, str]) -> str:

@@ -3,7 +3,8 @@ exchange as data. `run-report.schema.json` beside this module is its JSON Schema
 grows by one whenever a field changes meaning or goes (a field added keeps it).
 
 Version 2 (version 1 had no `started`/`duration`, and its `exchange` was the transcript's
-display lines): `exchange` is a list of objects, see `exchange.exchange_json`."""
+display lines): `exchange` is a list of objects, see `exchange.exchange_json`; `left_out` says
+what the bounded transcript left out of it (`exchange.left_out_json`)."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from rcmlconf.conformance.registry import Case
-from rcmlconf.conformance.reports.exchange import exchange_json
+from rcmlconf.conformance.reports.exchange import exchange_json, left_out_json
 from rcmlconf.conformance.reports.summary import counts
 from rcmlconf.conformance.transcript import Entry
 from rcmlconf.conformance.verdicts import Result
@@ -76,5 +77,6 @@ def _result(result: Result, case: Case) -> dict[str, Any]:
         "expected": list(result.expected),
         "actual": result.actual,
         "exchange": exchange_json(result.entries or _lines(result.exchange)),
+        "left_out": left_out_json(result.entries),
         "used": list(result.used),
     }

@@ -1,7 +1,8 @@
 """The HTML report's plot of a case's datagrams, as inline SVG: the interval before each UDP
 datagram the harness received (a stream's or an RSP session's pace, its jitter) over the case's
 time, and a red tick for each one lost or withheld: by the impairment, not sent, or missing
-from a data stream's numbering (R-RCTP-41: one more each, modulo 65,536)."""
+from a data stream's numbering (R-RCTP-41: one more each, modulo 65,536). Where the transcript
+left datagrams out (a note with a transport), no interval and no numbering spans the gap."""
 
 from __future__ import annotations
 
@@ -9,6 +10,8 @@ import re
 from collections.abc import Mapping, Sequence
 from itertools import pairwise
 from typing import Any
+
+from rcmlconf.conformance.transcript import LEFT_OUT
 
 WIDTH, HEIGHT = 360, 90
 #: Room for the axis' labels.
@@ -22,13 +25,14 @@ _NUMBERS = 1 << 16
 
 def interval_plot(entries: Sequence[Mapping[str, Any]]) -> str:
     """The SVG, or "" for an exchange with too few datagrams received and none lost."""
-    arrivals = [
-        float(e["time"])
-        for e in entries
-        if e["transport"] == "udp" and e["direction"] == "received"
-    ]
+    arrivals = [float(e["time"]) for e in entries if _arrival(e)]
     lost = [float(e["time"]) for e in entries if _lost(e)] + _skipped(entries)
-    intervals = [(later, later - earlier) for earlier, later in pairwise(arrivals)]
+    times = [float(e["time"]) if _arrival(e) else None for e in entries if _arrival(e) or _gap(e)]
+    intervals = [
+        (later, later - earlier)
+        for earlier, later in pairwise(times)
+        if earlier is not None and later is not None
+    ]
     if len(intervals) < _FEWEST and not lost:
         return ""
     end = max([*arrivals, *lost, 1e-3])
@@ -70,6 +74,8 @@ def _skipped(entries: Sequence[Mapping[str, Any]]) -> list[float]:
     found: list[float] = []
     last: dict[str | None, int] = {}
     for entry in entries:
+        if _gap(entry):
+            last.clear()
         numbered = _SEQUENCE.search(entry["summary"]) if entry["direction"] == "received" else None
         if numbered is None:
             continue
@@ -80,6 +86,15 @@ def _skipped(entries: Sequence[Mapping[str, Any]]) -> list[float]:
             found += [entry["time"]] * gap
             last[entry["source"]] = number
     return found
+
+
+def _arrival(entry: Mapping[str, Any]) -> bool:
+    return bool(entry["transport"] == "udp" and entry["direction"] == "received")
+
+
+def _gap(entry: Mapping[str, Any]) -> bool:
+    """A note of what the transcript left out (lines, or a flow's payloads)."""
+    return bool(entry["direction"] == "note" and LEFT_OUT in entry["summary"])
 
 
 def _lost(entry: Mapping[str, Any]) -> bool:
