@@ -1,18 +1,22 @@
 """A timing check read off the harness's clock while its loop was held (D-RSP-26, D-RCTP-33):
 inconclusive when the holds can explain the miss, a fail when the miss is longer than the holds
-add up to. The holds are real: the loop is blocked, and `LoopWatch` sees it late."""
+add up to, or when they were the harness's work on what the target sent it. The holds are real:
+the loop is blocked, and `LoopWatch` sees it late."""
 
 from __future__ import annotations
 
 import asyncio
+import socket
 import time
 
 import pytest
 
 from rcmlconf.conformance.context import LATE, Context, outside_bounds
 from rcmlconf.conformance.loopwatch import LoopWatch
+from rcmlconf.conformance.probes.inbound import Inbound
 from rcmlconf.conformance.registry import all_cases
 from rcmlconf.conformance.targets import Target
+from rcmlconf.conformance.transcript import Address
 from rcmlconf.conformance.verdicts import Failed, Inconclusive
 
 #: Each hold blocks the loop this long (seconds): well over LATE.
@@ -70,6 +74,56 @@ def test_many_short_holds_add_up() -> None:
 def test_a_miss_longer_than_the_holds_add_up_to_fails() -> None:
     assert _check(holds=1, by=5 * HOLD) is Failed
     assert _check(holds=2, by=5 * HOLD) is Failed
+
+
+def _held_by_a_datagram(on_cpu: bool) -> type[Exception]:
+    """A check after a hold the loop spent in a probe's socket on a target's datagram: HOLD of
+    the CPU (the harness handling a flood: by as much as the hold was longer, plus 50 ms), or
+    asleep HOLD (a machine that gave the CPU to other processes meanwhile: by HOLD / 2)."""
+    took: list[float] = []
+
+    def arrived(data: bytes, source: Address) -> None:
+        started = time.perf_counter()
+        if on_cpu:
+            until = time.thread_time() + HOLD
+            while time.thread_time() < until:
+                pass
+        else:
+            time.sleep(HOLD)
+        took.append(time.perf_counter() - started)
+
+    async def main() -> type[Exception]:
+        ctx = Context(all_cases()["rctp/client/stream-pace"], Target())
+        loop = asyncio.get_running_loop()
+        transport, _ = await loop.create_datagram_endpoint(
+            lambda: Inbound(arrived), local_addr=("127.0.0.1", 0)
+        )
+        watch = ctx.loop_watch = LoopWatch()
+        watch.start()
+        try:
+            await asyncio.sleep(0.02)
+            with socket.socket(type=socket.SOCK_DGRAM) as target:
+                target.sendto(b"flood", transport.get_extra_info("sockname"))
+            while not took:
+                await asyncio.sleep(0.01)
+            await asyncio.sleep(0.02)
+            by = took[0] - HOLD + 0.05 if on_cpu else HOLD / 2
+            ctx.expect(False, "no DATA", "1 DATA", "R-RCTP-44", timing=True, by=by)
+        except (Failed, Inconclusive) as verdict:
+            return type(verdict)
+        finally:
+            watch.stop()
+            transport.close()
+        raise AssertionError("a failed check passed")
+
+    return asyncio.run(main())
+
+
+def test_a_hold_spent_on_the_targets_datagrams_excuses_nothing() -> None:
+    """What the target sends never excuses it: the harness on the CPU handling its datagrams is
+    the target's load; the harness kept off the CPU as long is a loaded machine's, and excuses."""
+    assert _held_by_a_datagram(on_cpu=True) is Failed
+    assert _held_by_a_datagram(on_cpu=False) is Inconclusive
 
 
 def test_no_hold_or_no_timing_check_fails() -> None:

@@ -203,7 +203,7 @@ async def _dropped(
         sent.append((values, f"the packet {kind}"))
         asked.append((beat.request_id, kind))
     await _judge_echo(ctx, server, stream, access, newer, sent)
-    received = stream.received + (other.drain() if other is not None else [])
+    received = [*stream.received, *(other.drain() if other is not None else [])]
     answered = {
         p.flow.request_id
         for one in received

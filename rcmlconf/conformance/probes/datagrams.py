@@ -1,7 +1,8 @@
 """What the RSP probes share, whichever side the harness plays (`rsp_probe.RspProbe` the local
-system, `local_probe.LocalProbe` the robot): the datagrams received so far, in order, decoded, and
-bounded waits for the next one of some types; `answer_to` sends again what the case's impairment
-spoiled."""
+system, `local_probe.LocalProbe` the robot): the datagrams received so far, in order, decoded (the
+first FIRST and the last LAST of them: a peer sends more only in a flood, and the rest are
+counted), and bounded waits for the next one of some types; `answer_to` sends again what the
+case's impairment spoiled."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import asyncio
 import contextlib
 from collections.abc import Callable, Iterable
 
+from rcmlconf.conformance.kept import Kept
 from rcmlconf.conformance.probes.rsp_datagram import Datagram, Where
 from rcmlconf.conformance.transcript import Transcript
 from rcmlconf.conformance.verdicts import Failed, Inconclusive
@@ -20,6 +22,14 @@ from rcmlconf.rsp.codec import PacketType
 #: a mean burst of 3, all twelve are lost about once in a hundred bursts; at 20 % independent
 #: loss, never.
 ANSWER_TRIES = 12
+#: Datagrams a probe keeps of those it received, from the first and from the last: more than a
+#: session of the longest case sends at the shortest period (D-RSP-13).
+FIRST, LAST = 1000, 4000
+
+
+def kept_log() -> Kept[Datagram]:
+    """What a probe keeps of what it received (`DatagramLog.received`)."""
+    return Kept(FIRST, LAST)
 
 
 class DatagramLog:
@@ -28,7 +38,7 @@ class DatagramLog:
     and a `transcript`, and counts in `spoiled` the datagrams it sent of which its impairment let
     no intact copy through."""
 
-    received: list[Datagram]
+    received: Kept[Datagram]
     fault: Failed | None
     wait: float
     spoiled: int
@@ -50,6 +60,23 @@ class DatagramLog:
         self.transcript.note(f"{self._who}<- {len(data)} bytes the codec refuses: {actual}")
         if self.fault is None:
             self.fault = Failed(rule, expected, actual)
+
+    def keep(self, found: Datagram) -> None:
+        """`found` into `received`; the first time that leaves one out, the transcript says so."""
+        self.received.append(found)
+        if self.received.left_out == 1:
+            self.transcript.note(
+                f"{self._who}the probe keeps the first {FIRST} and the last {LAST} datagrams it"
+                " receives: it leaves out the rest (counted when it closes)"
+            )
+
+    def noted_left_out(self) -> None:
+        """When the probe closes: how many of what it received it left out, if any."""
+        if self.received.left_out:
+            self.transcript.note(
+                f"{self._who}the probe left out {self.received.left_out} of the"
+                f" {len(self.received)} datagrams it received"
+            )
 
     def check(self) -> None:
         """Fail the case if the peer sent a datagram the codec could not read."""
@@ -81,8 +108,7 @@ class DatagramLog:
         deadline = self.now + (self.wait if wait is None else wait)
         while True:
             self.check()
-            for index in range(start, len(self.received)):
-                found = self.received[index]
+            for found in self.received[start:]:
                 if (wanted is None or found.type in wanted) and (where is None or where(found)):
                     return found
             start = len(self.received)

@@ -25,7 +25,9 @@ import contextlib
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 
+from rcmlconf.conformance.kept import Kept
 from rcmlconf.conformance.probes.impaired import ImpairedPath
+from rcmlconf.conformance.probes.inbound import Inbound
 from rcmlconf.conformance.probes.local_probe import STALE, Ended, LocalProbe
 from rcmlconf.conformance.rsp_numbers import HELLO_INTERVAL, HELLO_RETRIES
 from rcmlconf.conformance.transcript import Address, Transcript
@@ -42,6 +44,12 @@ Summon = Callable[[Address], Awaitable[None]]
 #: listened: it is ignored, and the local system gives up on it and starts a new one.
 WARM_UP = HELLO_INTERVAL * (HELLO_RETRIES + 1) + 0.25
 _NONCE_AT = HEADER_SIZE
+#: New sessions' HELLOs waiting for a case, at most: past them the oldest is forgotten (HELLOs
+#: with ever new nonces are a flood, not local systems waiting).
+PENDING = 64
+#: Datagrams of one waiting session kept, from its first and from its last: its HELLO and the
+#: repeats D-RSP-12 allows are far fewer.
+REPEATS = 64
 
 
 def _repeated(data: bytes) -> bool:
@@ -60,22 +68,11 @@ class _Pending:
 
     source: Address
     nonce: bytes
-    datagrams: list[tuple[float, bytes]] = field(default_factory=list)
+    datagrams: Kept[tuple[float, bytes]] = field(default_factory=lambda: Kept(REPEATS, REPEATS))
 
     @property
     def last(self) -> float:
         return self.datagrams[-1][0]
-
-
-class _Socket(asyncio.DatagramProtocol):
-    def __init__(self, listener: LocalListener) -> None:
-        self.listener = listener
-
-    def datagram_received(self, data: bytes, addr: tuple[str | int, ...]) -> None:
-        self.listener._arrived(data, (str(addr[0]), int(addr[1])))
-
-    def error_received(self, exc: Exception) -> None:
-        pass  # ICMP unreachable: a local system that has gone; nothing waits for it
 
 
 class LocalListener:
@@ -118,7 +115,9 @@ class LocalListener:
 
     async def start(self, host: str, port: int) -> None:
         transport, _ = await self._loop.create_datagram_endpoint(
-            lambda: _Socket(self), local_addr=(host, port)
+            # An error (ICMP unreachable: a local system that has gone) is dropped: nothing waits.
+            lambda: Inbound(self._arrived),
+            local_addr=(host, port),
         )
         self._transport = transport
         self._started = self._loop.time()
@@ -168,6 +167,8 @@ class LocalListener:
         if entry is None:
             if _repeated(data) and now - self._started < WARM_UP:
                 return
+            if len(self._pending) >= PENDING:
+                del self._pending[next(iter(self._pending))]
             entry = self._pending[key] = _Pending(source, nonce)
             self._ever_heard = True
         entry.datagrams.append((now, data))

@@ -20,7 +20,8 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Protocol
 
-from rcmlconf.conformance.probes.datagrams import DatagramLog
+from rcmlconf.conformance.kept import Kept
+from rcmlconf.conformance.probes.datagrams import FIRST, LAST, DatagramLog, kept_log
 from rcmlconf.conformance.probes.impaired import ImpairedPath
 from rcmlconf.conformance.probes.local_scenario import SCENARIO_LIFETIME
 from rcmlconf.conformance.probes.rsp_datagram import (
@@ -152,10 +153,10 @@ class LocalProbe(DatagramLog):
         #: Seconds to listen for what must not come.
         self.quiet = QUIET
         #: Every datagram of the local system, in arrival order (HELLOs that came before the
-        #: case too, at their own arrival time).
-        self.received: list[Datagram] = []
-        #: Every datagram the probe sent: (loop time, bytes).
-        self.sent: list[tuple[float, bytes]] = []
+        #: case too, at their own arrival time; its first and last: `kept_log`).
+        self.received = kept_log()
+        #: Every datagram the probe sent: (loop time, bytes) (likewise).
+        self.sent: Kept[tuple[float, bytes]] = Kept(FIRST, LAST)
         self.fault: Failed | None = None
         #: hello -> open (WELCOME given) -> ended (BYE) | refused; closed with the case.
         self.state = "hello"
@@ -221,7 +222,7 @@ class LocalProbe(DatagramLog):
         self.transcript.packet("udp", self.peer, self.listener.address, data)
         found = self._decode(data, at)
         if found is not None:
-            self.received.append(found)
+            self.keep(found)
             early = self.now - at
             when = f" ({early * 1000:.0f} ms before the case took it)" if early > 0.001 else ""
             self.transcript.note(f"<- {summary(self.model, found.header, found.body)}{when}")
@@ -463,6 +464,7 @@ class LocalProbe(DatagramLog):
         """The run ends: BYE to an open session, REFUSED (busy) to a HELLO left unanswered."""
         if self.closed:
             return
+        self.noted_left_out()
         if self._forward is not None:
             # What the impairment holds goes now, and the last word straight to the socket: an
             # impairment must not leave the local system in a session or waiting on a HELLO.

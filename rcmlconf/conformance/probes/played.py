@@ -17,7 +17,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from rcmlconf.conformance.kept import Kept
 from rcmlconf.conformance.probes.control import ControlProbe, waited_out
+from rcmlconf.conformance.probes.datagrams import FIRST, LAST
 from rcmlconf.conformance.probes.played_stream import PlayedStream
 from rcmlconf.conformance.verdicts import Failed, Inconclusive
 from rcmlconf.errors import ProtocolError, ValueTextError
@@ -107,10 +109,12 @@ class PlayedServer:
         self.robot = ctx.robot
         #: Every data node's value by path: what READ answers and WRITE changes.
         self.values: dict[str, Value] = {node.path: node.zero() for node in self.robot.data_nodes()}
-        self.seen: list[Seen] = []
-        self.writes: list[Write] = []
-        #: WRITEs whose body did not decode or held a value out of range, with why.
-        self.refused_bodies: list[tuple[Request, str]] = []
+        #: The client's requests, the WRITEs taken, and the WRITEs whose body did not decode or
+        #: held a value out of range, with why: each its first and last (a client that sends more
+        #: floods the harness).
+        self.seen: Kept[Seen] = Kept(FIRST, LAST)
+        self.writes: Kept[Write] = Kept(FIRST, LAST)
+        self.refused_bodies: Kept[tuple[Request, str]] = Kept(FIRST, LAST)
         self.own: Own | None = None
         #: The data stream, once a stream access was set up.
         self.stream: PlayedStream | None = None

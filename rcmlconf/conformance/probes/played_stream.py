@@ -14,7 +14,9 @@ import time
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
+from rcmlconf.conformance.kept import Kept
 from rcmlconf.conformance.probes.control import ControlProbe
+from rcmlconf.conformance.probes.datagrams import FIRST, LAST
 from rcmlconf.conformance.probes.stream import Datagram, StreamProbe, StreamSetUp, open_stream
 from rcmlconf.conformance.verdicts import Failed
 from rcmlconf.rcml.model import AccessNode
@@ -62,12 +64,12 @@ class PlayedStream:
         self.sending = True
         #: Seconds the played robot's clock is ahead of the harness's (its heartbeat ACKs).
         self.skew = 0.0
-        #: Every datagram of the client's, in order.
-        self.received: list[Datagram] = []
-        #: The FLOW requests of the client's, with the datagram each came in.
-        self.flow_requests: list[tuple[Datagram, FlowMessage]] = []
-        #: The client's FLOW bodies that break D-RCTP-22's layout (R-RCTP-52).
-        self.malformed: list[MalformedFlowPayload] = []
+        #: Every datagram of the client's, in order (its first and last).
+        self.received: Kept[Datagram] = Kept(FIRST, LAST)
+        #: The FLOW requests of the client's, with the datagram each came in (likewise).
+        self.flow_requests: Kept[tuple[Datagram, FlowMessage]] = Kept(FIRST, LAST)
+        #: The client's FLOW bodies that break D-RCTP-22's layout (R-RCTP-52) (likewise).
+        self.malformed: Kept[MalformedFlowPayload] = Kept(FIRST, LAST)
         self._tasks: list[asyncio.Task[None]] = []
         self._asked: dict[int, asyncio.Future[FlowMessage]] = {}
 

@@ -27,8 +27,10 @@ from collections.abc import Callable, Mapping
 from typing import Protocol, cast
 
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.datagrams import DatagramLog
+from rcmlconf.conformance.kept import Kept
+from rcmlconf.conformance.probes.datagrams import FIRST, LAST, DatagramLog, kept_log
 from rcmlconf.conformance.probes.impaired import ImpairedPath
+from rcmlconf.conformance.probes.inbound import Inbound
 from rcmlconf.conformance.probes.rsp_datagram import (
     HEADER_LAYOUT,
     MODEL_AT,
@@ -85,17 +87,6 @@ class _Opener:
         return plain
 
 
-class _Socket(asyncio.DatagramProtocol):
-    def __init__(self, probe: RspProbe) -> None:
-        self.probe = probe
-
-    def datagram_received(self, data: bytes, addr: tuple[str | int, ...]) -> None:
-        self.probe._arrived(data, (str(addr[0]), int(addr[1])))
-
-    def error_received(self, exc: Exception) -> None:
-        self.probe.transcript.note(f"UDP error: {exc}")
-
-
 class HandDriven(Protocol):
     """A session a case drives packet by packet on a probe's socket (`rsp_raw.RawSession`), as
     the probe serves it: told each WELCOME it reads, asked for the BYE that ends it with the
@@ -136,10 +127,10 @@ class RspProbe(DatagramLog):
         self.local: Address = ("127.0.0.1", 0)
         self._transport: asyncio.DatagramTransport | None = None
         self._loop = asyncio.get_running_loop()
-        #: Every datagram from the robot, in arrival order.
-        self.received: list[Datagram] = []
-        #: Every datagram this probe put on the wire: (loop time, bytes).
-        self.sent: list[tuple[float, bytes]] = []
+        #: Every datagram from the robot, in arrival order (its first and last: `kept_log`).
+        self.received = kept_log()
+        #: Every datagram this probe put on the wire: (loop time, bytes) (likewise).
+        self.sent: Kept[tuple[float, bytes]] = Kept(FIRST, LAST)
         self._arrival = asyncio.Event()
         self.fault: Failed | None = None
         #: Client nonces of this probe's HELLOs: WELCOMEs to them give the keys to read with.
@@ -149,7 +140,7 @@ class RspProbe(DatagramLog):
         self.raw_sessions: list[HandDriven] = []
         # The endpoint, its events and the newest state of each device.
         self.endpoint: LocalEndpoint | None = None
-        self.events: list[tuple[float, events.Event]] = []
+        self.events: Kept[tuple[float, events.Event]] = Kept(FIRST, LAST)
         self.states: dict[str, tuple[float, Mapping[str, Value]]] = {}
         self._event = asyncio.Event()
         #: While muted, the endpoint's datagrams are not sent (the local system falls silent).
@@ -171,7 +162,7 @@ class RspProbe(DatagramLog):
     async def _bind(self) -> None:
         try:
             transport, _ = await self._loop.create_datagram_endpoint(
-                lambda: _Socket(self), local_addr=("127.0.0.1", 0)
+                lambda: Inbound(self._arrived, self._error), local_addr=("127.0.0.1", 0)
             )
         except OSError as error:
             raise HarnessError(f"cannot open a UDP socket: {error}") from None
@@ -238,6 +229,9 @@ class RspProbe(DatagramLog):
 
     # -- receiving -----------------------------------------------------------------------------
 
+    def _error(self, error: Exception) -> None:
+        self.transcript.note(f"UDP error: {error}")
+
     def _arrived(self, data: bytes, source: Address) -> None:
         self.transcript.packet("udp", source, self.local, data)
         if source != self.robot:
@@ -245,7 +239,7 @@ class RspProbe(DatagramLog):
             return
         found = self._decode(data)
         if found is not None:
-            self.received.append(found)
+            self.keep(found)
             self.transcript.note(f"{self._who}<- {summary(self.model, found.header, found.body)}")
             self._learn(found)
         self._arrival.set()
@@ -391,9 +385,9 @@ class RspProbe(DatagramLog):
         start = after
         while True:
             self.check()
-            for index in range(start, len(self.events)):
-                if where(self.events[index][1]):
-                    return self.events[index][1]
+            for _, event in self.events[start:]:
+                if where(event):
+                    return event
             start = len(self.events)
             remaining = deadline - self.now
             if remaining <= 0:
@@ -421,7 +415,8 @@ class RspProbe(DatagramLog):
                 and where(event.values)
             )
 
-        first = next((i for i, (at, _) in enumerate(self.events) if at >= start), len(self.events))
+        seen = self.events
+        first = next((i for i, (at, _) in seen.places() if at >= start), len(seen))
         found = await self.event(fits, wait=wait, after=first)
         return found.values if isinstance(found, events.StateReceived) else None
 
@@ -500,6 +495,7 @@ class RspProbe(DatagramLog):
         to the socket: an impairment must not keep the robot busy."""
         if self.closed:
             return
+        self.noted_left_out()
         if self._forward is not None:
             self._forward.close(flush=True)
             self._forward = None

@@ -4,10 +4,13 @@ control connection's local address, datagrams sent exactly as given or built wit
 
 Every datagram is recorded in the transcript twice: its bytes with its endpoints (`packet`, for
 --capture) when it crosses the socket, and a note with its decoded summary when the case sends or
-gets it. The case's impairment (`Case.impairment`, seeded by --seed) sits between the socket and
-the case, one `rcmlconf.impair` channel each way: what the case sends is impaired before it
-leaves, what arrives is impaired before the case sees it. The target sees one source, the probe's
-port, as it must (R-RCTP-56): a proxy in between would change it.
+gets it. What came and the case has not taken waits in an inbox of INBOX datagrams at most (a
+target that sends more before the case reads floods it: the oldest are dropped, and counted);
+what the case took is kept as `DatagramLog`'s are, its first and its last. The case's impairment
+(`Case.impairment`, seeded by --seed) sits between the socket and the case, one `rcmlconf.impair`
+channel each way: what the case sends is impaired before it leaves, what arrives is impaired
+before the case sees it. The target sees one source, the probe's port, as it must (R-RCTP-56): a
+proxy in between would change it.
 """
 
 from __future__ import annotations
@@ -19,11 +22,13 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from rcmlconf.conformance.kept import Kept
 from rcmlconf.conformance.probes.control import ControlProbe
-from rcmlconf.conformance.probes.datagrams import ANSWER_TRIES
+from rcmlconf.conformance.probes.datagrams import ANSWER_TRIES, FIRST, LAST
 from rcmlconf.conformance.probes.impaired import ImpairedPath
+from rcmlconf.conformance.probes.inbound import Inbound
 from rcmlconf.conformance.transcript import Address, Transcript, show
 from rcmlconf.conformance.verdicts import Failed, HarnessError, Inconclusive
 from rcmlconf.errors import ProtocolError, ValueTextError
@@ -59,6 +64,8 @@ LAYOUT = "R-RCTP-39"
 ANSWERED = "R-RCTP-46"
 #: Seconds between the sendings of a FLOW request under an impairment (`StreamProbe.ask`).
 REPEAT = 0.25
+#: Datagrams that came and wait for the case to take them, at most.
+INBOX = 4096
 
 
 @dataclass(frozen=True, slots=True)
@@ -116,19 +123,6 @@ class StreamSetUp:
         return micros(seconds or 0.0)
 
 
-class _Socket(asyncio.DatagramProtocol):
-    def __init__(self) -> None:
-        self.probe: StreamProbe | None = None
-
-    def datagram_received(self, data: bytes, addr: tuple[Any, ...]) -> None:
-        if self.probe is not None:
-            self.probe._arrived(data, (str(addr[0]), int(addr[1])))
-
-    def error_received(self, exc: Exception) -> None:
-        if self.probe is not None:
-            self.probe.transcript.note(f"udp error: {exc}")
-
-
 class StreamProbe:
     def __init__(
         self,
@@ -145,7 +139,9 @@ class StreamProbe:
         self.wait = wait
         self.local: Address = transport.get_extra_info("sockname")[:2]
         self._loop = asyncio.get_running_loop()
-        self._inbox: asyncio.Queue[Datagram] = asyncio.Queue()
+        self._inbox: asyncio.Queue[Datagram] = asyncio.Queue(INBOX)
+        #: Datagrams dropped from the full inbox, the oldest first.
+        self.dropped = 0
         outward = inward = None
         if impairment is not None and not impairment.is_none:
             outward, inward = channel_pair(impairment, seed, flow)
@@ -157,8 +153,8 @@ class StreamProbe:
         self._request_id = int.from_bytes(os.urandom(2), "big")
         #: The latest SETUP answered 200: where packets go, with what tag.
         self.set_up: StreamSetUp | None = None
-        #: Every packet of the target's the case got, in order.
-        self.history: list[Datagram] = []
+        #: Every packet of the target's the case got, in order (its first and last).
+        self.history: Kept[Datagram] = Kept(FIRST, LAST)
         self.closed = False
         self._codecs: dict[tuple[str, Direction], ValuesCodec[DataNode]] = {}
         #: The direction of the DATA that comes to this socket: the robot's (READ) for a case
@@ -177,11 +173,11 @@ class StreamProbe:
     ) -> StreamProbe:
         loop = asyncio.get_running_loop()
         try:
-            transport, protocol = await loop.create_datagram_endpoint(_Socket, local_addr=(host, 0))
+            transport, protocol = await loop.create_datagram_endpoint(Inbound, local_addr=(host, 0))
         except OSError as error:
             raise HarnessError(f"cannot open a UDP socket on {host}: {error}") from None
         probe = cls(transport, transcript, wait, impairment, seed, flow)
-        protocol.probe = probe
+        protocol.arrived, protocol.error = probe._arrived, probe._error
         transcript.note(f"udp socket {probe.local[0]}:{probe.local[1]}")
         return probe
 
@@ -331,6 +327,9 @@ class StreamProbe:
 
     # -- receiving -----------------------------------------------------------------------------
 
+    def _error(self, error: Exception) -> None:
+        self.transcript.note(f"udp error: {error}")
+
     def _arrived(self, data: bytes, source: Address) -> None:
         if self.closed:
             return
@@ -346,6 +345,14 @@ class StreamProbe:
             packet, error = None, exc
         summary = _summary(data, packet, error, self._values(self.inbound))
         self.transcript.note(f"<- udp {source[0]}:{source[1]} {summary}")
+        if self._inbox.full():
+            self._inbox.get_nowait()
+            self.dropped += 1
+            if self.dropped == 1:
+                self.transcript.note(
+                    f"the stream probe holds {INBOX} datagrams the case has not taken: it drops"
+                    " the oldest (counted when it closes)"
+                )
         self._inbox.put_nowait(Datagram(data, source, self._loop.time(), packet, error, lost))
 
     async def datagram(self, wait: float | None = None) -> Datagram | None:
@@ -399,10 +406,10 @@ class StreamProbe:
                 self.history.append(one)
         return found
 
-    async def packets(self, duration: float, *, strict: bool = True) -> list[Datagram]:
-        """Every packet that comes within `duration` seconds."""
+    async def packets(self, duration: float, *, strict: bool = True) -> Kept[Datagram]:
+        """Every packet that comes within `duration` seconds (its first and last, all counted)."""
         deadline = self._loop.time() + duration
-        found: list[Datagram] = []
+        found: Kept[Datagram] = Kept(FIRST, LAST)
         while (left := deadline - self._loop.time()) > 0:
             one = await self.packet(left, strict=strict)
             if one is not None:
@@ -513,6 +520,8 @@ class StreamProbe:
 
     def close(self) -> None:
         if not self.closed:
+            if self.dropped:
+                self.transcript.note(f"the stream probe dropped {self.dropped} datagrams unread")
             self.closed = True
             self._out.close()
             self._in.close()
