@@ -15,14 +15,12 @@ import time
 from collections.abc import Callable
 
 import pytest
+from support.embedded import run_embedded
 
-from rcmlconf.conformance.ics import EVERYTHING
 from rcmlconf.conformance.loopwatch import LoopWatch
 from rcmlconf.conformance.probes.rsp_probe import QUIET
 from rcmlconf.conformance.registry import all_cases
-from rcmlconf.conformance.runner import RunOptions, run_cases
-from rcmlconf.conformance.targets import embedded_reference
-from rcmlconf.conformance.verdicts import Result, Verdict
+from rcmlconf.conformance.verdicts import Verdict
 from rcmlconf.errors import ProtocolError
 from rcmlconf.reference.datagrams import Address, DataSocket
 from rcmlconf.rsp.codec import Header, PacketType, pull_header
@@ -32,8 +30,6 @@ PAST = 0.1
 #: Seconds rsp/value/out-of-range's robot sends nothing, from the UPLINK that took the last
 #: DOWNLINK in range (#10): the ten periods of its values out of range, and more.
 SILENT = 1.0
-#: The whole run of one case, at most (seconds).
-BOUND = 30.0
 
 Pick = Callable[[Header], bool]
 
@@ -142,21 +138,12 @@ def _picked(pick: Pick, data: bytes) -> bool:
         return False
 
 
-def _run(case: str) -> Result:
-    async def scenario() -> list[Result]:
-        async with embedded_reference(EVERYTHING.features) as target:
-            return await run_cases([all_cases()[case]], target, RunOptions())
-
-    (result,) = asyncio.run(asyncio.wait_for(scenario(), BOUND))
-    return result
-
-
 @pytest.mark.parametrize(("case", "pick", "window", "requirement"), CASES, ids=IDS)
 def test_a_robot_stalled_with_the_harness_is_inconclusive(
     monkeypatch: pytest.MonkeyPatch, case: str, pick: Pick, window: float, requirement: str
 ) -> None:
     _stall(monkeypatch, pick, held=window, then=PAST)
-    result = _run(case)
+    result = run_embedded(case)
     assert result.verdict is Verdict.INCONCLUSIVE, result
     assert "event loop was held" in result.reason, result
 
@@ -167,7 +154,7 @@ def test_a_robot_stalled_alone_fails(
 ) -> None:
     _unloaded(monkeypatch)
     _stall(monkeypatch, pick, held=0.0, then=window + PAST)
-    result = _run(case)
+    result = run_embedded(case)
     assert (result.verdict, result.requirement) == (Verdict.FAIL, requirement), result
     assert "it came" in (result.actual or ""), result  # the second window saw it, late
 
@@ -178,7 +165,7 @@ def test_a_robot_that_never_sends_it_fails(
 ) -> None:
     _unloaded(monkeypatch)
     _never(monkeypatch, pick)
-    result = _run(case)
+    result = run_embedded(case)
     assert (result.verdict, result.requirement) == (Verdict.FAIL, requirement), result
 
 
@@ -192,7 +179,7 @@ def test_a_robot_silent_through_values_out_of_range(
     if not held:
         _unloaded(monkeypatch)
     _stall(monkeypatch, _took(10), held=held, then=SILENT)
-    result = _run("rsp/value/out-of-range")
+    result = run_embedded("rsp/value/out-of-range")
     assert result.verdict is verdict, result
     assert "no UPLINK" in result.reason, result
 
@@ -210,7 +197,7 @@ def test_a_robot_stalled_with_the_harness_before_its_buffer_shows_it_busy_passes
     the case waits for it as much longer as the holds add up to (D-RSP-26), and reads the count
     after it, where it read the one before and failed."""
     _stall(monkeypatch, _left_buffer(), held=2 * QUIET, then=PAST)
-    result = _run(BUSY)
+    result = run_embedded(BUSY)
     assert result.verdict is Verdict.PASS, result
 
 
@@ -221,5 +208,5 @@ def test_a_robot_stalled_alone_before_its_buffer_shows_it_busy_fails(
     left is not held by #1."""
     _unloaded(monkeypatch)
     _stall(monkeypatch, _left_buffer(), held=0.0, then=QUIET + PAST)
-    result = _run(BUSY)
+    result = run_embedded(BUSY)
     assert (result.verdict, result.requirement) == (Verdict.FAIL, "R-RSP-31"), result

@@ -401,7 +401,9 @@ async def bye(ctx: Context) -> None:
 async def uplink_pace(ctx: Context) -> None:
     probe, opened, _ = await reporting(ctx, slower=2)
     await probe.listen(3 * opened.period)
-    uplinks = await probe.received_within(12 * opened.period, PacketType.UPLINK)
+    uplinks = await probe.received_within(
+        12 * opened.period, PacketType.UPLINK, session=opened.session_id
+    )
     paced(ctx, uplinks, PacketType.UPLINK, opened.period)
 
 
@@ -417,7 +419,7 @@ async def period(ctx: Context) -> None:
     probe.session.set_period(slower, probe.now)
     probe.poke()
     await probe.listen(slower * 1.5)
-    uplinks = await probe.received_within(slower * 6, PacketType.UPLINK)
+    uplinks = await probe.received_within(slower * 6, PacketType.UPLINK, session=opened.session_id)
     paced(ctx, uplinks, PacketType.UPLINK, slower)
 
 
@@ -432,7 +434,9 @@ async def keep_alive(ctx: Context) -> None:
     period = raw.period
     raw.downlink()
     uplinks = await probe.received_within(
-        min(4.5 * KEEPALIVE_PERIODS * period, 20 * period), PacketType.UPLINK
+        min(4.5 * KEEPALIVE_PERIODS * period, 20 * period),
+        PacketType.UPLINK,
+        session=raw.session_id,
     )
     carrying = [d for d in uplinks if d.items]
     ctx.expect(

@@ -196,12 +196,18 @@ class DatagramLog:
         self.check()
 
     async def received_within(
-        self, seconds: float, kinds: Iterable[PacketType] | PacketType | None = None
+        self,
+        seconds: float,
+        kinds: Iterable[PacketType] | PacketType | None = None,
+        *,
+        session: int | None = None,
     ) -> list[Datagram]:
-        """Let `seconds` pass (as `listen`) and return the datagrams of `kinds` that came."""
+        """Let `seconds` pass (as `listen`) and return the datagrams of `kinds` that came (of
+        `session` alone, if given: another session's are no packets of it)."""
         start = self.mark()
         await self.listen(seconds)
-        return self.packets(kinds, after=start)
+        found = self.packets(kinds, after=start)
+        return [d for d in found if session is None or d.header.session_id == session]
 
 
 def _kinds(kinds: Iterable[PacketType] | PacketType | None) -> frozenset[PacketType] | None:
