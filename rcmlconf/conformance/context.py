@@ -298,13 +298,18 @@ class Context:
         while self._closers:
             self._closers.pop()()
 
-    def answers_in_place(self) -> None:
+    def answers_in_place(self, doubts: bool = True) -> None:
         """Raise the first answer out of place that a control connection of the case read
         (`Outstanding`: R-RCTP-3, R-RCTP-5, D-RCTP-10). It fails the case whatever the case
-        made of it: a case that took it for silence, or went on, was misled by it."""
+        made of it: a case that took it for silence, or went on, was misled by it. Then, with
+        `doubts` (the case did not fail on its own), the first answer without CSeq that said a
+        request could not be framed (`Outstanding.doubt`)."""
         for outstanding in self._outstanding:
             if outstanding.failure is not None:
                 raise outstanding.failure
+        for outstanding in self._outstanding if doubts else ():
+            if outstanding.doubt is not None:
+                raise outstanding.doubt
 
     # -- checks --------------------------------------------------------------------------------
 

@@ -116,8 +116,10 @@ async def _judged(
             return _result(case, ctx, started, run, Verdict.NOT_APPLICABLE, lacks)
         try:
             await asyncio.wait_for(case.run(ctx), ctx.timeout)
-        except Exception:
-            ctx.answers_in_place()  # an answer out of place comes before what it led to
+        except Exception as error:
+            # An answer out of place comes before what it led to; a case that failed the
+            # answer for what it said judged it first (`Outstanding.doubt`).
+            ctx.answers_in_place(doubts=not isinstance(error, Failed))
             raise
         finally:
             ctx.close()  # first: what closing notes (a client command's end) is in the exchange

@@ -134,3 +134,28 @@ def test_a_servers_request_before_the_session_is_refused_454() -> None:
     outstanding.sent(_request("CONNECT", "/rover", "CSeq: 2"))
     outstanding.answered(_answer("2"))
     assert outstanding.idle_refusal(bye) is None
+
+
+def test_an_answer_that_says_the_request_did_not_frame_is_a_doubt_not_a_failure() -> None:
+    """A 400 without CSeq to a request the harness framed: its receiver says it could not
+    frame it. The case judges the status first; the missing CSeq fails it only if nothing else
+    does (`doubt`). What follows is not judged: the receiver closes after it (D-RCTP-10)."""
+    outstanding = _sent(
+        _request("CONNECT", "/rover", "CSeq: 1") + _request("READ", "/a", "CSeq: 2")
+    )
+    outstanding.answered(_answer(status=400))
+    outstanding.answered(_answer("7"))
+    assert outstanding.failure is None
+    assert outstanding.doubt is not None
+    assert outstanding.doubt.requirement == "R-RCTP-3"
+    assert outstanding.doubt.reason == (
+        "expected the answer to CSeq 1 (CONNECT /rover); got 400 Bad Request without CSeq"
+    )
+
+
+def test_a_200_without_cseq_is_a_failure_at_once() -> None:
+    outstanding = _sent(_request("CONNECT", "/rover", "CSeq: 1"))
+    with pytest.raises(Failed) as failed:
+        outstanding.answered(_answer())
+    assert failed.value.requirement == "R-RCTP-3"
+    assert outstanding.doubt is None

@@ -12,6 +12,12 @@ that could not be framed, or to one not yet whole, may carry any CSeq (the harne
 what its receiver read of it), and what was sent after is not known (D-RCTP-10); an answer to
 a request without one readable CSeq carries none, or echoes what the request had.
 
+An answer without CSeq in one of D-RCTP-10's statuses for a request that cannot be framed says
+its receiver could not frame the request, though the harness could. Whether it should have is
+the case's to judge, by the status it expects: a case that fails the answer for its status
+keeps its own requirement (the receiver misread the request); one that finds nothing else wrong
+fails it for the missing CSeq (`doubt`, R-RCTP-3). What was sent after it is not judged.
+
 It also knows when the connection's session opens (a CONNECT answered 200): until then a server's
 request is refused as the core's own checks say, 454 (D-RCTP-13), not answered 200.
 """
@@ -37,6 +43,9 @@ MAX_WAITING = 1024
 SHOWN_TARGET = 60
 #: Answered requests kept, to name the one a second answer repeats.
 REMEMBERED = 16
+#: D-RCTP-10's statuses for a request that cannot be framed (a start line or header that does
+#: not parse, a bad Content-Length, a limit passed): their answer may carry no CSeq.
+UNFRAMED = frozenset({400, 413, 414, 431})
 
 
 @dataclass(frozen=True, slots=True)
@@ -92,6 +101,9 @@ class Outstanding:
         self._blind = False
         #: The first answer out of place (R-RCTP-3, R-RCTP-5); no answer is judged after it.
         self.failure: Failed | None = None
+        #: The first answer that said a request the harness framed could not be framed (the
+        #: module's docstring): the case's own failure, if any, stands before it.
+        self.doubt: Failed | None = None
         #: Whether a CONNECT of this connection was answered 200 (D-RCTP-13: idle to open).
         self.session_open = False
         #: The side the probe plays: a client's requests are refused in idle (`idle_refusal`).
@@ -144,6 +156,13 @@ class Outstanding:
             self._answered.append(oldest)
             if oldest.method == "CONNECT" and response.status == 200:
                 self.session_open = True
+            return
+        if response.status in UNFRAMED and not response.headers.get_all("CSeq"):
+            self._waiting.clear()  # what its receiver read after it is not known
+            self._go_blind()
+            self.doubt = self.doubt or Failed(
+                requirement or "R-RCTP-3", f"the answer to {oldest}", self._shown(response)
+            )
             return
         given = request_cseq(response)
         later = given is not None and any(s.cseq == given for s in list(self._waiting)[1:])
