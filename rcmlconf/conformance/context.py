@@ -91,7 +91,8 @@ class Context:
     unchecked: list[str] = field(default_factory=list)
     #: When the case started, in loop time.
     started: float = field(default_factory=lambda: asyncio.get_running_loop().time())
-    #: The case's control connections to the server and how they went (the runner's give-up).
+    #: The case's control connections to the server, or datagrams to the robot, and how they
+    #: went (the runner's give-up).
     contact: Contact = field(default_factory=Contact)
 
     @property
@@ -283,12 +284,15 @@ class Context:
         at a time, D-RSP-12)."""
         if self.taken is not None:  # the runner gives it back when the case ends
             address, self.taken = self.taken, None
-            return address
-        robots = self.robots
-        if robots is None or not self.target.rsp:
-            raise NotApplicable("no RSP robot under test (--rsp-target)")
-        address = await robots.get()
-        self._closers.append(lambda: robots.put_nowait(address))
+        else:
+            robots = self.robots
+            if robots is None or not self.target.rsp:
+                raise NotApplicable("no RSP robot under test (--rsp-target)")
+            address = await robots.get()
+            self._closers.append(lambda: robots.put_nowait(address))
+        self._closers.append(
+            lambda: self.contact.datagrams(*self.transcript.crossed("udp", address[1]))
+        )
         return address
 
     def on_close(self, closer: Callable[[], None]) -> None:

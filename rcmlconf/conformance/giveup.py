@@ -1,24 +1,33 @@
-"""The runner gives up on a dead RCTP server, as the client role does when no client ever
-connected (`ClientListener.arrival`). A server that resets, closes or leaves unanswered every
-connection would take each of its cases to its own end, a few seconds or the case's timeout
-apiece: hundreds of verdicts that say one thing.
+"""The runner gives up on a dead RCTP server or RSP robot, as the client role does when no
+client ever connected (`ClientListener.arrival`). A server that resets, closes or leaves
+unanswered every connection, or a robot that answers no datagram, would take each of its cases
+to its own end, a few seconds or the case's timeout apiece: hundreds of verdicts that say one
+thing.
 
-Once IN_A_ROW server cases in a row (as they end) found the target sent no byte on any of their
-connections, the cases not yet started are not run: inconclusive, with the reason. That is when
-the target never sent a byte in the run (on the connections of the cases still running either),
-or when it refused their connections: nothing listens, it stopped (crashed mid-run, say; it may
-have reset those it had taken as it stopped). A target that answers at all is not given up on: a
-case it sent a byte in, or that passed, starts the count again. A case that made no connection
-(not applicable before it tried) counts for neither. A case already running is not cut."""
+Once IN_A_ROW cases in a row (as they end) found the target sent no byte on any of their
+connections, or no datagram back, the cases of its role not yet started are not run:
+inconclusive, with the reason. That is when the target never sent a byte in the run (to the
+cases still running either), or when it refused their connections: nothing listens, it stopped
+(crashed mid-run, say; it may have reset those it had taken as it stopped). A target that
+answers at all is not given up on: a case it sent a byte in, or that passed, starts the count
+again. A case that made no connection and sent no datagram (not applicable before it tried)
+counts for neither. A case already running is not cut."""
 
 from __future__ import annotations
 
 from collections import Counter
 
 from rcmlconf.conformance.probes.lost import Contact
+from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.verdicts import Verdict
 
-#: Server cases in a row, as they end, that found the target dead before the rest give up.
+#: The roles whose target a run gives up on: those the harness sends to first.
+GIVEN_UP = frozenset({Role.SERVER, Role.ROBOT})
+
+#: Each role's basic interconnection case (ISO/IEC 9646's): run before the rest of its role, so
+#: that a target that answers nothing fails it before the run gives up on the rest.
+BASIC = frozenset({"rctp/msg/connect", "rsp/session/welcome"})
+#: Cases in a row, as they end, that found the target dead before the rest give up.
 IN_A_ROW = 8
 #: How the reason of a case given up on begins.
 NOT_RUN = "not run: "
@@ -29,11 +38,13 @@ _EVERY = {
     "silent": "the target sent nothing on any connection of {cases}",
     "refused": "the target refused every connection of {cases}",
     "unreached": "no connection of {cases} reached the target",
+    "unanswered": "the target answered no datagram of {cases}",
 }
 
 
 class GiveUp:
-    """Whether the rest of a run's server cases are run, from the contacts of those that ran."""
+    """Whether the rest of a run's cases of one role are run, from the contacts of those that
+    ran: one a role, since a run has one target of each (`Target`)."""
 
     def __init__(self) -> None:
         #: How the connections of the last cases ended that found the target dead, the latest last.
@@ -44,7 +55,7 @@ class GiveUp:
         self.reason: str | None = None
 
     def begin(self) -> Contact:
-        """A server case starts: its connections' contact, to give `ended` when it ends."""
+        """A case starts: its connections' contact, to give `ended` when it ends."""
         contact = Contact()
         self._running.append(contact)
         return contact

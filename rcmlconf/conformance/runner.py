@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.giveup import GiveUp
+from rcmlconf.conformance.giveup import BASIC, GIVEN_UP, GiveUp
 from rcmlconf.conformance.loopwatch import LoopWatch
 from rcmlconf.conformance.probes.lost import Contact, stop
 from rcmlconf.conformance.registry import Case
@@ -94,7 +94,7 @@ async def run_case(
     """One case, its timeout counted from now. `robot`: the RSP robot taken for it already (a
     robot serves one session at a time, D-RSP-12, so a case may have waited for its turn; that
     wait is not the case's time), else it takes one from `robots` when it asks. `contact`: where
-    its control connections are kept (`GiveUp`)."""
+    its control connections, or datagrams to the robot, are kept (`GiveUp`)."""
     pool = robots or robot_pool(target)
     ctx = Context(case, target, options.timeout_scale, options.seed, pool, options.impair)
     ctx.contact = contact or ctx.contact
@@ -226,7 +226,7 @@ async def run_cases(
     gate = asyncio.Semaphore(max(1, options.concurrency))
     robots = robot_pool(target)
     watch = LoopWatch()
-    dead = GiveUp()
+    dead = {role: GiveUp() for role in GIVEN_UP}  # a target of each role, judged apart
 
     async def one(case: Case, run: int) -> None:
         # A robot case waits for a free robot before it takes a slot, and its clock starts
@@ -240,12 +240,13 @@ async def run_cases(
             async with gate:  # a client waiting in line would wait on its own timers
                 result = await _absent(case, target, options, run) or _dead(case, target, run, dead)
                 if result is None:
-                    contact = dead.begin() if case.role is Role.SERVER else None
+                    given_up = dead.get(case.role)
+                    contact = given_up.begin() if given_up is not None else None
                     result = await run_case(
                         case, target, options, run, robots, watch, robot, contact
                     )
-                    if contact is not None:
-                        dead.ended(contact, result.verdict)
+                    if given_up is not None and contact is not None:
+                        given_up.ended(contact, result.verdict)
         finally:
             if robot is not None:
                 robots.put_nowait(robot)
@@ -280,9 +281,10 @@ async def run_cases(
                 # for a second after they closed it.
                 await asyncio.sleep(options.timeout_scale)
             # The longest first: a case that must wait out a protocol timer should not also
-            # wait for a free slot (the suite takes as long as its slowest case at best).
+            # wait for a free slot (the suite takes as long as its slowest case at best). Before
+            # them the BASIC ones, so that a dead target fails them before the run gives up.
             free = (c for c in cases if not alone(c, target) and not c.exclusive)
-            longest_first = sorted(free, key=lambda c: -c.timeout)
+            longest_first = sorted(free, key=lambda c: (c.id not in BASIC, -c.timeout))
             concurrent = [one(c, run) for c in longest_first]
             await asyncio.gather(*concurrent, *(lane(serial, run) for serial in lanes.values()))
             # Then alone: the other cases' connections would count against what they count
@@ -295,11 +297,12 @@ async def run_cases(
     return sorted(results, key=lambda r: (r.run, order[r.case]))
 
 
-def _dead(case: Case, target: Target, run: int, dead: GiveUp) -> Result | None:
-    """Why a server case that applies is not run: the run gave up on a dead target."""
-    if case.role is not Role.SERVER or dead.reason is None or _lacks(case, target):
+def _dead(case: Case, target: Target, run: int, dead: dict[Role, GiveUp]) -> Result | None:
+    """Why a case that applies is not run: the run gave up on its role's dead target."""
+    given_up = dead.get(case.role)
+    if given_up is None or given_up.reason is None or _lacks(case, target):
         return None
-    return Result(case.id, Verdict.INCONCLUSIVE, 0.0, dead.reason, run=run)
+    return Result(case.id, Verdict.INCONCLUSIVE, 0.0, given_up.reason, run=run)
 
 
 def _result(

@@ -163,6 +163,18 @@ class Transcript:
         payload = Payload(self.wall_start + since, transport, source, destination, data)
         kept.append((self._place(), Entry(since, payload=payload)))
 
+    def crossed(self, transport: str, port: int) -> tuple[bool, bool]:
+        """Whether a payload of `transport` went to `port`, and whether one came from it (kept
+        or left out: a flow past FLOWS counts as both)."""
+        beyond = self._beyond.left_out > 0
+        flows = [
+            (source[1], destination[1]) for t, source, destination in self._flows if t == transport
+        ]
+        return (
+            beyond or any(to == port for _, to in flows),
+            beyond or any(source == port for source, _ in flows),
+        )
+
     # -- what was kept -------------------------------------------------------------------------
 
     def _placed(self) -> list[_Placed]:

@@ -1,7 +1,8 @@
 """`run --target` against servers that reset, ignore or stop taking connections
-(tests/support/hostile_resets.py): each case that waited on the target fails for what it did,
-never with a harness fault or a network error; a target that answers nothing is given up on
-after IN_A_ROW cases, so the run ends in a second or two, not a timeout a case."""
+(tests/support/hostile_resets.py), and `run --rsp-target` against a robot that answers nothing:
+each case that waited on the target fails for what it did, never with a harness fault or a
+network error; a target that answers nothing is given up on after IN_A_ROW cases, so the run
+ends in a second or two, not a timeout a case."""
 
 from __future__ import annotations
 
@@ -10,13 +11,15 @@ import subprocess
 from pathlib import Path
 from typing import Any
 
+from support.hostile_files import hostile_robot
 from support.hostile_resets import hostile
 from support.processes import free_port, run_command
 
 from rcmlconf.cli.run_target import server_problem
 from rcmlconf.conformance.giveup import NOT_RUN
 from rcmlconf.conformance.probes.lost import RESET
-from rcmlconf.conformance.targets import REFERENCE_RCML
+from rcmlconf.conformance.targets import REFERENCE_RCML, REFERENCE_RMODEL
+from rcmlconf.validate.validator import load_robot_model
 
 #: Cases that send their first request at once: the request/answer ones of rctp/msg.
 MSG = "rctp/msg/[a-c]*"
@@ -99,3 +102,20 @@ def test_the_reachability_check_takes_a_reset_for_a_target_that_is_there() -> No
     refused = server_problem(("127.0.0.1", free_port()), 1.0)
     assert refused is not None
     assert refused.startswith("connection refused")
+
+
+def test_a_robot_that_answers_nothing_fails_welcome_and_is_given_up_on(tmp_path: Path) -> None:
+    """Each robot case waited for an answer to its HELLO, one after another: 140 s for the whole
+    suite. The basic case runs first and fails (R-RSP-20); 8 cases later the rest are not run."""
+    report = tmp_path / "r.json"
+    with hostile_robot(load_robot_model(REFERENCE_RMODEL), "silent") as port:
+        target = ["--rsp-target", f"127.0.0.1:{port}", "--model", str(REFERENCE_RMODEL)]
+        options = ["--only", "rsp/session/*", "--timeout-scale", "0.1", "--json", str(report)]
+        done = run_command("run", *target, *options)
+    results = {r["case"]: r for r in json.loads(report.read_text())["results"]}
+    welcome = results["rsp/session/welcome"]
+    assert (welcome["verdict"], welcome["requirement"]) == ("fail", "R-RSP-20"), done.stdout
+    given_up(done, port, "not run: the target answered no datagram of the 8 cases before")
+    verdicts = {r["verdict"] for r in results.values()}
+    assert verdicts <= {"fail", "inconclusive", "not applicable"}, done.stdout
+    assert done.returncode == 1

@@ -97,9 +97,23 @@ class Contact:
         """Whether the target sent a byte on any of them."""
         return any(connection.heard for connection in self.made)
 
+    def datagrams(self, sent: bool, heard: bool) -> None:
+        """The case's datagrams to an RSP robot, which has no connections: as one that ended
+        "unanswered" when the case sent the robot some and heard none back."""
+        if sent:
+            self.made.append(_Datagrams(int(heard), "open" if heard else "unanswered"))
+
     def ends(self) -> Counter[str]:
         """How each connection tried ended, the target having sent nothing on it: "reset",
-        "closed", "silent" (still open), "refused", "unreached"."""
+        "closed", "silent" (still open), "refused", "unreached", "unanswered" (datagrams)."""
         found = Counter("silent" if c.end == "open" else c.end for c in self.made if not c.heard)
         found.update(self.unmade)
         return found
+
+
+@dataclass(frozen=True, slots=True)
+class _Datagrams:
+    """A case's datagrams to an RSP robot, as a `Connection`."""
+
+    heard: int
+    end: str
