@@ -211,7 +211,7 @@ def _capture(directory: Path, case: Case, run: int, ctx: Context) -> None:
     try:
         with path.open("wb") as file:
             write_pcap(file, captured)
-    except OSError as error:
+    except (OSError, ValueError) as error:  # ValueError: an endpoint named, not numbered
         ctx.transcript.note(f"capture not written: {error}")
 
 

@@ -1,4 +1,5 @@
-"""A classic pcap file (LINKTYPE_RAW: each record an IPv4 packet) made from application payloads.
+"""A classic pcap file (LINKTYPE_RAW: each record an IPv4 or IPv6 packet) made from application
+payloads.
 
 The harness sees its TCP traffic as bytes written and read, not as segments. To give dissectors
 (ours, tshark) a capture they read as they would a real one, each TCP flow gets a three-way
@@ -178,19 +179,30 @@ def _checksum(data: bytes) -> int:
 
 
 def _ip(source: str, destination: str, protocol: int, body: bytes) -> bytes:
-    src, dst = ipaddress.IPv4Address(source).packed, ipaddress.IPv4Address(destination).packed
+    """An IPv4 or IPv6 packet (its addresses say which) around `body`."""
+    src, dst = ipaddress.ip_address(source), ipaddress.ip_address(destination)
+    if src.version == 6 or dst.version == 6:
+        header6 = struct.pack("!IHBB", 6 << 28, len(body), protocol, 64)
+        return header6 + _v6(src).packed + _v6(dst).packed + body
     header = struct.pack(
-        "!BBHHHBBH4s4s", 0x45, 0, 20 + len(body), 0, 0x4000, 64, protocol, 0, src, dst
+        "!BBHHHBBH4s4s", 0x45, 0, 20 + len(body), 0, 0x4000, 64, protocol, 0, src.packed, dst.packed
     )
     return header[:10] + struct.pack("!H", _checksum(header)) + header[12:] + body
 
 
 def _pseudo(source: str, destination: str, protocol: int, length: int) -> bytes:
-    return (
-        ipaddress.IPv4Address(source).packed
-        + ipaddress.IPv4Address(destination).packed
-        + struct.pack("!BBH", 0, protocol, length)
-    )
+    """The pseudo-header of a TCP or UDP checksum: RFC 768/793's for IPv4, RFC 8200's for IPv6."""
+    src, dst = ipaddress.ip_address(source), ipaddress.ip_address(destination)
+    if src.version == 6 or dst.version == 6:
+        return _v6(src).packed + _v6(dst).packed + struct.pack("!IxxxB", length, protocol)
+    return src.packed + dst.packed + struct.pack("!BBH", 0, protocol, length)
+
+
+def _v6(address: ipaddress.IPv4Address | ipaddress.IPv6Address) -> ipaddress.IPv6Address:
+    """`address` as IPv6 (an IPv4 one mapped), for a packet whose other end is IPv6."""
+    if isinstance(address, ipaddress.IPv6Address):
+        return address
+    return ipaddress.IPv6Address(f"::ffff:{address}")
 
 
 def _udp(source: Address, destination: Address, data: bytes) -> bytes:

@@ -103,3 +103,27 @@ def test_garbage_files_raise_only_capture_error(data: bytes) -> None:
         except CaptureError as error:
             offsets.append(error.offset)
         assert all(0 <= offset <= len(prefix + data) for offset in offsets)
+
+
+def test_our_writer_writes_ipv6_with_good_checksums() -> None:
+    """An IPv6 target's traffic (`run --target [::1]:P --capture`): IPv6 packets, each
+    checksum right (scapy recomputes them), IPv4 ends mapped where the other end is IPv6."""
+    from scapy.layers.inet import TCP as ScapyTCP
+    from scapy.layers.inet import UDP as ScapyUDP
+    from scapy.layers.inet6 import IPv6
+
+    six, other = ("::1", 50000), ("::1", 7330)
+    file = io.BytesIO()
+    write_pcap(
+        file, [Payload(1.0, "udp", six, other, b"x" * 31), Payload(2.0, "tcp", six, other, b"y")]
+    )
+    capture = Capture(file.getvalue())
+    packets = [IPv6(capture.data[s:e]) for _, _, s, e, _ in capture.records()]
+    assert [p.src for p in packets] == ["::1"] * 5
+    for packet in packets:
+        layer = packet[ScapyUDP] if ScapyUDP in packet else packet[ScapyTCP]
+        given = layer.chksum
+        del layer.chksum
+        assert IPv6(bytes(packet))[type(layer)].chksum == given
+    assert bytes(packets[0][ScapyUDP].payload) == b"x" * 31
+    assert bytes(packets[-1][ScapyTCP].payload) == b"y"
