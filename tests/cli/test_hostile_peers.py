@@ -10,7 +10,6 @@ longest of them, not their sum."""
 from __future__ import annotations
 
 import asyncio
-import os
 import subprocess
 import tempfile
 import time
@@ -26,7 +25,7 @@ from support.hostile_files import (
     tcp_peer,
     trickle,
 )
-from support.processes import COMMAND
+from support.processes import COMMAND, waited_with_peak
 from support.robots import CAMERA
 from support.rsp_models import EVERY_KIND, robot_model
 
@@ -69,7 +68,7 @@ def ended(commands: dict[str, Hostile]) -> None:
             started[name] = (process, err)
         deadline = time.monotonic() + DEADLINE + MARGIN
         for name, (process, err) in started.items():
-            status, peak = _waited(process, deadline)
+            status, peak = waited_with_peak(process, deadline)
             err.seek(0)
             said = err.read()
             expected = commands[name]
@@ -82,21 +81,6 @@ def ended(commands: dict[str, Hostile]) -> None:
             elif peak > MAX_RSS:
                 failures.append(f"{name}: {peak / 2**20:.0f} MiB at its peak")
     assert not failures, "\n".join(failures)
-
-
-def _waited(process: subprocess.Popen[str], deadline: float) -> tuple[int | None, int]:
-    """The exit status of `process` and its peak RSS in bytes, once it ended; None when it
-    was still running at `deadline` (it is killed then)."""
-    while True:
-        pid, status, usage = os.wait4(process.pid, os.WNOHANG)
-        if pid:
-            process.returncode = os.waitstatus_to_exitcode(status)
-            return process.returncode, usage.ru_maxrss * 1024  # KiB on Linux
-        if time.monotonic() > deadline:
-            process.kill()
-            process.wait()
-            return None, 0
-        time.sleep(0.02)
 
 
 @contextmanager

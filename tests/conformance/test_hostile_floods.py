@@ -11,8 +11,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from support.hostile_floods import CUBO, ROVER, flooding, measured
-from support.processes import COMMAND
+from support.hostile_floods import CUBO, ROVER, flooding
+from support.processes import COMMAND, measured
 
 #: Peak RSS of `run` under any flood, at most (bytes).
 MOST = 150 * 1024 * 1024

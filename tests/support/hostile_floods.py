@@ -9,25 +9,20 @@ fast as it can until the session ends (`--garbage`: random bytes instead, from a
 which a local system ignores, R-RSP-18; its session's own UPLINKs keep their pace). The server is
 the reference server, whose data stream, once it sent DATA to a port, sends that port DATA as
 fast as it can.
-
-`measured` runs a command and gives its peak RSS, of that process alone (wait4).
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
-import os
 import random
 import select
 import socket
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -48,7 +43,7 @@ BURST = 50
 #: Ports flooded at once.
 PORTS = 4
 _FIRST_PAYLOAD, _DATA = 16, b"\x01"
-#: Seconds a peer may take to say its port, and a measured command to end.
+#: Seconds a peer may take to say its port.
 BOUND = 20.0
 
 
@@ -66,38 +61,6 @@ def flooding(*args: str) -> Iterator[int]:
     finally:
         process.kill()
         process.wait()
-
-
-@dataclass
-class Measured:
-    returncode: int
-    stdout: str
-    stderr: str
-    #: The command's peak resident set size, in bytes.
-    peak: int
-    #: Whether it ended by itself within BOUND (else it was killed).
-    ended: bool
-
-
-def measured(*argv: str) -> Measured:
-    """`argv` run to its end (killed past BOUND), with its own peak RSS."""
-    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
-        process = subprocess.Popen(argv, stdout=out, stderr=err, text=True)
-        deadline = time.monotonic() + BOUND
-        while True:
-            pid, status, usage = os.wait4(process.pid, os.WNOHANG)
-            if pid:
-                break
-            if time.monotonic() > deadline:
-                process.kill()
-                pid, status, usage = os.wait4(process.pid, 0)
-                break
-            time.sleep(0.05)
-        process.returncode = os.waitstatus_to_exitcode(status)  # reaped here: Popen must know
-        out.seek(0)
-        err.seek(0)
-        ended = time.monotonic() <= deadline
-        return Measured(process.returncode, out.read(), err.read(), usage.ru_maxrss * 1024, ended)
 
 
 def robot(garbage: bool) -> None:

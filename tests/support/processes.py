@@ -8,6 +8,7 @@ import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
@@ -127,3 +128,45 @@ def wait_listening(port: int, seconds: float = 30.0) -> None:
             return
         time.sleep(0.05)
     raise AssertionError(f"nothing listened on {port} within {seconds:g} s")
+
+
+def waited_with_peak(process: subprocess.Popen[str], deadline: float) -> tuple[int | None, int]:
+    """The exit status of `process` once it ended, and its peak RSS in bytes: the highest
+    VmHWM of /proc/PID/status read while it ran (the high-water mark of its own memory since it
+    started its program). None for the status when it was still running at `deadline` (it is
+    killed then). Not wait4's ru_maxrss: Linux counts in it the RSS of the process it was forked
+    from (a pytest worker of 380 MiB), whatever the command itself took."""
+    peak = 0
+    status = Path(f"/proc/{process.pid}/status")
+    while process.poll() is None:
+        with suppress(OSError):  # gone, or a zombie's status, which has no VmHWM
+            for line in status.read_text().splitlines():
+                if line.startswith("VmHWM:"):
+                    peak = max(peak, int(line.split()[1]) * 1024)  # kB
+        if time.monotonic() > deadline:
+            process.kill()
+            process.wait()
+            return None, peak
+        time.sleep(0.02)
+    return process.returncode, peak
+
+
+@dataclass
+class Measured:
+    returncode: int
+    stdout: str
+    stderr: str
+    #: The command's peak resident set size, in bytes.
+    peak: int
+    #: Whether it ended by itself within BOUND (else it was killed).
+    ended: bool
+
+
+def measured(*argv: str) -> Measured:
+    """`argv` run to its end (killed past BOUND), with its own peak RSS."""
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        process = subprocess.Popen(argv, stdout=out, stderr=err, text=True)
+        status, peak = waited_with_peak(process, time.monotonic() + BOUND)
+        out.seek(0)
+        err.seek(0)
+        return Measured(process.returncode, out.read(), err.read(), peak, status is not None)
