@@ -97,9 +97,9 @@ ROWS = (*ATTACKS, MIX)
 
 #: The newcomer: a client of an address of its own that opens a connection, CONNECTs and READs
 #: every NEWCOMER_EVERY seconds, in every row; a try not answered within NEWCOMER_WAIT failed.
-#: Its goal (issue 27, D-RCTP-32): the READ answered within NEWCOMER_GOAL ms of the connect,
-#: whatever holds the rest of the table.
-NEWCOMER_SOURCE = "127.0.0.17"
+#: Its goal (issue 27, D-RCTP-32), under the NEWCOMER_ROW attack: the READ answered within
+#: NEWCOMER_GOAL ms of the connect, however many idle connections hold the rest of the table.
+NEWCOMER_SOURCE, NEWCOMER_ROW = "127.0.0.17", "idle-flood"
 NEWCOMER_EVERY, NEWCOMER_WAIT, NEWCOMER_GOAL = 0.25, 5.0, 1000.0
 #: The issue's goals (under the mix): stream gap p99 and max, READ p99 (ms); open FDs over the
 #: connection cap; RSS growth (MiB); back to the alone figures (s).
@@ -770,17 +770,12 @@ def _line(row: Row) -> str:
 
 
 def goals(row: Row, cap: int) -> list[tuple[str, str, bool]]:
-    """The issue's goals, with `row`'s figures."""
+    """Issue 18's goals, with `row`'s figures."""
     back = row.recovery is not None and row.recovery <= RECOVERY_GOAL
     return [
         (f"stream gap p99 <= {GAP_P99_GOAL:g} ms", _ms(row.gap_p99), row.gap_p99 <= GAP_P99_GOAL),
         (f"stream gap max <= {GAP_MAX_GOAL:g} ms", _ms(row.gap_max), row.gap_max <= GAP_MAX_GOAL),
         (f"READ p99 <= {READ_P99_GOAL:g} ms", _ms(row.read_p99), row.read_p99 <= READ_P99_GOAL),
-        (
-            f"newcomer's READ max <= {NEWCOMER_GOAL:g} ms",
-            _ms(row.newcomer_max),
-            row.newcomer_max <= NEWCOMER_GOAL,
-        ),
         ("STOP/BYE to legitimate sessions: 0", str(row.stop_bye), row.stop_bye == 0),
         ("tracebacks: 0", str(row.tracebacks), row.tracebacks == 0),
         (
@@ -842,13 +837,20 @@ def report(rows: list[Row], cap: int) -> None:
             f"{_ms(row.gap_max_less_waits)} ms; READ p99 {_ms(row.read_p99_less_waits)} ms"
         )
     judged = next((row for row in rows if row.name == MIX), rows[-1])
-    print(f"\ngoals (issues 18 and 27), under {judged.name}; every row:")
+    print(f"\ngoals (issue 18), under {judged.name}; every row:")
     names = [row.name for row in rows[1:]]
     print(f"  {'':<40}{judged.name:>10}  " + " ".join(f"{n[:6]:>6}" for n in names))
     by_row = [goals(row, cap) for row in rows[1:]]
     for index, (what, figure, met) in enumerate(goals(judged, cap)):
         marks = " ".join(f"{'ok' if g[index][2] else 'MISS':>6}" for g in by_row)
         print(f"  {what:<40}{figure:>10} {'ok' if met else 'MISS':>4} | {marks}")
+    flooded = next((row for row in rows if row.name == NEWCOMER_ROW), None)
+    if flooded is not None:
+        met = flooded.newcomer_max <= NEWCOMER_GOAL
+        print(
+            f"goal (issue 27), under {flooded.name}: newcomer's READ max <= {NEWCOMER_GOAL:g} ms"
+            f"{_ms(flooded.newcomer_max):>10} {'ok' if met else 'MISS':>4}"
+        )
 
 
 def log_summary(log: str, shown: int = 12) -> None:
