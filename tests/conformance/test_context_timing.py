@@ -82,7 +82,7 @@ def _held_by_a_datagram(on_cpu: bool) -> type[Exception]:
     asleep HOLD (a machine that gave the CPU to other processes meanwhile: by HOLD / 2)."""
     took: list[float] = []
 
-    def arrived(data: bytes, source: Address) -> None:
+    def arrived(data: bytes, source: Address, at: float) -> None:
         started = time.perf_counter()
         if on_cpu:
             until = time.thread_time() + HOLD

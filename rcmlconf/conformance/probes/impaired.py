@@ -1,7 +1,10 @@
 """One direction of a probe's UDP path through the case's impairment (rcmlconf.impair): what goes
 in is lost, corrupted, duplicated or held back by an `ImpairedChannel`, and handed on when due by
 a timer of the event loop. Every probe with UDP flows (the data stream's, the RSP probes) puts
-what it sends, and the stream probe what it receives, through one."""
+what it sends, and the stream probe what it receives, through one.
+
+What comes out is handed on with its time: the time it went in (a received datagram's arrival)
+when nothing impairs the path, else the loop's clock as the impairment lets it through."""
 
 from __future__ import annotations
 
@@ -20,7 +23,7 @@ class ImpairedPath:
     def __init__(
         self,
         channel: ImpairedChannel | None,
-        deliver: Callable[[bytes, Address, int], None],
+        deliver: Callable[[bytes, Address, int, float], None],
         loop: asyncio.AbstractEventLoop,
     ) -> None:
         self.channel = channel
@@ -32,12 +35,13 @@ class ImpairedPath:
         #: Lost since the last delivery.
         self._lost = 0
 
-    def put(self, data: bytes, address: Address) -> str:
-        """Into the path; what befell it when no intact copy will come out ("lost",
-        "corrupted"), else "". A corrupted copy does come out (its receiver drops it)."""
+    def put(self, data: bytes, address: Address, at: float | None = None) -> str:
+        """Into the path at `at` (by default now); what befell it when no intact copy will come
+        out ("lost", "corrupted"), else "". A corrupted copy does come out (its receiver drops
+        it)."""
         channel = self.channel
         if channel is None:
-            self._deliver(data, address, 0)
+            self._deliver(data, address, 0, self._loop.time() if at is None else at)
             return ""
         self._key += 1
         self._addresses[self._key] = address
@@ -55,11 +59,12 @@ class ImpairedPath:
 
     def _due(self) -> None:
         assert self.channel is not None
-        for item in self.channel.due(self._loop.time()):
+        now = self._loop.time()
+        for item in self.channel.due(now):
             key = int.from_bytes(item[:4], "big")
             address = self._addresses.get(key) or self._addresses[self._key]
             lost, self._lost = self._lost, 0
-            self._deliver(item[4:], address, lost)
+            self._deliver(item[4:], address, lost, now)
         if self._timer is not None:
             self._timer.cancel()
             self._timer = None
@@ -78,6 +83,8 @@ class ImpairedPath:
         if not flush:
             self.channel.discard()
             return
+        now = self._loop.time()
         for item in self.channel.flush():
             key = int.from_bytes(item[:4], "big")
-            self._deliver(item[4:], self._addresses.get(key) or self._addresses[self._key], 0)
+            address = self._addresses.get(key) or self._addresses[self._key]
+            self._deliver(item[4:], address, 0, now)

@@ -1,6 +1,11 @@
 """A probe's UDP socket: each datagram that comes goes to the probe's `arrived`, with its source as
-(host, port), as the probe will keep it.
+(host, port) and the time it reached the socket, as the probe will keep them.
 
+- The time is the kernel's receive timestamp (D-RSP-26, D-RCTP-33), on the event loop's clock.
+  A datagram read late because the harness's loop was busy, or its process kept off the CPU,
+  still shows when it came. Linux stamps a socket's datagrams once `SIOCGSTAMPNS` has been asked
+  for, and that ioctl then gives the stamp of the datagram just read. Where it fails, the time
+  is the loop's clock as the datagram is read.
 - Its bytes are copied first. asyncio reads a datagram into a buffer of 256 KiB and gives the
   buffer cut down to the datagram: kept as it is (in the transcript, in what a probe received),
   each such datagram holds on to a page of memory or more, and a flood of them to hundreds of MiB.
@@ -12,12 +17,21 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import fcntl
+import struct
+import time
 from collections.abc import Callable
 
 from rcmlconf.conformance.loopwatch import charge, cpu_spent
 from rcmlconf.conformance.transcript import Address
 
-Arrived = Callable[[bytes, Address], None]
+#: (bytes, source, arrival on the loop's clock).
+Arrived = Callable[[bytes, Address, float], None]
+
+#: linux/sockios.h: the receive time of the last datagram read, as a struct timespec.
+_SIOCGSTAMPNS = 0x8907
+_TIMESPEC = struct.Struct("@qq")
 
 
 class Inbound(asyncio.DatagramProtocol):
@@ -28,17 +42,44 @@ class Inbound(asyncio.DatagramProtocol):
     ) -> None:
         self.arrived = arrived
         self.error = error
+        self._fd = -1
+        self._clock = time.monotonic
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        self._clock = asyncio.get_running_loop().time
+        sock = transport.get_extra_info("socket")
+        if sock is None:
+            return
+        self._fd = sock.fileno()
+        # The first ask turns the kernel's stamps on; it fails, as nothing has come yet.
+        with contextlib.suppress(OSError):
+            fcntl.ioctl(self._fd, _SIOCGSTAMPNS, bytes(_TIMESPEC.size))
 
     def datagram_received(self, data: bytes, addr: tuple[str | int, ...]) -> None:
         arrived = self.arrived
         if arrived is None:
             return
+        at = self._arrival()
         started = cpu_spent()
         try:
-            arrived(bytes(memoryview(data)), (str(addr[0]), int(addr[1])))
+            arrived(bytes(memoryview(data)), (str(addr[0]), int(addr[1])), at)
         finally:
             charge(cpu_spent() - started)
 
     def error_received(self, exc: Exception) -> None:
         if self.error is not None:
             self.error(exc)
+
+    def _arrival(self) -> float:
+        """When the datagram just read reached the socket, on the loop's clock: the kernel's
+        wall-clock stamp moved by how long ago it was, never later than now."""
+        now = self._clock()
+        if self._fd < 0:
+            return now
+        try:
+            stamp = fcntl.ioctl(self._fd, _SIOCGSTAMPNS, bytes(_TIMESPEC.size))
+        except OSError:
+            return now
+        seconds, nanoseconds = _TIMESPEC.unpack(stamp)
+        ago = time.time() - (seconds + nanoseconds * 1e-9)
+        return now - ago if ago > 0 else now

@@ -143,8 +143,7 @@ class LocalListener:
         if self._transport is not None and not self._transport.is_closing():
             self._transport.sendto(data, peer)
 
-    def _arrived(self, data: bytes, source: Address) -> None:
-        now = self.now
+    def _arrived(self, data: bytes, source: Address, now: float) -> None:
         probe = self._bound.get(source)
         if not _is_hello(data) or len(data) < _NONCE_AT + NONCE_SIZE:
             if probe is not None:

@@ -301,7 +301,7 @@ class LocalProbe(DatagramLog):
             self.spoiled += 1
             self.transcript.note(f"-x {what} ({fate} by the impairment)")
 
-    def _leave(self, data: bytes, _: Address, lost: int) -> None:
+    def _leave(self, data: bytes, _: Address, lost: int, _at: float) -> None:
         self._put(data)
 
     def _put(self, data: bytes, what: str = "") -> None:

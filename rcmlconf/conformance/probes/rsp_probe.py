@@ -199,7 +199,7 @@ class RspProbe(DatagramLog):
             line = what or self._describe(data)
             self.transcript.note(f"{self._who}-x {line} ({fate} by the impairment)")
 
-    def _leave(self, data: bytes, _: Address, lost: int) -> None:
+    def _leave(self, data: bytes, _: Address, lost: int, _at: float) -> None:
         self._put(data)
 
     def _put(self, data: bytes, what: str = "") -> None:
@@ -232,12 +232,12 @@ class RspProbe(DatagramLog):
     def _error(self, error: Exception) -> None:
         self.transcript.note(f"UDP error: {error}")
 
-    def _arrived(self, data: bytes, source: Address) -> None:
+    def _arrived(self, data: bytes, source: Address, at: float) -> None:
         self.transcript.packet("udp", source, self.local, data)
         if source != self.robot:
             self.transcript.note(f"{self._who}<- {len(data)} bytes from {source}: ignored")
             return
-        found = self._decode(data)
+        found = self._decode(data, at)
         if found is not None:
             self.keep(found)
             self.transcript.note(f"{self._who}<- {summary(self.model, found.header, found.body)}")
@@ -250,7 +250,7 @@ class RspProbe(DatagramLog):
                 self.endpoint.receive_datagram(data, self.now)
             self._pump()
 
-    def _decode(self, data: bytes) -> Datagram | None:
+    def _decode(self, data: bytes, at: float) -> Datagram | None:
         """The datagram read by the codec; a fault of the robot's (kept for `check`) if not."""
         try:
             header = pull_header(data)
@@ -259,7 +259,7 @@ class RspProbe(DatagramLog):
                     f"model ID {header.model_id}, not {self.model.model_id}", MODEL_AT, "R-RSP-13"
                 )
         except ProtocolError as error:
-            odd = self._odd_refused(data)
+            odd = self._odd_refused(data, at)
             if odd is not None:
                 return odd
             self._fail(error.rule or "R-RSP-13", "the 20-byte header of D-RSP-10", data, error)
@@ -269,7 +269,7 @@ class RspProbe(DatagramLog):
         if header.encryption is not Encryption.NONE and header.type not in UNSEALED:
             opener = self._openers.get(header.session_id)
             if opener is None:
-                return Datagram(self.now, data, header, None)
+                return Datagram(at, data, header, None)
             try:
                 plain = opener.open(data, header.sequence)
             except ProtocolError as error:
@@ -280,9 +280,9 @@ class RspProbe(DatagramLog):
         except ProtocolError as error:
             self._fail(error.rule or LAYOUT, f"a {header.type.name} body of D-RSP-11", data, error)
             return None
-        return Datagram(self.now, data, header, body)
+        return Datagram(at, data, header, body)
 
-    def _odd_refused(self, data: bytes) -> Datagram | None:
+    def _odd_refused(self, data: bytes, at: float) -> Datagram | None:
         """A REFUSED echoing an encryption byte no AEAD has, as D-RSP-12 asks (it echoes the
         HELLO's, whatever it is): read, not counted against the header's layout."""
         if len(data) != HEADER_SIZE + 1 or data[VERSION_AT] != 1:
@@ -307,7 +307,7 @@ class RspProbe(DatagramLog):
             last,
             buffer,
         )
-        return Datagram(self.now, data, header, Refused(reason))
+        return Datagram(at, data, header, Refused(reason))
 
     def _learn(self, found: Datagram) -> None:
         """A WELCOME to one of our HELLOs gives the keys to read the session's packets."""

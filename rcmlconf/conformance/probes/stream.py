@@ -318,7 +318,7 @@ class StreamProbe:
         """One FLOW payload in a packet of its own (the next sequence number unless given)."""
         self.send_packet([FlowPayload(stream, flow)], sequence=sequence)
 
-    def _leave(self, data: bytes, destination: Address, lost: int) -> None:
+    def _leave(self, data: bytes, destination: Address, lost: int, _at: float) -> None:
         if self.closed:
             return
         self.transcript.packet("udp", self.local, destination, data)
@@ -330,15 +330,15 @@ class StreamProbe:
     def _error(self, error: Exception) -> None:
         self.transcript.note(f"udp error: {error}")
 
-    def _arrived(self, data: bytes, source: Address) -> None:
+    def _arrived(self, data: bytes, source: Address, at: float) -> None:
         if self.closed:
             return
         self.transcript.packet("udp", source, self.local, data)
-        fate = self._in.put(data, source)
+        fate = self._in.put(data, source, at)
         if fate:
             self.transcript.note(f"<- udp {source[0]}:{source[1]} {fate} by the impairment")
 
-    def _deliver(self, data: bytes, source: Address, lost: int) -> None:
+    def _deliver(self, data: bytes, source: Address, lost: int, at: float) -> None:
         try:
             packet, error = pull_packet(data), None
         except ProtocolError as exc:
@@ -353,7 +353,7 @@ class StreamProbe:
                     f"the stream probe holds {INBOX} datagrams the case has not taken: it drops"
                     " the oldest (counted when it closes)"
                 )
-        self._inbox.put_nowait(Datagram(data, source, self._loop.time(), packet, error, lost))
+        self._inbox.put_nowait(Datagram(data, source, at, packet, error, lost))
 
     async def datagram(self, wait: float | None = None) -> Datagram | None:
         """The next datagram, as it came; None when none comes within `wait` (the probe's)."""
