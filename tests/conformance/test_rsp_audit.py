@@ -29,6 +29,13 @@ _OUTPUT = "        # Most hold their target, no ramp running (R-RSP-34): that on
 _BOUNDED = "        return min(max(seconds, self._floor), MAX_RTO)\n"
 
 
+#: Runs of a case made inconclusive by a hold of the harness's loop. The embedded reference runs
+#: in the harness's process, so a hold delays what it sends too, and D-RSP-26 excuses that; on a
+#: busy machine the next run is usually not held (issue 30 moves the reference out).
+HELD_TRIES = 3
+_HELD = "the harness's event loop was held"
+
+
 def _caught(
     tmp_path: Path,
     copy: Path,
@@ -40,8 +47,11 @@ def _caught(
     """`case`, run from the mutated `copy` (with `options`), fails naming `requirement`; `passing`,
     a case that let the fault through before, still passes."""
     cases = [case] if passing is None else [case, passing]
-    results = run(tmp_path, *options, *(o for c in cases for o in ("--only", c)), python=copy)
-    found = results[case]
+    for _ in range(HELD_TRIES):
+        results = run(tmp_path, *options, *(o for c in cases for o in ("--only", c)), python=copy)
+        found = results[case]
+        if not (found["verdict"] == "inconclusive" and _HELD in found["reason"]):
+            break
     assert (found["verdict"], found["requirement"]) == ("fail", requirement), found
     if passing is not None:
         assert results[passing]["verdict"] == "pass", results[passing]

@@ -10,6 +10,8 @@ from rcmlconf.conformance.probes.inbound import Inbound
 from rcmlconf.conformance.transcript import Address
 
 HOLD = 0.3
+#: How far the wall clock and the loop's may disagree when read one after the other.
+CLOCKS = 0.005
 
 
 def test_a_datagram_read_late_keeps_the_time_it_came() -> None:
@@ -45,4 +47,6 @@ def test_a_datagram_read_late_keeps_the_time_it_came() -> None:
 
     sent_at, at, held_until, pair = asyncio.run(main())
     assert pair[0] == pair[1]
-    assert sent_at <= at < held_until - HOLD / 2
+    # The kernel's stamp is on the wall clock: moved onto the loop's, it may come out a few
+    # microseconds before the send.
+    assert sent_at - CLOCKS <= at < held_until - HOLD / 2
