@@ -115,8 +115,8 @@ def all_cases() -> dict[str, Case]:
     """Every case, by ID, in ID order (the case modules imported on first call)."""
     from rcmlconf.conformance import cases
 
-    for module in pkgutil.iter_modules(cases.__path__):
-        importlib.import_module(f"{cases.__name__}.{module.name}")
+    for module in pkgutil.walk_packages(cases.__path__, f"{cases.__name__}."):
+        importlib.import_module(module.name)
     return dict(sorted(_CASES.items()))
 
 

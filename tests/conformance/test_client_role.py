@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import asyncio
 
-from rcmlconf.conformance.cases import rctp_client
+from rcmlconf.conformance.cases.rctp_client import answers
 from rcmlconf.conformance.ics import EVERYTHING
 from rcmlconf.conformance.probes.clients import ClientListener
 from rcmlconf.conformance.registry import all_cases
@@ -68,7 +68,7 @@ def test_a_client_that_reads_before_it_answers_passes_the_client_cases() -> None
         try:
             target = Target(clients=listener, features=EVERYTHING.features)
             # The cases of the server's own requests: the chatty client runs no scenario.
-            cases = [c for c in all_cases().values() if c.run.__module__ == rctp_client.__name__]
+            cases = [c for c in all_cases().values() if c.run.__module__ == answers.__name__]
             results = await run_cases(cases, target, RunOptions())
         finally:
             await listener.close()

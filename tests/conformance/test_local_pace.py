@@ -1,4 +1,4 @@
-"""The rsp/local cases of the pace (rcmlconf.conformance.cases.rsp_local_pace), of an old event ID,
+"""The rsp/local cases of the pace (rcmlconf.conformance.cases.rsp_local.pace), of an old event ID,
 and the idle keep-alive's check of a T changed without PERIOD: they pass the embedded reference's
 local system and an independent one (tests/foreign/rsp_local, written from specs/ alone), and fail
 that independent one when it makes a fault they are aimed at (or a copy of the reference made to

@@ -1,9 +1,9 @@
-"""What an RSP local system does with what it receives (rcmlconf.conformance.cases.
-rsp_local_receiving): the cases pass the embedded reference's local system and an independent one
+"""What an RSP local system does with what it receives (rcmlconf.conformance.cases.rsp_local.
+receiving): the cases pass the embedded reference's local system and an independent one
 (tests/foreign/rsp_local, written from specs/ alone), and each fails that independent one when it
 is told to make the fault the case is aimed at, naming the requirement the fault breaks (and so do
-the cases of its header, of taking events per device and of resending, rsp_local_header,
-rsp_local and rsp_local_sending's, aimed at faults of the same system). A local
+the cases of its header, of taking events per device and of resending, rsp_local's header,
+session and sending modules, aimed at faults of the same system). A local
 system that goes on with its session after the robot's BYE fails rsp/local/bye-ends, and the case
 after it still has a session of its own (`LocalListener.settled`), where it had been inconclusive
 ("no local system sent a HELLO"). Real processes on loopback: `rcmlconf run --role local` and the
@@ -26,7 +26,7 @@ import pytest
 from support.processes import COMMAND, free_port
 
 import rcmlconf
-from rcmlconf.conformance.cases.rsp_local import occurrence
+from rcmlconf.conformance.cases.rsp_local.session import occurrence
 from rcmlconf.conformance.probes.local_listener import LocalListener
 from rcmlconf.conformance.probes.rsp_datagram import Datagram
 from rcmlconf.conformance.probes.rsp_devices import first

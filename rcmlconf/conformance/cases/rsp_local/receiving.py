@@ -28,7 +28,7 @@ import asyncio
 import math
 from collections.abc import Callable
 
-from rcmlconf.conformance.cases.rsp_local import (
+from rcmlconf.conformance.cases.rsp_local.session import (
     carries,
     ids,
     local_case,

@@ -8,7 +8,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from rcmlconf.conformance.cases.rctp_client_scenario import (
+from rcmlconf.conformance.cases.rctp_client.scenario import (
     edge,
     event_access,
     scenario_case,

@@ -3,8 +3,10 @@ local system runs the conformance scenario of D-RSP-24 each time it is started; 
 one run: its HELLO, numbering and stamps (D-RSP-10, D-RSP-12), its DOWNLINK every T (D-RSP-13),
 taking occurrences once and acknowledging memory events (D-RSP-16), the WELCOME's MAC (D-RSP-21)
 and BYE (R-RSP-13 to R-RSP-16, R-RSP-22, R-RSP-23, R-RSP-25, R-RSP-26, R-RSP-37, R-RSP-38,
-R-RSP-41 to R-RSP-43). How it sends its own commands and memory commands is rsp_local_sending's;
-this module holds the helpers the local cases share."""
+R-RSP-41 to R-RSP-43).
+
+How it sends its own commands and memory commands is in `sending`. This module also holds the
+helpers that all the rsp/local cases share."""
 
 from __future__ import annotations
 

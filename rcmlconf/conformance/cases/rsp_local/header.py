@@ -5,7 +5,7 @@ newest the robot sent, an ACK as much as an UPLINK (R-RSP-15). The harness plays
 
 from __future__ import annotations
 
-from rcmlconf.conformance.cases.rsp_local import (
+from rcmlconf.conformance.cases.rsp_local.session import (
     carries,
     local_case,
     played_model,

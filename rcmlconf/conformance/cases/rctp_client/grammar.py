@@ -6,7 +6,7 @@ answered and the connection goes on."""
 
 from __future__ import annotations
 
-from rcmlconf.conformance.cases.rctp_client import answer_to, client_case
+from rcmlconf.conformance.cases.rctp_client.answers import answer_to, client_case
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.control import ControlProbe
 from rcmlconf.rctp.reader import LIMITS

@@ -10,8 +10,8 @@ import asyncio
 import random
 from collections.abc import Callable
 
-from rcmlconf.conformance.cases.rctp_client_scenario import scenario_case
-from rcmlconf.conformance.cases.rctp_client_streams import (
+from rcmlconf.conformance.cases.rctp_client.scenario import scenario_case
+from rcmlconf.conformance.cases.rctp_client.streams import (
     shared_nodes,
     shown,
     until_playing,

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import itertools
 
-from rcmlconf.conformance.cases.rsp_local import (
+from rcmlconf.conformance.cases.rsp_local.session import (
     carries,
     ids,
     local_case,

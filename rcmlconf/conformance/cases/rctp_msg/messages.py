@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from rcmlconf.conformance.cases.rctp_grammar import (
+from rcmlconf.conformance.cases.rctp_msg.grammar import (
     HEADER_SECTION,
     _broken_connect,
     _filler,

@@ -10,7 +10,12 @@ from __future__ import annotations
 import itertools
 import math
 
-from rcmlconf.conformance.cases.rsp_local import local_case, occurrence, played_model, session
+from rcmlconf.conformance.cases.rsp_local.session import (
+    local_case,
+    occurrence,
+    played_model,
+    session,
+)
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.held import longest_hold, margin, seen_by
 from rcmlconf.conformance.probes.local_probe import LocalProbe

@@ -2,7 +2,7 @@
 D-RCTP-31's scenario against the server the harness plays (`probes.played`): its numbering, its
 session, its targets, and the values it reads and writes, of every data type of the harness's
 robot (R-RCTP-3, R-RCTP-4, R-RCTP-19, R-RCTP-30, R-RCTP-60, R-RCML-29, R-RCML-30); the server's
-pushes are judged in `rctp_client_pushes`."""
+pushes are judged in `pushes`."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import math
 import struct
 from collections.abc import Callable
 
-from rcmlconf.conformance.cases.rctp_client import client_case
+from rcmlconf.conformance.cases.rctp_client.answers import client_case
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.flaws import Flaw, flawed
 from rcmlconf.conformance.probes.clients import Served, case_path

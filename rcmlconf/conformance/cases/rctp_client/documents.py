@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import re
 
-from rcmlconf.conformance.cases.rctp_client_scenario import scenario_case, whole_run
+from rcmlconf.conformance.cases.rctp_client.scenario import scenario_case, whole_run
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.clients import ClientListener
 from rcmlconf.conformance.verdicts import Inconclusive

@@ -11,7 +11,7 @@ import itertools
 import math
 from collections.abc import Mapping
 
-from rcmlconf.conformance.cases.rctp_client_scenario import edge, scenario_case
+from rcmlconf.conformance.cases.rctp_client.scenario import edge, scenario_case
 from rcmlconf.conformance.context import Context, outside_bounds
 from rcmlconf.conformance.probes.played import PlayedServer, path_of, played
 from rcmlconf.conformance.probes.played_stream import STREAM_ID, PlayedStream

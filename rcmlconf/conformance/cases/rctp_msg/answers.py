@@ -13,7 +13,7 @@ import contextlib
 from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass
 
-from rcmlconf.conformance.cases.rctp_grammar import expect_cseq, holding
+from rcmlconf.conformance.cases.rctp_msg.grammar import expect_cseq, holding
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.picks import RW
 from rcmlconf.conformance.probes.control import ControlProbe, describe
