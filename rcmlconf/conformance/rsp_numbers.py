@@ -17,6 +17,9 @@ SESSION_TIMEOUT = 10.0
 INITIAL_RTO_PERIODS = 10
 MIN_RTO_PERIODS = 2
 MAX_RTO = 2.0
+#: R-RSP-31: a memory command taken while the robot executes none has left the buffer within
+#: this many periods T.
+START_PERIODS = 3
 
 
 def unmeasured_rto(period: float, retransmissions: int) -> float:

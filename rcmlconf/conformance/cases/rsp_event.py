@@ -1,11 +1,13 @@
-"""rsp/event, rsp/audio: what the robot raises and plays. Events ride the three UPLINKs after
-they occur (D-RSP-17, R-RSP-30); occurrences are numbered 0, 1, 2, ... per device and repeated
-with their ID (D-RSP-5, R-RSP-24); nothing is reported of a device not requested (D-RSP-14,
-R-RSP-23). The audio processor plays a speaker's fragments in order and drops a late one
-(D-RSP-22, R-RSP-39), which a monitor of the speaker shows (D-RSP-23, R-RSP-40): a model without
-such a monitor (CUBO's) leaves the rsp/audio cases not applicable. The harness plays the local
-system; how it waits for what the robot raises is `probes.rsp_raised`'s, and memory events are
-rsp_memory_events'.
+"""rsp/event: the events a robot raises. The harness plays the local system.
+
+- Events ride the three UPLINKs after they occur (D-RSP-17, R-RSP-30).
+- Occurrences are numbered 0, 1, 2, ... per device, and repeated with their ID (D-RSP-5,
+  R-RSP-24).
+- Nothing is reported of a device that was not requested (D-RSP-14, R-RSP-23).
+- An unacknowledged memory event is sent again after each retransmission timeout, and not
+  sooner (R-RSP-28). A device's next one waits until the one before is acknowledged (R-RSP-29).
+
+How the harness waits for what the robot raises is in `probes.rsp_raised`.
 """
 
 from __future__ import annotations
@@ -15,20 +17,21 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.rsp_datagram import Datagram, sequence_of
+from rcmlconf.conformance.probes.held import margin, seen_by
+from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, summary
 from rcmlconf.conformance.probes.rsp_devices import (
     flags,
     of_kind,
     reported,
-    value_item,
-    values_of,
-    zero_values,
 )
-from rcmlconf.conformance.probes.rsp_exchanges import fresh_uplink, taken
 from rcmlconf.conformance.probes.rsp_probe import RspProbe
 from rcmlconf.conformance.probes.rsp_raised import (
     OCCURS_WITHIN,
+    ack,
+    carrying,
+    elapsed_ms,
     id_space,
+    memory_event_raised,
     missing,
     nothing_raised,
     received_uplinks,
@@ -38,10 +41,16 @@ from rcmlconf.conformance.probes.rsp_raised import (
 from rcmlconf.conformance.probes.rsp_raw import RawSession
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.roles import Role
+from rcmlconf.conformance.rsp_numbers import (
+    MAX_RTO,
+    STAMP_ROUNDING,
+    measured_rto,
+    resent_within,
+    unmeasured_rto,
+)
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
-from rcmlconf.rsp.codec import PacketType
 from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
-from rcmlconf.values import Kind, Value
+from rcmlconf.values import Value
 
 #: D-RSP-17: an event rides this many UPLINKs.
 RIDES = 3
@@ -270,112 +279,240 @@ async def unrequested(ctx: Context) -> None:
         )
 
 
-# -- audio: what the speaker played (D-RSP-22, D-RSP-23) ---------------------------------------
+# -- memory events: sent again until acknowledged (R-RSP-28, R-RSP-29) -------------------------
 
 
-def _audio(model: RobotModel | None) -> tuple[Device, Device]:
-    """An audio effector (a uint16 fragment number and bytes of samples, D-RSP-22) and a monitor
-    of it (D-RSP-23); NotApplicable when the model has none."""
-    if model is None:
-        raise NotApplicable("the RSP robot's model is not known (give --rsp-model)")
-    for monitor in of_kind(model, DeviceKind.MONITOR):
-        effector = model.device(monitor.of or "")
-        if effector is None or len(effector.fields) != 2:
-            continue
-        number, samples = effector.fields
-        if (
-            number.type.base.name == "uint16"
-            and not number.type.is_array
-            and samples.type.base.kind is Kind.BYTES
-            and not samples.type.is_array
-        ):
-            return effector, monitor
-    raise NotApplicable(
-        f"{model.name} has no monitor of an audio effector (D-RSP-23): what its audio processor"
-        " plays cannot be seen"
+#: Retransmissions a case times: the first after the first timeout, the second after it doubled.
+RESENDS = 2
+
+
+#: How long the memory-event case withholds its ACK to leave the robot a second occurrence to hold
+#: back (R-RSP-29), seconds.
+HOLD = 1.3
+
+
+#: rsp/event/memory-event-rto-ceiling's T (ms): 10 T is twice D-RSP-17's 2 s ceiling.
+SLOW_MS = 400
+
+
+#: rsp/event/memory-event-rto-measured holds its first ACK this many periods: a round trip that
+#: makes the next timeout (3 R) half as long again as 10 T, and leaves the first one (10 T) time
+#: to spare before a retransmission would spoil the measurement (Karn's rule).
+HELD_PERIODS = 5
+
+
+def _one_at_a_time(ctx: Context, uplinks: Sequence[Datagram], found: Device, ident: int) -> None:
+    """R-RSP-29: no other occurrence of `found` while `ident` waits for its ACK."""
+    others = [(u, i) for u, i in carrying(uplinks, found) if i != ident]
+    ctx.expect(
+        not others,
+        f"no other {found.name} before #{ident} is acknowledged",
+        ", ".join(f"#{i} in UPLINK #{u.header.sequence}" for u, i in others),
+        "R-RSP-29",
     )
 
 
-def _fragment(effector: Device, number: int) -> dict[str, Value]:
-    number_field, samples_field = effector.fields
-    text = f"fragment {number}".encode()
-    samples = text[: samples_field.type.size] if samples_field.type.size else text
-    return {number_field.name: number % 65536, samples_field.name: samples}
-
-
-async def _play(
+async def _sent_again(
     ctx: Context,
     probe: RspProbe,
-    raw: RawSession,
-    effector: Device,
-    monitor: Device,
-    number: int,
-    wanted: int,
-    requirement: str,
+    memory: Device,
+    ident: int,
+    last: Datagram,
+    period: float,
+    timeouts: tuple[float, float],
     why: str,
-) -> None:
-    """Send fragment `number` in a new DOWNLINK; the monitor must then report fragment
-    `wanted` (R-RSP-40), in the first UPLINK sent after the robot received it and the few after."""
-    sent = raw.downlink([value_item(effector, _fragment(effector, number))])
-    expected = _fragment(effector, wanted)
-    first = await fresh_uplink(probe, sequence_of(sent))
-    if first is None:
-        raise Inconclusive(f"no UPLINK after fragment {number}")
-    await probe.listen(3 * raw.period)
-    reports = [
-        values_of(u, monitor)
-        for u in probe.packets(PacketType.UPLINK, after=probe.received.index(first))
+) -> Datagram:
+    """`memory` #`ident`'s next send after UPLINK `last`, no ACK given: no sooner than the
+    shortest of `timeouts` (seconds, `why` says whose) by the robot's own stamps, and seen within
+    D-RSP-26's bound of the longest, read off the harness's clock."""
+    shortest, longest = timeouts
+    within = resent_within(longest, period, ctx.scale)
+    found_in = await watch(
+        probe,
+        probe.received.index(last) + 1,
+        last.at + within + margin(ctx) - probe.now,
+        lambda u: any(i == ident for _, i in carrying(u, memory)),
+    )
+    _one_at_a_time(ctx, found_in, memory, ident)
+    again = next((u for u, i in carrying(found_in, memory) if i == ident), None)
+    if missing(probe, last, again or probe.received[-1]):
+        raise Inconclusive(
+            f"packets of the robot's were lost after UPLINK #{last.header.sequence}:"
+            f" {memory.name} #{ident} may have been sent again in one of them"
+        )
+    expected = (
+        f"{memory.name} #{ident} sent again {longest * 1000:.0f} ms at most after UPLINK"
+        f" #{last.header.sequence} ({why}, no ACK sent; D-RSP-26: seen within"
+        f" {within * 1000:.0f} ms)"
+    )
+    again = seen_by(ctx, probe, again, last.at, last.at + within, expected, "R-RSP-28")
+    elapsed = elapsed_ms(last, again)
+    ctx.expect(
+        elapsed >= shortest * 1000 - STAMP_ROUNDING,
+        f"{memory.name} #{ident} sent again no sooner than {shortest * 1000:.0f} ms ({why})",
+        f"{elapsed} ms after, by its stamps (UPLINK #{last.header.sequence} at"
+        f" {last.header.timestamp} ms, #{again.header.sequence} at {again.header.timestamp} ms)",
+        "R-RSP-28",
+    )
+    return again
+
+
+async def _unmeasured(ctx: Context, period_ms: int | None = None) -> None:
+    """A memory event left unacknowledged: sent again after 10 T, then after twice that, each at
+    most 2 s (D-RSP-17: no round trip measured), in a session at `period_ms`; acknowledged, sent
+    no more."""
+    probe, raw, memory, sent, ident = await memory_event_raised(ctx, period_ms=period_ms)
+    period = raw.period
+    begun = probe.received.index(sent)
+    sends = [sent]
+    for retransmission in range(RESENDS):
+        rto = unmeasured_rto(period, retransmission)
+        why = f"retransmission {retransmission + 1}: 10 T, doubled after each, at most 2 s"
+        again = await _sent_again(ctx, probe, memory, ident, sends[-1], period, (rto, rto), why)
+        sends.append(again)
+    _, acked = ack(raw, memory, ident)
+    acked_at = probe.now
+    # As long as the next retransmission could come (D-RSP-26).
+    wait = resent_within(unmeasured_rto(period, RESENDS), period, ctx.scale)
+    await probe.listen(max(0.0, sends[-1].at + wait - acked_at))
+    late = [
+        u
+        for u, i in carrying(received_uplinks(probe, begun), memory)
+        if i == ident and newer(u.header.last_received, acked)
     ]
-    wrong = [dict(r) for r in reports if r is not None and dict(r) != expected]
     ctx.expect(
-        not wrong and any(r is not None for r in reports),
-        f"{monitor.name} reporting fragment {wanted} ({why})",
-        "none" if not wrong else str(wrong[0]),
-        requirement,
+        not late,
+        f"no more {memory.name} #{ident} once the robot has its ACKs (up to #{acked})",
+        ", ".join(summary(probe.model, u.header, u.body) for u in late),
+        "R-RSP-28",
     )
 
 
-async def _listening(ctx: Context) -> tuple[RspProbe, RawSession, Device, Device]:
-    """A session requesting the audio effector's monitor, which reports zero values before any
-    fragment is played (D-RSP-23)."""
-    effector, monitor = _audio(ctx.target.rsp_model)
-    probe, raw = await requesting(ctx, monitor, effector)
-    first = await taken(probe, raw)
-    if first is None:
-        raise Inconclusive(f"no UPLINK reporting {monitor.name}")
-    before = values_of(first, monitor)
-    zero = zero_values(effector)
-    ctx.expect(
-        before is not None and dict(before) == zero,
-        f"{monitor.name} at {zero} before any fragment is played",
-        str(dict(before)) if before is not None else "not reported",
-        "R-RSP-40",
+@case(
+    "rsp/event/memory-event-resent",
+    "An unacknowledged memory event is sent again after each retransmission timeout, not sooner,"
+    " and no more once acknowledged",
+    ["R-RSP-28", "R-RSP-29"],
+    role=Role.ROBOT,
+    timeout=6.0,
+)
+async def memory_event_resent(ctx: Context) -> None:
+    await _unmeasured(ctx)
+
+
+@case(
+    "rsp/event/memory-event-rto-ceiling",
+    f"At a T of {SLOW_MS} ms an unacknowledged memory event is sent again after 2 s each time, not"
+    " 10 T or twice that (the timeout's ceiling)",
+    ["R-RSP-28"],
+    role=Role.ROBOT,
+    timeout=12.0,
+)
+async def memory_event_rto_ceiling(ctx: Context) -> None:
+    await _unmeasured(ctx, SLOW_MS)
+
+
+async def _measured(ctx: Context, held_periods: int) -> None:
+    """Memory event #n acknowledged `held_periods` periods after the harness read it: one round
+    trip measured (D-RSP-17); #n+1, left unacknowledged, then goes again after 3 R within the
+    timeout's bounds (D-RSP-26 bounds R)."""
+    probe, raw, memory, sent, ident = await memory_event_raised(ctx)
+    period = raw.period
+    await probe.listen(held_periods * period)
+    first_ack, _ = ack(raw, memory, ident)
+    held = probe.now - sent.at
+    seconds = OCCURS_WITHIN * ctx.scale
+    found_in = await watch(
+        probe,
+        probe.received.index(sent) + 1,
+        seconds,
+        lambda u: any(i != ident for _, i in carrying(u, memory)),
     )
-    return probe, raw, effector, monitor
+    following = next(((u, i) for u, i in carrying(found_in, memory) if i != ident), None)
+    if following is None:
+        raise Inconclusive(f"the robot raised no second {memory.name} within {seconds:.2g} s")
+    uplink, second = following
+    if any(
+        i == ident and not newer(u.header.last_received, first_ack)
+        for u, i in carrying(found_in, memory)
+    ):
+        raise Inconclusive(
+            f"{memory.name} #{ident} went again before the robot had its ACK, held"
+            f" {held * 1000:.0f} ms: no round trip measured (Karn's rule)"
+        )
+    why = (
+        f"D-RSP-17 after one round trip of {held * 1000:.0f} ms or more: 3 R, at least 2 T, at"
+        f" most {MAX_RTO:g} s"
+    )
+    timeouts = measured_rto(held, period)
+    await _sent_again(ctx, probe, memory, second, uplink, period, timeouts, why)
+    ack(raw, memory, second)
 
 
 @case(
-    "rsp/audio/in-order",
-    "A speaker's monitor reports each fragment as it is played in order, and one after a gap",
-    ["R-RSP-39", "R-RSP-40"],
+    "rsp/event/memory-event-rto-floor",
+    "After a memory event acknowledged at once the next is sent again no sooner than 2 T (the"
+    " timeout's floor)",
+    ["R-RSP-28"],
     role=Role.ROBOT,
+    timeout=7.0,
 )
-async def audio_in_order(ctx: Context) -> None:
-    probe, raw, effector, monitor = await _listening(ctx)
-    for number in range(3):
-        await _play(ctx, probe, raw, effector, monitor, number, number, "R-RSP-40", "played")
-    await _play(ctx, probe, raw, effector, monitor, 5, 5, "R-RSP-39", "played after a gap of 2")
+async def memory_event_rto_floor(ctx: Context) -> None:
+    await _measured(ctx, 0)
 
 
 @case(
-    "rsp/audio/late-dropped",
-    "A fragment older than the one played last is dropped: the speaker's monitor does not go back",
-    ["R-RSP-39", "R-RSP-40"],
+    "rsp/event/memory-event-rto-measured",
+    f"After a memory event acknowledged {HELD_PERIODS} periods late the next is sent again after"
+    " 3 times that round trip, not 10 T",
+    ["R-RSP-28"],
     role=Role.ROBOT,
+    timeout=7.0,
 )
-async def audio_late_dropped(ctx: Context) -> None:
-    probe, raw, effector, monitor = await _listening(ctx)
-    await _play(ctx, probe, raw, effector, monitor, 10, 10, "R-RSP-40", "played")
-    await _play(ctx, probe, raw, effector, monitor, 12, 12, "R-RSP-39", "played after a gap")
-    await _play(ctx, probe, raw, effector, monitor, 11, 12, "R-RSP-39", "11 came late: dropped")
-    await _play(ctx, probe, raw, effector, monitor, 13, 13, "R-RSP-39", "played after it")
+async def memory_event_rto_measured(ctx: Context) -> None:
+    await _measured(ctx, HELD_PERIODS)
+
+
+@case(
+    "rsp/event/memory-event-waits",
+    "A device's next memory event goes only once the one before is acknowledged, with the next ID",
+    ["R-RSP-29", "R-RSP-24"],
+    role=Role.ROBOT,
+    timeout=7.0,
+)
+async def memory_event_waits(ctx: Context) -> None:
+    probe, raw, memory, sent, ident = await memory_event_raised(ctx)
+    ctx.expect(
+        ident == 0, f"{memory.name} #0 first in the session (D-RSP-5)", f"#{ident}", "R-RSP-24"
+    )
+    begun = probe.received.index(sent)
+    await probe.listen(HOLD * ctx.scale)
+    _one_at_a_time(ctx, received_uplinks(probe, begun), memory, ident)
+    acked, _ = ack(raw, memory, ident)
+    after = probe.mark()
+    following = (ident + 1) % id_space(probe.model)
+    seconds = OCCURS_WITHIN * ctx.scale
+    found_in = await watch(
+        probe, after, seconds, lambda u: any(i != ident for _, i in carrying(u, memory))
+    )
+    nxt = next(((u, i) for u, i in carrying(found_in, memory) if i != ident), None)
+    if nxt is None:
+        raise Inconclusive(
+            f"the robot raised no second {memory.name} within {HOLD * ctx.scale + seconds:.2g} s"
+            " of the first, so none was held back"
+        )
+    uplink, second = nxt
+    ctx.expect(
+        newer(uplink.header.last_received, acked),
+        f"{memory.name} #{second} sent after the robot could have its ACK (#{acked} on)",
+        f"in UPLINK #{uplink.header.sequence}, which has received up to"
+        f" #{uplink.header.last_received}",
+        "R-RSP-29",
+    )
+    ctx.expect(
+        second == following,
+        f"{memory.name} #{following}: one more than #{ident}",
+        f"#{second}",
+        "R-RSP-24",
+    )
+    ack(raw, memory, second)

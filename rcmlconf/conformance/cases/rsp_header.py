@@ -1,6 +1,7 @@
-"""rsp/header, rsp/map: the robot's packets (the header of D-RSP-10, the Device Map of D-RSP-14)
-and what it does with the local system's, well-formed or not (D-RSP-15, R-RSP-13 to R-RSP-19,
-R-RSP-23); rsp_payloads has the payloads. The harness plays the local system."""
+"""rsp/header: the header of D-RSP-10 in the robot's packets, and what the robot does with the
+local system's, well-formed or not (D-RSP-15, R-RSP-13 to R-RSP-19). The harness plays the
+local system.
+"""
 
 from __future__ import annotations
 
@@ -15,15 +16,12 @@ from rcmlconf.conformance.probes.rsp_datagram import (
     SESSION_AT,
     TYPE_AT,
     VERSION_AT,
-    newer,
     sequence_of,
 )
 from rcmlconf.conformance.probes.rsp_devices import (
     first,
     flags,
-    modules_of,
     occurrence,
-    of_kind,
     reported,
 )
 from rcmlconf.conformance.probes.rsp_exchanges import (
@@ -43,21 +41,18 @@ from rcmlconf.conformance.probes.rsp_raw import hand_driven
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.rsp_numbers import stamp_allowance
-from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
+from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.impair import derive_seed
 from rcmlconf.rsp.codec import (
     Bye,
     ByeReason,
     Encryption,
-    Item,
     MapBody,
     PacketType,
     Period,
     Welcome,
 )
 from rcmlconf.rsp.model import DeviceKind
-
-# -- the header ---------------------------------------------------------------------------------
 
 
 @case(
@@ -436,81 +431,3 @@ async def garbage(ctx: Context) -> None:
     answers = [d for d in probe.packets(after=start) if d.type is not PacketType.UPLINK]
     ctx.expect(not answers, "no answer", ", ".join(d.type.name for d in answers))
     await dropped_then_taken(ctx, probe, raw, lambda d: d[:20], "R-RSP-18", "a header alone")
-
-
-# -- the Device Map -----------------------------------------------------------------------------
-
-
-@case(
-    "rsp/map/only-requested",
-    "UPLINKs report only the sensors the newest DOWNLINK requested, and nothing once none are",
-    ["R-RSP-23"],
-    role=Role.ROBOT,
-)
-async def only_requested(ctx: Context) -> None:
-    probe, raw = await raw_session(ctx)
-    model = probe.model
-    one, two = reported(model, 2)
-    for wanted in ([one], [two], [one, two], []):
-        found = await taken(
-            probe, raw, flags(model, *wanted), wait=max(probe.quiet, 6 * raw.period)
-        )
-        sent = sequence_of(raw.last)
-        names = {d.name for d in wanted}
-        if found is None:
-            raise Inconclusive(f"no UPLINK after DOWNLINK {sent}")
-        await probe.listen(2 * raw.period)
-        for later in probe.packets(PacketType.UPLINK):
-            if newer(later.header.last_received, sent):
-                ctx.expect(
-                    later.devices(model) == names,
-                    str(sorted(names)) if names else "an empty Device Map",
-                    f"{sorted(later.devices(model))} in UPLINK #{later.header.sequence}",
-                )
-
-
-@case(
-    "rsp/map/module-gates-reports",
-    "A requested sensor or monitor of an inactive module is not reported until it is activated",
-    ["R-RSP-23"],
-    role=Role.ROBOT,
-)
-async def module_gates_reports(ctx: Context) -> None:
-    model = ctx.target.rsp_model
-    held = (
-        [d for d in of_kind(model, DeviceKind.SENSOR, DeviceKind.MONITOR) if d.module is not None]
-        if model is not None
-        else []
-    )
-    if not held:
-        raise NotApplicable("no sensor or monitor in a module")
-    probe, raw = await raw_session(ctx)
-    device = held[0]
-    module = modules_of(probe.model, device)[0]
-    inactive = f"nothing of {device.name} while {module.name} is inactive"
-    active = f"{device.name} once {module.name} is active"
-    for request, reports, what in (
-        ([Item(device.position)], set(), inactive),
-        (flags(probe.model, device), {device.name}, active),
-    ):
-        found = await must_take(ctx, probe, raw, request, f"an UPLINK reporting {what}")
-        got = found.devices(probe.model)
-        ctx.expect(got == reports, what, str(sorted(got)))
-
-
-@case(
-    "rsp/map/bit-past-last-device",
-    "A DOWNLINK with a Device Map bit set past the last device is dropped unanswered",
-    ["R-RSP-17", "R-RSP-18"],
-    role=Role.ROBOT,
-)
-async def bit_past_last_device(ctx: Context) -> None:
-    model = ctx.target.rsp_model
-    if model is None or len(model.devices) % 8 == 0:
-        raise NotApplicable("the Device Map has no bit past the last device")
-    probe, raw = await raw_session(ctx)
-    spare = len(model.devices)
-    at = 20 + spare // 8
-    await dropped_then_taken(
-        ctx, probe, raw, lambda d: flip(d, at, 0x80 >> spare % 8), "R-RSP-17", f"bit {spare} set"
-    )

@@ -1,22 +1,27 @@
 """rsp/motion: the robot's motion filter between packets (D-RSP-20), as a monitor shows it
-(D-RSP-27): values that arrive together count only as the newest (*collapse*, R-RSP-34), and a
-value after lost packets is reached over a period, not in one jump (*interpolate*, R-RSP-35). The
-harness plays the local system, packet by packet: a DOWNLINK carrying the effector's value after
-each UPLINK (D-RSP-18: in every DOWNLINK while it is active). The filter's stop on a lost link is
-rsp_pace's.
+(D-RSP-27). The harness plays the local system.
 
-Each case drives one field of a numeric effector with a monitor to values far apart in the
-field's range (or in ±1000 where it has none), so that the monitor's tolerance (`close_to`) tells
-them apart whatever body carries them out.
+- Values that arrive together count only as the newest (*collapse*, R-RSP-34).
+- A value after lost packets is reached over a period, not in one jump (*interpolate*,
+  R-RSP-35).
+- On a lost link, an onLoss=zero effector stops 25 periods into the silence, and the others
+  hold (R-RSP-34, R-RSP-36).
+
+The harness sends packet by packet: a DOWNLINK with the effector's value after each UPLINK
+(D-RSP-18: in every DOWNLINK while it is active). Each case drives one field of a numeric
+effector with a monitor to values far apart in the field's range (or in ±1000 where it has
+none). So the monitor's tolerance (`close_to`) tells them apart, whatever body carries them out.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 from rcmlconf.conformance.context import Context
-from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, sequence_of
+from rcmlconf.conformance.probes.held import margin, seen_by
+from rcmlconf.conformance.probes.pace import ms
+from rcmlconf.conformance.probes.rsp_datagram import SESSION_AT, Datagram, newer, sequence_of
 from rcmlconf.conformance.probes.rsp_devices import (
     close_to,
     flags,
@@ -25,15 +30,21 @@ from rcmlconf.conformance.probes.rsp_devices import (
     values_of,
     visible,
 )
+from rcmlconf.conformance.probes.rsp_driven import Driven, drive
 from rcmlconf.conformance.probes.rsp_exchanges import raw_session
 from rcmlconf.conformance.probes.rsp_probe import RspProbe
 from rcmlconf.conformance.probes.rsp_raw import RawSession
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.roles import Role
+from rcmlconf.conformance.rsp_numbers import (
+    LOST_PERIODS,
+    STOP_LAG,
+)
 from rcmlconf.conformance.verdicts import Inconclusive
 from rcmlconf.rsp.codec import Item, PacketType
-from rcmlconf.rsp.model import Device, Field
+from rcmlconf.rsp.model import Device, Field, OnLoss
 from rcmlconf.values import Kind, Value
+from rcmlconf.values.shown import values_text
 
 #: The field's range where it gives none (as `visible`'s).
 UNBOUNDED = 1000.0
@@ -258,3 +269,120 @@ async def _step(driven: _Driven, start: float, end: float, silent: int) -> list[
     seen = driven.readings(sequence)
     done = next((k for k, r in enumerate(seen) if driven.near(r, end)), len(seen) - 1)
     return seen[: done + 1]
+
+
+# -- a lost link: stop or hold (D-RSP-20; R-RSP-34, R-RSP-36) ----------------------------------
+
+
+#: D-RSP-20: a stop is seen at most this many periods after the link is lost (the control period
+#: to come round, then the UPLINK).
+STOP_PERIODS = 2
+
+
+@case(
+    "rsp/motion/link-loss-stops",
+    f"An onLoss=zero effector holds for {LOST_PERIODS} silent periods and is seen stopped within"
+    f" {STOP_PERIODS} more",
+    ["R-RSP-36", "R-RSP-34"],
+    role=Role.ROBOT,
+)
+async def link_loss_stops(ctx: Context) -> None:
+    driven = await drive(ctx, lambda e: e.on_loss is OnLoss.ZERO)
+    probe, monitor, field = driven.probe, driven.monitor, driven.field
+    period = driven.opened.period
+    zero = field.zero()
+    await driven.settled()
+    start = probe.mark()
+    probe.muted = True
+    # D-RSP-26: seen stopped within D-RSP-20's 27 periods of the last packet we sent, and half a
+    # second for the wire and the scheduling of the harness and the robot on a loaded machine.
+    lag = STOP_LAG * ctx.scale
+    bound = (LOST_PERIODS + STOP_PERIODS) * period + lag
+
+    def stopped(found: Datagram) -> bool:
+        values = values_of(found, monitor)
+        return values is not None and close_to(field, values.get(field.name), zero)
+
+    found = None
+    # From the last datagram sent (the impairment's may leave after the mute), and past the bound
+    # as long as only a long hold of the harness could hide the stop (`seen_by`).
+    while found is None and probe.now < (end := probe.sent[-1][0] + bound + margin(ctx)):
+        wait = end - probe.now
+        found = await probe.next(PacketType.UPLINK, after=start, wait=wait, where=stopped)
+    reports = [
+        (d, values)
+        for d in probe.packets(PacketType.UPLINK, after=start)
+        if (values := values_of(d, monitor)) is not None
+    ]
+    moved = next(((d, v) for d, v in reports if not driven.at_wanted(v)), None)
+    if moved is not None:
+        _held(ctx, driven, moved)
+    last = probe.sent[-1][0]
+    seen_by(
+        ctx,
+        probe,
+        found,
+        last,
+        last + bound,
+        f"{monitor.name} at {values_text([field], {field.name: zero})[0]} within"
+        f" {LOST_PERIODS}+{STOP_PERIODS} periods of the last DOWNLINK (D-RSP-20), and"
+        f" {lag * 1000:.0f} ms for the harness (D-RSP-26): {bound * 1000:.0f} ms",
+        "R-RSP-36",
+        instead=f"still {driven.latest()}",
+    )
+
+
+def _held(ctx: Context, driven: Driven, moved: tuple[Datagram, Mapping[str, Value]]) -> None:
+    """The first report of the monitor away from the value written came 25 periods or more after
+    the robot heard our last packet: the one its UPLINK names (R-RSP-15), sent when we sent it,
+    or the last we sent if it names none of ours. A report can only come later than the robot
+    sent it, so a loaded harness makes this check no stricter."""
+    probe, session_id, period = driven.probe, driven.opened.session_id, driven.opened.period
+    found, values = moved
+    heard = found.header.last_received
+    ours = [
+        at
+        for at, data in probe.sent
+        if int.from_bytes(data[SESSION_AT : SESSION_AT + 6]) == session_id
+        and sequence_of(data) == heard
+    ]
+    silent = ours[-1] if ours else probe.sent[-1][0]
+    held = found.at - silent
+    ctx.expect(
+        held >= LOST_PERIODS * period,
+        f"{driven.monitor.name} held for {LOST_PERIODS} periods"
+        f" ({LOST_PERIODS * period * 1000:g} ms) after the last packet the robot heard (#{heard})",
+        f"{', '.join(values_text(driven.effector.fields, values))} after {ms([held])}",
+        "R-RSP-34",
+    )
+
+
+@case(
+    "rsp/motion/link-loss-holds",
+    f"An onLoss=hold effector keeps its value through a silence of more than {LOST_PERIODS}"
+    f"+{STOP_PERIODS} periods (only onLoss=zero ones stop)",
+    ["R-RSP-36"],
+    role=Role.ROBOT,
+)
+async def link_loss_holds(ctx: Context) -> None:
+    driven = await drive(ctx, lambda e: e.on_loss is OnLoss.HOLD)
+    probe, monitor = driven.probe, driven.monitor
+    period = driven.opened.period
+    await driven.settled()
+    start, since = probe.mark(), probe.now
+    probe.muted = True
+    # Past where an onLoss=zero effector is seen stopped (D-RSP-26, rsp/motion/link-loss-stops's
+    # bound), from the last datagram sent.
+    lost = (LOST_PERIODS + STOP_PERIODS) * period + STOP_LAG * ctx.scale
+    while probe.now < (end := probe.sent[-1][0] + lost):
+        await probe.listen(end - probe.now)
+    uplinks = probe.packets(PacketType.UPLINK, after=start)
+    reports = [d for d in uplinks if values_of(d, monitor) is not None]
+    if not reports or reports[-1].at < probe.sent[-1][0] + LOST_PERIODS * period:
+        raise Inconclusive(f"no report of {monitor.name} once the link was lost")
+    moved = await driven.moved(since)
+    ctx.expect(
+        moved is None,
+        f"{monitor.name} holding {driven.wanted} while the link is lost (onLoss hold, D-RSP-20)",
+        str(dict(moved)) if moved is not None else "",
+    )

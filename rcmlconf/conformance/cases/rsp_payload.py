@@ -1,11 +1,16 @@
-"""rsp/payload: the payloads of the robot's packets and of the local system's (D-RSP-14), what it
-does with them, well-formed or not, newer or late (D-RSP-15; R-RSP-16, R-RSP-19, R-RSP-23,
-R-RSP-26, R-RSP-34). The harness plays the local system."""
+"""rsp/payload: the payloads of the robot's packets and of the local system's (D-RSP-14).
+
+What the robot does with them, well-formed or not, newer or late (D-RSP-15; R-RSP-16,
+R-RSP-19, R-RSP-23, R-RSP-26, R-RSP-34). A late DOWNLINK's states are not applied over a newer
+packet's: its effector values, its request and module bits, and its buffer byte (R-RSP-19).
+The harness plays the local system.
+"""
 
 from __future__ import annotations
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.awaited import came
+from rcmlconf.conformance.probes.rsp_buffer import FROM_ROBOT, durable, keyframe, take
 from rcmlconf.conformance.probes.rsp_datagram import Datagram, sequence_of
 from rcmlconf.conformance.probes.rsp_devices import (
     close_to,
@@ -13,6 +18,7 @@ from rcmlconf.conformance.probes.rsp_devices import (
     flags,
     monitored,
     of_kind,
+    reported,
     value_item,
     values_of,
     visible,
@@ -30,8 +36,9 @@ from rcmlconf.conformance.probes.rsp_exchanges import (
 )
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.roles import Role
-from rcmlconf.conformance.verdicts import NotApplicable
-from rcmlconf.rsp.codec import PacketType
+from rcmlconf.conformance.rsp_numbers import START_PERIODS
+from rcmlconf.conformance.verdicts import Failed, Inconclusive, NotApplicable
+from rcmlconf.rsp.codec import CLEAR_BUFFER, PacketType
 from rcmlconf.rsp.model import DeviceKind
 
 
@@ -207,3 +214,109 @@ async def inactive_module(ctx: Context) -> None:
             f"{monitor.name} near its zero (the value of an inactive module not applied)",
             str(values),
         )
+
+
+# -- the other states of a late DOWNLINK (D-RSP-15, R-RSP-19) ----------------------------------
+
+
+#: Periods late-request-ignored and late-clear-buffer-ignored watch the UPLINKs after the late
+#: DOWNLINK: one for the robot to take it, the rest to report what it then holds (an UPLINK
+#: every T while a sensor is requested).
+WATCH = 4
+
+
+@case(
+    "rsp/payload/late-request-ignored",
+    "A late DOWNLINK (not newer) requesting another sensor does not change what the UPLINKs report",
+    ["R-RSP-19"],
+    role=Role.ROBOT,
+)
+async def late_request_ignored(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    model = probe.model
+    asked, other = reported(model, 2)
+    raw.skip(5)  # numbers left unused: the late packet's is one never seen (D-RSP-15)
+    if await taken(probe, raw, flags(model, asked)) is None:
+        raise Inconclusive(f"no UPLINK after the DOWNLINK requesting {asked.name}")
+    top = sequence_of(raw.last)
+    raw.rewind(top - 3)
+    late = raw.downlink(flags(model, other))
+    raw.rewind(top + 1)
+    uplinks = await uplinks_within(probe, WATCH, raw.period, "the late DOWNLINK")
+    wrong = [d for d in uplinks if d.devices(model) != {asked.name}]
+    ctx.expect(
+        not wrong,
+        f"UPLINKs reporting {asked.name} only, as DOWNLINK #{top} (the newest) requests, not"
+        f" {other.name} as the late #{sequence_of(late)} does",
+        f"{sorted(wrong[0].devices(model))} in UPLINK #{wrong[0].header.sequence}" if wrong else "",
+    )
+
+
+#: Memory commands late-clear-buffer-ignored leaves waiting behind the one executing: a Clear
+#: Buffer frees them all at once, more than one command done in the meantime could.
+WAITING = 2
+
+
+@case(
+    "rsp/payload/late-clear-buffer-ignored",
+    "A late DOWNLINK (not newer) with Clear Buffer leaves the memory commands waiting in the"
+    " buffer",
+    ["R-RSP-19"],
+    role=Role.ROBOT,
+)
+async def late_clear_buffer_ignored(ctx: Context) -> None:
+    probe, raw = await raw_session(ctx)
+    model = probe.model
+    memory = first(model, DeviceKind.MEMORY_COMMAND)
+    raw.standing = flags(model, reported(model, 1)[0])  # an UPLINK every T
+    await take(ctx, probe, raw, memory, 0)
+    await probe.listen(START_PERIODS * raw.period)  # #0 has left the buffer (R-RSP-31)
+    ident = 1
+    while ident <= WAITING and probe.received[-1].header.buffer > 0:
+        await take(ctx, probe, raw, memory, ident)
+        ident += 1
+    raw.skip(5)  # numbers left unused: the late packet's is one never seen (D-RSP-15)
+    before = await taken(probe, raw)
+    if before is None:
+        raise Inconclusive("no UPLINK after the memory commands")
+    held, top = before.header.buffer, sequence_of(raw.last)
+    # The late packet repeats the newest memory command: an old ID, acknowledged again and not
+    # taken (D-RSP-16), whose ACK says the robot read the packet (D-RSP-15: a late packet's
+    # occurrences are handled) and gives its free buffers then.
+    repeated = ident - 1
+    mark = probe.mark()
+    ack = await late_acked(
+        ctx,
+        probe,
+        raw,
+        memory,
+        repeated,
+        top - 3,
+        resume=top + 1,
+        expected=f"ACK of {memory.name} #{repeated} in a late DOWNLINK with Clear Buffer",
+        values=keyframe(memory),
+        buffer=CLEAR_BUFFER,
+    )
+    await probe.listen(WATCH * raw.period)
+    counts = [d.header.buffer for d in probe.packets(FROM_ROBOT, after=mark)]
+    cleared = await taken(probe, raw, buffer=CLEAR_BUFFER)
+    if cleared is None:
+        raise Inconclusive("no UPLINK after a newer DOWNLINK with Clear Buffer")
+    empty = cleared.header.buffer
+    if empty <= held:
+        raise Inconclusive(
+            f"{held} free, {empty} after a newer Clear Buffer: nothing waited in the buffer (or"
+            " its Clear Buffer frees nothing, rsp/reliable/clear-buffer's to judge)"
+        )
+    if all(count < empty for count in counts):
+        return
+    expected = (
+        f"{held} free after late DOWNLINK #{top - 3} with Clear Buffer (not newer than #{top}: its"
+        " buffer byte not applied, D-RSP-15)"
+    )
+    got = f"{counts} free, {empty} as a newer Clear Buffer leaves"
+    # Commands done in the meantime free one buffer each: all of them at the late packet's ACK,
+    # or any keyframe of CUBO's (D-RSP-19: they take their 30 s), is its Clear Buffer.
+    if durable(probe, memory) or (ack.header.buffer >= empty and empty - held >= WAITING):
+        raise Failed("R-RSP-19", expected, got)
+    raise Inconclusive(f"the robot executes memory commands fast: expected {expected}; got {got}")

@@ -1,56 +1,49 @@
-"""rsp/reliable, rsp/security: selective retransmission and the memory-command buffer (D-RSP-16,
-D-RSP-17, D-RSP-19; R-RSP-25, R-RSP-26, R-RSP-31, R-RSP-33) and the security processor (D-RSP-21;
-R-RSP-18, R-RSP-37, R-RSP-38). The harness plays the local system (the motion filter's link loss,
-timed against T, is rsp_pace's). How the buffer cases keep the robot busy: probes/rsp_buffer.
+"""rsp/reliable: selective retransmission and the memory-command buffer (D-RSP-16, D-RSP-17,
+D-RSP-19; R-RSP-25, R-RSP-26, R-RSP-31, R-RSP-33). The harness plays the local system.
+
+How the buffer cases keep the robot busy is in `probes.rsp_buffer`.
 """
 
 from __future__ import annotations
 
-import os
 import statistics
 from collections.abc import Awaitable, Callable
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.probes.awaited import came, may_come, must_come
-from rcmlconf.conformance.probes.rsp_buffer import BUSY_MS, keyframe, not_held, take
+from rcmlconf.conformance.probes.held import margin, seen_by
+from rcmlconf.conformance.probes.rsp_buffer import (
+    BUSY_MS,
+    FROM_ROBOT,
+    keyframe,
+    not_held,
+    take,
+)
 from rcmlconf.conformance.probes.rsp_datagram import (
-    ENCRYPTION_AT,
-    TIMESTAMP_AT,
     Datagram,
+    newer,
     sequence_of,
 )
 from rcmlconf.conformance.probes.rsp_devices import first, flags, occurrence, reported, zero_values
 from rcmlconf.conformance.probes.rsp_exchanges import (
     AT_ONCE,
-    NEXT_PERIOD,
     acknowledging,
-    another_welcomed,
-    dropped_then_taken,
-    fresh,
     must_ack,
     raw_session,
-    replay_dropped,
     reporting,
     taken,
 )
-from rcmlconf.conformance.probes.rsp_forged import flip, hello_packet, patch
 from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
-from rcmlconf.conformance.probes.rsp_raw import BEFORE_REPEAT, RawSession, hand_driven
+from rcmlconf.conformance.probes.rsp_raw import RawSession, hand_driven
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.roles import Role
+from rcmlconf.conformance.rsp_numbers import START_PERIODS
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
 from rcmlconf.rsp.codec import (
     CLEAR_BUFFER,
-    Encryption,
-    MapBody,
     PacketType,
-    Refused,
-    RefusedReason,
-    pull_header,
 )
-from rcmlconf.rsp.layout import MAC_SIZE, NONCE_SIZE
 from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
-from rcmlconf.rsp.security import mac
 from rcmlconf.rsp.session import events
 
 #: rsp/reliable/keyframe-duration's keyframes last this long (ms, scaled): many periods.
@@ -491,194 +484,137 @@ async def memory_commands_under_duplication(ctx: Context) -> None:
     await _issued_once(ctx, 4)
 
 
-# -- security -----------------------------------------------------------------------------------
-
-_AEADS = (
-    (Encryption.AES_256_GCM, "rsp-aes-256-gcm", "aes-256-gcm"),
-    (Encryption.CHACHA20_POLY1305, "rsp-chacha20-poly1305", "chacha20-poly1305"),
-)
+# -- a memory command acknowledged at once (D-RSP-17, R-RSP-26) --------------------------------
 
 
-async def _sealed(ctx: Context, encryption: Encryption) -> tuple[RspProbe, RawSession]:
-    """A sealed session by hand; its WELCOME's MAC checked (R-RSP-38)."""
-    probe = await open_probe(ctx)
-    raw = hand_driven(probe, encryption)
-    answer = await raw.expect_welcome(ctx, "R-RSP-37", f"WELCOME ({encryption.name} declared)")
-    assert probe.psk is not None
-    data = answer.data
-    ctx.expect(
-        mac(probe.psk, data[:-MAC_SIZE]) == data[-MAC_SIZE:],
-        "WELCOME's MAC: HMAC-SHA256 of its header and body with the pre-shared key",
-        data[-MAC_SIZE:].hex(),
-        "R-RSP-38",
-    )
-    return probe, raw
-
-
-def _session_case(encryption: Encryption) -> Callable[[Context], Awaitable[None]]:
-    async def run(ctx: Context) -> None:
-        probe, raw = await _sealed(ctx, encryption)
-        model = probe.model
-        command = first(model, DeviceKind.COMMAND)
-        sensor = reported(model, 1)[0]
-        raw.standing = flags(model, sensor)
-        sealed = f"a sealed ACK of {command.name} #0"
-        await must_ack(ctx, probe, raw, command, 0, "R-RSP-37", expected=sealed)
-        reports = f"sealed UPLINKs reporting {sensor.name}"
-        took = sequence_of(raw.last)
-        uplink = await came(
-            ctx,
-            probe,
-            PacketType.UPLINK,
-            f"{reports}: {NEXT_PERIOD}",
-            "R-RSP-37",
-            after=0,
-            where=fresh(lambda: took),
-        )
-        ctx.expect(
-            sensor.name in uplink.devices(model),
-            reports,
-            str(sorted(uplink.devices(model))),
-            "R-RSP-37",
-        )
-        _all_sealed(ctx, probe, raw, encryption)
-
-    return run
-
-
-def _all_sealed(ctx: Context, probe: RspProbe, raw: RawSession, encryption: Encryption) -> None:
-    """Every packet of the session after WELCOME says the session's encryption (R-RSP-13) and so
-    was opened with its keys: a packet saying 0 is read in the clear, and a robot that never
-    seals its ACKs and UPLINKs would pass what is checked above (D-RSP-21: every packet of the
-    session after HELLO and WELCOME is sealed)."""
-    mine = [
-        d
-        for d in probe.received
-        if d.header.session_id == raw.session_id and d.type is not PacketType.WELCOME
-    ]
-    clear = [d for d in mine if d.header.encryption is not encryption]
-    ctx.expect(
-        not clear,
-        f"every packet of the session sealed: encryption {int(encryption)} ({encryption.name})",
-        ", ".join(
-            f"{d.type.name} #{d.header.sequence} with encryption {int(d.header.encryption)}"
-            for d in clear[:3]
-        ),
-        "R-RSP-13",
-    )
-
-
-def _tampered_case(encryption: Encryption) -> Callable[[Context], Awaitable[None]]:
-    async def run(ctx: Context) -> None:
-        probe, raw = await _sealed(ctx, encryption)
-        for what, mutate in (
-            ("the tag's last byte flipped", lambda d: flip(d, len(d) - 1)),
-            ("the timestamp flipped (associated data)", lambda d: flip(d, TIMESTAMP_AT + 3)),
-            ("the ciphertext flipped", lambda d: flip(d, 20)),
-        ):
-            await dropped_then_taken(ctx, probe, raw, mutate, "R-RSP-18", what)
-
-    return run
-
-
-for _encryption, _feature, _slug in _AEADS:
-    case(
-        f"rsp/security/{_slug}-session",
-        f"A {_encryption.name} session: WELCOME's MAC right, DOWNLINKs opened, UPLINKs sealed",
-        ["R-RSP-37", "R-RSP-38", "R-RSP-13"],
-        role=Role.ROBOT,
-        features=[_feature],
-    )(_session_case(_encryption))
-    case(
-        f"rsp/security/{_slug}-tampered",
-        f"A {_encryption.name} DOWNLINK with a flipped bit is dropped; the session goes on",
-        ["R-RSP-18", "R-RSP-37"],
-        role=Role.ROBOT,
-        features=[_feature],
-    )(_tampered_case(_encryption))
+#: memory-command-at-once and executing-left-buffer ask for a T this long at least (scaled).
+#: Then half a period (as in rsp/local/ack-at-once), or R-RSP-31's three periods, leave a loaded
+#: machine room. A robot may raise HELLO's period (D-RSP-13).
+SLOW_PERIOD = 0.3
 
 
 @case(
-    "rsp/security/wrong-key",
-    "A HELLO signed with another key is refused (4) and opens no session",
-    ["R-RSP-38"],
+    "rsp/reliable/memory-command-at-once",
+    "A memory command, new and repeated, is acknowledged within half a period of its arrival, not"
+    " with the robot's next packet",
+    ["R-RSP-26"],
     role=Role.ROBOT,
-    features=["rsp-aes-256-gcm"],
 )
-async def wrong_key(ctx: Context) -> None:
+async def memory_command_at_once(ctx: Context) -> None:
     probe = await open_probe(ctx)
-    raw = hand_driven(probe, Encryption.AES_256_GCM)
-    key = os.urandom(32)
-    answer = await came(
-        ctx,
-        probe,
-        (PacketType.WELCOME, PacketType.REFUSED),
-        f"REFUSED, {BEFORE_REPEAT}",
-        "R-RSP-38",
-        send=lambda: raw.hello(psk=key),
-    )
-    body = answer.body
-    ctx.expect(
-        isinstance(body, Refused) and body.reason is RefusedReason.NOT_AUTHENTICATED,
-        "REFUSED NOT_AUTHENTICATED",
-        f"REFUSED {body.reason.name}" if isinstance(body, Refused) else answer.type.name,
-    )
-    await _no_session_left(ctx, probe)
+    memory = first(probe.model, DeviceKind.MEMORY_COMMAND)
+    asked = max(probe.model.period, SLOW_PERIOD * ctx.scale)
+    raw = hand_driven(probe, period_ms=round(asked * 1000))
+    await raw.open()
+    period = raw.period
+    # Fields at their safe values (a keyframe of no duration): it leaves the buffer at once.
+    item = occurrence(memory, 0, zero_values(memory))
+    # New, then repeated: each right after a packet of the robot's (WELCOME, then the ACK).
+    for what in ("new", "repeated"):
+        ack = await probe.answer_to(
+            lambda: raw.downlink([item]),
+            PacketType.ACK,
+            where=lambda d: 0 in d.acks(memory.position),
+            wait=period / 2 + margin(ctx),
+        )
+        sent_at = probe.sent[-1][0]
+        expected = (
+            f"ACK of {memory.name} #0 ({what}) within half a period ({period * 500:g} ms,"
+            " D-RSP-17: at once)"
+        )
+        seen_by(ctx, probe, ack, sent_at, sent_at + period / 2, expected)
 
 
-async def _no_session_left(ctx: Context, probe: RspProbe) -> None:
-    """Another local system gets a session: the refused HELLO opened none."""
-    await another_welcomed(
-        ctx, probe, "R-RSP-38", "WELCOME to another local system (no session was opened)"
-    )
+# -- the free buffers while one executes (D-RSP-19, R-RSP-31) ----------------------------------
+
+
+_STAMPS = 1 << 32
+
+
+def _since(earlier: Datagram, later: Datagram) -> int:
+    """Milliseconds from one of the robot's packets to a later one, by its clock (D-RSP-10)."""
+    return (later.header.timestamp - earlier.header.timestamp) % _STAMPS
 
 
 @case(
-    "rsp/security/unsigned-hello",
-    "An AES-256-GCM HELLO without its MAC opens no session",
-    ["R-RSP-38"],
+    "rsp/reliable/executing-left-buffer",
+    "The memory command being executed has left the buffer: run alone it leaves every buffer"
+    " free, within three periods of being taken, and one waiting behind it takes one",
+    ["R-RSP-31"],
     role=Role.ROBOT,
-    features=["rsp-aes-256-gcm"],
+    timeout=8.0,
 )
-async def unsigned_hello(ctx: Context) -> None:
+async def executing_left_buffer(ctx: Context) -> None:
     probe = await open_probe(ctx)
     model = probe.model
-    start = probe.mark()
-    period = round(model.period * 1000)
-    nonce = os.urandom(NONCE_SIZE)
-    probe.send(hello_packet(model.model_id, Encryption.AES_256_GCM, nonce, period, signed=False))
-    await probe.listen(probe.quiet)
-    welcomes = probe.packets(PacketType.WELCOME, after=start)
-    ctx.expect(not welcomes, "no WELCOME (dropped, or REFUSED NOT_AUTHENTICATED)", "WELCOME")
-    await _no_session_left(ctx, probe)
+    memory = first(model, DeviceKind.MEMORY_COMMAND)
+    raw = hand_driven(probe, period_ms=round(max(model.period, SLOW_PERIOD * ctx.scale) * 1000))
+    await raw.open()
+    raw.standing = flags(model, reported(model, 1)[0])  # an UPLINK every T
+    period, buffers = raw.period, model.command_buffers
+    idle = await taken(probe, raw)
+    if idle is None:
+        raise Inconclusive("no UPLINK to read the free buffers from")
+    if idle.header.buffer < buffers:
+        raise Inconclusive(
+            f"{idle.header.buffer} of {buffers} buffers free before the case sent a memory"
+            " command: the robot holds others"
+        )
+    mark = probe.mark()
+    alone = await take(ctx, probe, raw, memory, 0)
+    sent_at, sent = probe.sent[-1]
+    due = sent_at + START_PERIODS * period
+    found = await probe.next(
+        FROM_ROBOT,
+        after=mark,
+        wait=due + margin(ctx) - probe.now,
+        where=lambda d: (
+            newer(d.header.last_received, sequence_of(sent)) and d.header.buffer == buffers
+        ),
+    )
+    left = seen_by(
+        ctx,
+        probe,
+        found,
+        sent_at,
+        due,
+        f"{buffers} free buffers within {START_PERIODS} periods of taking {memory.name} #0"
+        " alone: the one being executed has left the buffer (D-RSP-19)",
+        "R-RSP-31",
+        instead=f"{probe.received[-1].header.buffer} free",
+    )
+    await _one_waiting(ctx, probe, raw, _since(alone, left) + 2 * round(period * 1000))
 
 
-@case(
-    "rsp/security/replayed-sealed",
-    "A sealed DOWNLINK received again byte for byte is dropped: no second ACK",
-    ["R-RSP-18"],
-    role=Role.ROBOT,
-    features=["rsp-aes-256-gcm"],
-)
-async def replayed_sealed(ctx: Context) -> None:
-    probe, raw = await _sealed(ctx, Encryption.AES_256_GCM)
-    await replay_dropped(ctx, probe, raw, 5)
+async def _one_waiting(ctx: Context, probe: RspProbe, raw: RawSession, horizon: int) -> None:
+    """#1 taken behind #0: one buffer taken while #0 runs. `horizon` (ms, by the robot's clock)
+    is the span #0 took to show every buffer free, and a period either side for the phase of
+    the robot's control ticks and packets: had #0 left the buffer only when done, #1, alike,
+    would be done as soon, and the count cannot tell a robot counting the one it executes."""
+    memory = first(probe.model, DeviceKind.MEMORY_COMMAND)
+    buffers = probe.model.command_buffers
+    mark = probe.mark()
+    behind = await take(ctx, probe, raw, memory, 1)
+    sequence = sequence_of(raw.last)
 
+    def within(d: Datagram) -> bool:
+        return newer(d.header.last_received, sequence) and _since(behind, d) <= horizon
 
-@case(
-    "rsp/security/plaintext-downgrade",
-    "In an AES-256-GCM session, a DOWNLINK in the clear (encryption 0) is dropped",
-    ["R-RSP-18"],
-    role=Role.ROBOT,
-    features=["rsp-aes-256-gcm"],
-)
-async def plaintext_downgrade(ctx: Context) -> None:
-    probe, raw = await _sealed(ctx, Encryption.AES_256_GCM)
-    command = first(probe.model, DeviceKind.COMMAND)
-    body = MapBody((occurrence(command, 7),))
-
-    def in_the_clear(sealed: bytes) -> bytes:
-        plain = probe.codec.push_body(pull_header(sealed), body)
-        return patch(sealed[:20], ENCRYPTION_AT, b"\x00") + plain
-
-    await dropped_then_taken(ctx, probe, raw, in_the_clear, "R-RSP-18", "a DOWNLINK in the clear")
+    end = await probe.next(
+        PacketType.UPLINK,
+        after=mark,
+        wait=horizon / 1000 + margin(ctx),
+        where=lambda d: _since(behind, d) > horizon and _since(behind, d) < _STAMPS // 2,
+    )
+    if end is None:
+        raise Inconclusive(f"no UPLINK stamped more than {horizon} ms after the ACK of #1")
+    counts = [d.header.buffer for d in probe.packets(FROM_ROBOT, after=mark) if within(d)]
+    if buffers in counts:
+        raise not_held(probe, memory, f"#1 taken behind #0, {counts} free within {horizon} ms")
+    ctx.expect(
+        all(count == buffers - 1 for count in counts),
+        f"{buffers - 1} free while #0 executes and #1 waits behind it (D-RSP-19: one executing,"
+        " one buffer taken)",
+        f"{counts} free",
+        "R-RSP-31",
+    )

@@ -1,19 +1,22 @@
 """rsp/session: opening, keeping and ending an RSP session, the robot's side (specs/rsp.md
-D-RSP-12, D-RSP-13, R-RSP-20 to R-RSP-22). The harness plays the local system."""
+D-RSP-12, D-RSP-13, R-RSP-20 to R-RSP-22). The harness plays the local system.
+"""
 
 from __future__ import annotations
 
 import functools
+import itertools
 import os
 import statistics
+from collections.abc import Callable
 
 from rcmlconf.conformance.context import Context
 from rcmlconf.conformance.ics import FEATURES
 from rcmlconf.conformance.probes.awaited import came
 from rcmlconf.conformance.probes.held import margin, seen_by
 from rcmlconf.conformance.probes.pace import gaps, ms, paced, spaced
-from rcmlconf.conformance.probes.rsp_datagram import Datagram, newer, sequence_of
-from rcmlconf.conformance.probes.rsp_devices import flags, reported
+from rcmlconf.conformance.probes.rsp_datagram import Datagram, Where, newer, sequence_of
+from rcmlconf.conformance.probes.rsp_devices import flags, reported, values_of
 from rcmlconf.conformance.probes.rsp_exchanges import (
     NEXT_PERIOD,
     another_welcomed,
@@ -25,14 +28,17 @@ from rcmlconf.conformance.probes.rsp_exchanges import (
     taken,
 )
 from rcmlconf.conformance.probes.rsp_forged import hello_packet
-from rcmlconf.conformance.probes.rsp_probe import open_probe
+from rcmlconf.conformance.probes.rsp_probe import RspProbe, open_probe
 from rcmlconf.conformance.probes.rsp_raw import BEFORE_REPEAT, hand_driven
 from rcmlconf.conformance.registry import case
 from rcmlconf.conformance.roles import Role
 from rcmlconf.conformance.rsp_numbers import (
+    GAP_LONGEST,
+    GAP_SHORTEST,
     KEEPALIVE_PERIODS,
     KEEPALIVE_SLACK,
     SESSION_TIMEOUT,
+    STAMP_ROUNDING,
     timeout_window,
 )
 from rcmlconf.conformance.verdicts import Inconclusive, NotApplicable
@@ -539,3 +545,170 @@ async def timeout_bye(ctx: Context) -> None:
     )
     # A harness held up reads the BYE late, never early.
     ctx.expect(early <= found.at - silent, expected, f"after {found.at - silent:.2f} s")
+
+
+# -- a slow T of over a second (D-RSP-13, R-RSP-42) --------------------------------------------
+
+
+#: The slow T the cases ask for (ms): over a second, and three periods of it fit in a case.
+SLOW_MS = 1200
+
+
+#: UPLINKs a slow case watches: two gaps of T.
+BEATS = 3
+
+
+def _slow_enough(period: float) -> None:
+    """WELCOME may raise T (D-RSP-13): not so far that the case cannot watch it."""
+    if period > 2 * SLOW_MS / 1000:
+        raise Inconclusive(
+            f"the robot raised T to {period * 1000:g} ms (D-RSP-13 lets it): {BEATS} periods"
+            " of it do not fit in the case's time"
+        )
+
+
+async def _uplinks(probe: RspProbe, where: Where, until: float, count: int) -> list[Datagram]:
+    """The first `count` UPLINKs received (so far, and until loop time `until`) for which
+    `where` holds; fewer if no more came."""
+    while True:
+        found = [d for d in probe.packets(PacketType.UPLINK) if where(d)]
+        if len(found) >= count or probe.now >= until:
+            return found[:count]
+        await probe.next(PacketType.UPLINK, wait=until - probe.now)
+
+
+def _watched(probe: RspProbe, period: float) -> float:
+    """How long `BEATS` UPLINKs may take from the first (or from a time before it): each as late
+    after the one before as `spaced` lets it be, and the probe's quiet time for the harness."""
+    return (BEATS - 1) * GAP_LONGEST * period + probe.quiet
+
+
+async def _rested(probe: RspProbe, period: float, bye: Callable[[], object]) -> None:
+    """End the session at the slow T (`bye` sends its BYE) and keep the robot a period of that T
+    more before the pool gives it to another case: a robot may keep its control loop on the slow
+    T's schedule until then (the reference does: the next session's sensors are read, and so
+    reported, only at the tick that schedule left), and the other cases run at the model's T."""
+    bye()
+    await probe.listen(period + probe.quiet)
+
+
+def _beating(ctx: Context, found: list[Datagram], period: float, note: str) -> None:
+    """`found` are `BEATS` UPLINKs, each a period after the one before (R-RSP-42). Their number
+    is no timing check: `_watched` leaves a second or more past the last. Nor is a gap too short
+    by the robot's own timestamps: a loaded harness reads packets late, which the gaps of their
+    arrivals (`spaced`, a timing check) show and the timestamps do not."""
+    ctx.expect(
+        len(found) >= BEATS,
+        f"{BEATS} UPLINKs {period * 1000:g} ms apart{note}",
+        f"{len(found)} UPLINKs",
+        "R-RSP-42",
+    )
+    stamped = [
+        (later.header.timestamp - earlier.header.timestamp) % (1 << 32)
+        for earlier, later in itertools.pairwise(found)
+    ]
+    ctx.expect(
+        all(gap >= GAP_SHORTEST * period * 1000 - STAMP_ROUNDING for gap in stamped),
+        f"UPLINKs {period * 1000:g} ms apart by the robot's own clock{note}",
+        f"timestamps (R-RSP-14) {', '.join(map(str, stamped))} ms apart",
+        "R-RSP-42",
+    )
+    spaced(ctx, found, period, "UPLINKs", note=note)
+
+
+@case(
+    "rsp/session/slow-hello",
+    f"A HELLO asking T = {SLOW_MS} ms: the robot reports a requested sensor every period",
+    ["R-RSP-42", "R-RSP-23"],
+    role=Role.ROBOT,
+    timeout=8.0,
+)
+async def slow_hello(ctx: Context) -> None:
+    probe = await open_probe(ctx)
+    model = probe.model
+    raw = hand_driven(probe, period_ms=SLOW_MS)
+    await raw.open()
+    period = raw.period  # WELCOME's
+    _slow_enough(period)
+    sensor = reported(model, 1)[0]
+    try:
+        # R-RSP-42: with a sensor to report, an UPLINK every T: the first within a period of the
+        # request, and a period between each and the next.
+        first = await must_take(
+            ctx,
+            probe,
+            raw,
+            flags(model, sensor),
+            f"an UPLINK within a period ({period * 1000:g} ms) of the request for {sensor.name}",
+            "R-RSP-42",
+            wait=GAP_LONGEST * period + probe.quiet,
+        )
+        request = sequence_of(raw.last)
+        found = await _uplinks(
+            probe,
+            lambda d: newer(d.header.last_received, request),
+            first.at + _watched(probe, period),
+            BEATS,
+        )
+        _beating(ctx, found, period, f" (T of WELCOME: {period * 1000:g} ms)")
+        silent = [d for d in found if values_of(d, sensor) is None]
+        ctx.expect(
+            not silent,
+            f"{sensor.name} in each UPLINK after its request",
+            f"UPLINK #{silent[0].header.sequence} without it" if silent else "",
+            "R-RSP-23",
+        )
+    finally:
+        await _rested(probe, period, raw.bye)
+
+
+@case(
+    "rsp/session/slow-period",
+    f"After a PERIOD of {SLOW_MS} ms the next UPLINK comes a new period after the last one, not"
+    " at the old pace, and the UPLINKs go on every new period",
+    ["R-RSP-42", "R-RSP-23"],
+    role=Role.ROBOT,
+    timeout=8.0,
+)
+async def slow_period(ctx: Context) -> None:
+    probe, opened, sensor = await reporting(ctx)
+    if await probe.state(sensor.name) is None:
+        raise Inconclusive(f"no {sensor.name} at T = {opened.period * 1000:g} ms to start from")
+    # WELCOME's T is what the robot raised HELLO's to: it may raise PERIOD's as well.
+    period = max(SLOW_MS / 1000, opened.period)
+    _slow_enough(period)
+    spoiled = probe.spoiled
+    change = probe.session.packets_sent % 65536  # the PERIOD's sequence number
+    at = probe.now
+    probe.session.set_period(SLOW_MS / 1000, at)
+    probe.poke()  # the PERIOD goes at once
+
+    def bye() -> None:
+        probe.session.close(probe.now)
+        probe.poke()
+
+    try:
+        if probe.spoiled > spoiled:
+            raise Inconclusive("the impairment spoiled the first PERIOD")
+        found = await _uplinks(
+            probe,
+            lambda d: newer(d.header.last_received, change),
+            at + _watched(probe, period),
+            BEATS - 1,
+        )
+        before = [
+            d for d in probe.packets(PacketType.UPLINK) if not newer(d.header.last_received, change)
+        ]
+        if not before:
+            raise Inconclusive(f"no UPLINK at T = {opened.period * 1000:g} ms before the PERIOD")
+        # D-RSP-13: the robot's next UPLINK after PERIOD comes at the new pace: a new period after
+        # the last it sent at the old one, not an old period after it.
+        _beating(
+            ctx,
+            [before[-1], *found],
+            period,
+            f" (the last before the robot took PERIOD #{change}, then those after: the next"
+            " UPLINK comes at the new pace, D-RSP-13)",
+        )
+    finally:
+        await _rested(probe, period, bye)

@@ -17,11 +17,14 @@ from rcmlconf.conformance.probes.rsp_exchanges import must_ack
 from rcmlconf.conformance.probes.rsp_probe import RspProbe
 from rcmlconf.conformance.probes.rsp_raw import RawSession
 from rcmlconf.conformance.verdicts import CaseStop, Failed, Inconclusive
+from rcmlconf.rsp.codec import PacketType
 from rcmlconf.rsp.model import Device, DeviceKind
 from rcmlconf.values import Value
 
 #: How long the memory commands of a buffer case keep the robot busy (ms, D-RSP-19).
 BUSY_MS = 30_000
+#: The robot's packets whose header gives its free buffers.
+FROM_ROBOT = (PacketType.UPLINK, PacketType.ACK)
 
 
 def keyframe(found: Device) -> dict[str, Value]:
