@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import difflib
 import sys
 from collections.abc import Iterable, Sequence
+from pathlib import Path
 
 import click
 
@@ -37,21 +39,46 @@ from rcmlconf.wording import plural, quoted
     help="With --matrix: exit 1 if a MUST has no case and no check, and specs/ does not say no"
     " case can check it (unobservable).",
 )
-def cases(show_matrix: bool, only: tuple[str, ...], output_format: str, strict: bool) -> None:
+@click.option(
+    "--where",
+    metavar="ID",
+    help="Print where the case with this ID is written, as path:line, and nothing else.",
+)
+def cases(
+    show_matrix: bool, only: tuple[str, ...], output_format: str, strict: bool, where: str | None
+) -> None:
     """List the conformance cases (ID, requirements, role, purpose), or with --matrix the
-    requirements of specs/ and the cases that check each.
+    requirements of specs/ and the cases that check each, or with --where the source of one.
 
     A requirement on files (an RCML, RXID or robot-model rule) is checked by `rcmlconf
     validate`, not by a case: the matrix says "validate" for it. One that no black-box case can
     check (what a browser shows) is tagged so in specs/ with the reason, which the matrix shows.
+
+    Each case is written in the module of its area, named after the area's ID: rsp/header/layout
+    is in rcmlconf/conformance/cases/rsp_header.py, and rctp/msg/connect in the package
+    cases/rctp_msg/ (the big areas are packages, a module a topic). --where prints the file and
+    the line its function starts on: its @case, or for the cases a loop registers, the function
+    they share. The path is relative to the current directory when below it. An unknown ID exits
+    2 and names the IDs nearest to it.
 
     \b
     Examples:
       rcmlconf cases --only 'rsp/*'
       rcmlconf cases --matrix --strict
       rcmlconf cases --matrix --format json > coverage.json
+      rcmlconf cases --where rctp/msg/unknown-method
+      code --goto "$(rcmlconf cases --where rsp/local/hello)"
     """
     output = Output()
+    if where is not None:
+        if show_matrix or only or strict:
+            raise click.UsageError("--where takes no --matrix, --only or --strict")
+        path, line = case_source(find_case(all_cases(), where))
+        if output_format == "json":
+            output.json({"id": where, "path": path, "line": line})
+        else:
+            output.out.line([(f"{path}:{line}", "")])
+        sys.exit(0)
     chosen = chosen_cases(all_cases().values(), only)
     texts = requirements()
     unknown = unknown_requirements(chosen, texts)
@@ -139,6 +166,30 @@ def chosen_cases(
         )
         raise click.UsageError(f"no case matches {given} (`rcmlconf cases` lists them)")
     return chosen
+
+
+def find_case(found: dict[str, Case], wanted: str) -> Case:
+    """The case whose ID is `wanted`. Otherwise a usage error (status 2) that names the IDs
+    nearest to it: those ending in it (`unknown-method`), then those spelled alike."""
+    if wanted in found:
+        return found[wanted]
+    ending = [i for i in found if i.endswith(f"/{wanted}")]
+    alike = difflib.get_close_matches(wanted, list(found), n=3, cutoff=0.6)
+    near = list(dict.fromkeys([*ending, *alike]))
+    hint = f"; did you mean {', '.join(near)}?" if near else " (`rcmlconf cases` lists them)"
+    raise click.UsageError(f"no case has the ID {quoted(wanted)}{hint}")
+
+
+def case_source(found: Case) -> tuple[str, int]:
+    """The file of `found`'s function, and the line it starts on (its `@case`). The path is
+    relative to the current directory when the file is below it."""
+    code = found.run.__code__
+    path = Path(code.co_filename).resolve()
+    try:
+        shown = str(path.relative_to(Path.cwd().resolve()))
+    except ValueError:
+        shown = str(path)
+    return shown, code.co_firstlineno
 
 
 def glob_problem(glob: str) -> str | None:
