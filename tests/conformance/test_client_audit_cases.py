@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from conformance.test_local_receiving import mutated
+from support.mutants import mutated
 from support.processes import free_pair, run_command
 
 #: (module under rcmlconf/, the line, the line as the fault reads, the case, the requirement it

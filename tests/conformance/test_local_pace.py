@@ -10,7 +10,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from conformance.test_local_receiving import mutated, run, run_foreign, verdicts
+from conformance.test_local_receiving import run, run_foreign, verdicts
+from support.mutants import mutated
 
 CASES = [
     "rsp/local/welcome-opens",

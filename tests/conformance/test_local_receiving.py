@@ -15,7 +15,6 @@ from __future__ import annotations
 import asyncio
 import json
 import os
-import shutil
 import socket
 import subprocess
 import sys
@@ -23,9 +22,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from support.mutants import mutated
 from support.processes import COMMAND, free_port
 
-import rcmlconf
 from rcmlconf.conformance.cases.rsp_local.session import occurrence
 from rcmlconf.conformance.probes.local_listener import LocalListener
 from rcmlconf.conformance.probes.rsp_datagram import Datagram
@@ -40,7 +39,6 @@ from rcmlconf.rsp.session import events
 from rcmlconf.validate.validator import load_robot_model
 
 FOREIGN = Path(__file__).parents[1] / "foreign" / "rsp_local"
-PACKAGE = Path(rcmlconf.__file__).parent
 MODEL = FOREIGN / "robot.rmodel"
 #: The fault of the independent local system each case is aimed at, and what it must fail with.
 AIMED = {
@@ -142,21 +140,6 @@ def test_a_local_system_taking_a_downlink_as_an_ack_fails_downlink_dropped(tmp_p
     case = "rsp/local/downlink-dropped"
     result = run(tmp_path, "--only", case, python=copy)[case]
     assert (result["verdict"], result["requirement"]) == ("fail", "R-RSP-18"), result
-
-
-def mutated(tmp_path: Path, module: str, *faults: tuple[str, str]) -> Path:
-    """A copy of the package (and the specs it reads) in which each (line, fault) of `faults`
-    in `module` (under rcmlconf/) reads its fault: the directory to run it from."""
-    copy = tmp_path / "mutant"
-    shutil.copytree(PACKAGE, copy / "rcmlconf", ignore=shutil.ignore_patterns("__pycache__"))
-    shutil.copytree(PACKAGE.parent / "specs", copy / "specs")
-    source = copy / "rcmlconf" / module
-    text = source.read_text()
-    for line, fault in faults:
-        assert text.count(line) == 1, f"{module} no longer has {line!r} once"
-        text = text.replace(line, fault)
-    source.write_text(text)
-    return copy
 
 
 def test_a_session_going_on_after_bye_fails_bye_ends_and_the_next_case_has_its_own(

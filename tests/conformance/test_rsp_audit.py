@@ -10,7 +10,8 @@ from pathlib import Path
 
 import pytest
 import support.processes
-from conformance.test_local_receiving import mutated, run
+from conformance.test_local_receiving import run
+from support.mutants import mutated
 from support.processes import running
 
 #: The independent robot's model: every kind, and an onLoss=hold effector with a monitor (`mast`),

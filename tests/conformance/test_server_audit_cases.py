@@ -16,8 +16,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
-from conformance.test_local_receiving import mutated
 from support.foreign import IMPLEMENTATIONS
+from support.mutants import mutated
 from support.processes import BOUND, COMMAND, run_command
 from support.robots import ROVER
 
