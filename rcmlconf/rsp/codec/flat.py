@@ -26,6 +26,7 @@ from functools import lru_cache
 from types import CodeType
 from typing import Any
 
+from rcmlconf.hotpath import make_namedtuple
 from rcmlconf.rsp.codec.bodies import Item
 from rcmlconf.rsp.codec.payloads import ID_CODES, Slot
 from rcmlconf.values import Kind
@@ -119,7 +120,7 @@ class FlatLayout:
         namespace: dict[str, Any] = {
             "_unpack_from": payloads.unpack_from,
             "_pack": whole.pack,
-            "_new": tuple.__new__,
+            "make_namedtuple": make_namedtuple,
             "Item": Item,
             "_PREFIX": bytes(prefix),
             "_SIZE": payloads.size,
@@ -220,7 +221,7 @@ def _unpack_source(
         ident = flat(values[0].first) if slot.has_id else "None"
         fields = values[1:] if slot.has_id else values
         if slot.values is None:
-            items.append(f"_new(Item, ({slot.device}, {ident}, None))")
+            items.append(f"make_namedtuple(Item, ({slot.device}, {ident}, None))")
             continue
         entries = []
         for value in fields:
@@ -231,7 +232,7 @@ def _unpack_source(
             else:
                 shown = f"f[{value.first}:{value.first + value.count}]"
             entries.append(f"{value.name!r}: {shown}")
-        items.append(f"_new(Item, ({slot.device}, {ident}, {{{', '.join(entries)}}}))")
+        items.append(f"make_namedtuple(Item, ({slot.device}, {ident}, {{{', '.join(entries)}}}))")
     lines.append(f"    return ({''.join(item + ', ' for item in items)})")
     return "\n".join(lines) + "\n"
 

@@ -20,6 +20,7 @@ from collections.abc import Container
 from typing import NamedTuple
 
 from rcmlconf.errors import EncodeError, ProtocolError
+from rcmlconf.hotpath import make_namedtuple
 from rcmlconf.rsp.model import MAX_MODEL_ID, RobotModel
 
 RULE = "R-RSP-13"
@@ -37,7 +38,6 @@ VERSION_AT, MODEL_AT, ENCRYPTION_AT, TYPE_AT, SEQUENCE_AT = 0, 1, 3, 4, 5
 TIMESTAMP_AT, SESSION_AT, LAST_AT, BUFFER_AT = 7, 11, 17, 19
 _unpack_from = HEADER.unpack_from
 _pack = HEADER.pack
-_new = tuple.__new__
 
 
 class PacketType(enum.IntEnum):
@@ -195,7 +195,7 @@ class HeaderRules:
             and (not (high or low)) is rules[1]
             and buffer in rules[2]
         ):
-            return _new(
+            return make_namedtuple(
                 Header,
                 (
                     version,

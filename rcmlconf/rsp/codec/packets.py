@@ -12,6 +12,7 @@ from functools import lru_cache
 
 from rcmlconf.buffer import Buffer
 from rcmlconf.errors import EncodeError, ProtocolError
+from rcmlconf.hotpath import make_namedtuple
 from rcmlconf.rsp.codec.bodies import (
     BODIES,
     Body,
@@ -28,7 +29,6 @@ from rcmlconf.rsp.codec.maps import MapCodec
 from rcmlconf.rsp.layout import HEADER_SIZE, MapPacket
 from rcmlconf.rsp.model import RobotModel
 
-_new = tuple.__new__
 _MAP_PACKETS = {
     PacketType.DOWNLINK: MapPacket.DOWNLINK,
     PacketType.UPLINK: MapPacket.UPLINK,
@@ -111,7 +111,7 @@ class RspCodec:
         if type(data) is not bytes:
             data = bytes(data)
         header = self.rules.pull(data)
-        return _new(Packet, (header, self.pull_rest(header, data)))
+        return make_namedtuple(Packet, (header, self.pull_rest(header, data)))
 
     def pull_rest(self, header: Header, data: bytes) -> Body:
         """The body of a whole plaintext datagram whose header `pull_header` gave: read in place,

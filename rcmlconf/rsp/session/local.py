@@ -21,6 +21,7 @@ from collections import deque
 from collections.abc import Mapping
 
 from rcmlconf.errors import ProtocolError
+from rcmlconf.hotpath import make_namedtuple, members
 from rcmlconf.rctp.datastream.order import Arrival, SequenceCounts
 from rcmlconf.rsp.codec import (
     CLEAR_BUFFER,
@@ -43,6 +44,7 @@ from rcmlconf.rsp.reliable import ReceivedIds, ReliableSender
 from rcmlconf.rsp.security import Direction
 from rcmlconf.rsp.session import events
 from rcmlconf.rsp.session.devices import check_values, device
+from rcmlconf.rsp.session.events import StateReceived
 from rcmlconf.rsp.session.timing import Beat, Liveness, Silence
 from rcmlconf.rsp.session.wire import SENT_TO_LOCAL, SessionWire, drop_unsent
 from rcmlconf.values import Value
@@ -55,11 +57,9 @@ HELLO_RETRIES = 5
 PERIOD_REPEATS = 3
 
 _K = DeviceKind
-#: Looked up every period: a global costs a tenth of an enum member's class attribute.
-_DOWNLINK, _UPLINK = PacketType.DOWNLINK, PacketType.UPLINK
-_NEWER = Arrival.NEWER
-_StateReceived = events.StateReceived
-_new = tuple.__new__
+#: Read every period, so held as globals (see `members`).
+_DOWNLINK, _UPLINK = members(PacketType, "DOWNLINK", "UPLINK")
+(_NEWER,) = members(Arrival, "NEWER")
 #: What `set_active` means for each kind (D-RSP-14's DOWNLINK flags).
 _REQUESTABLE = (_K.SENSOR, _K.MONITOR, _K.EVENT, _K.MEMORY_EVENT)
 _ACTIVATABLE = (_K.EFFECTOR, _K.MODULE, *_REQUESTABLE)
@@ -316,7 +316,7 @@ class LocalEndpoint:
             assert values is not None
             if ident is None:
                 if newer:  # R-RSP-19: a late packet's states are older than what we hold
-                    self._events.append(_new(_StateReceived, (found.name, values, stamp)))
+                    self._events.append(make_namedtuple(StateReceived, (found.name, values, stamp)))
                 continue
             if self._taken.take(position, ident):
                 self._events.append(events.OccurrenceReceived(found.name, ident, values))

@@ -21,6 +21,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from rcmlconf.errors import ProtocolError
+from rcmlconf.hotpath import make_namedtuple, members
 from rcmlconf.rctp.datastream.order import Arrival
 from rcmlconf.rsp.codec import (
     CLEAR_BUFFER,
@@ -48,6 +49,7 @@ from rcmlconf.rsp.reliable import EventRepeater, Occurrence, ReceivedIds, Reliab
 from rcmlconf.rsp.security import Direction
 from rcmlconf.rsp.session import events
 from rcmlconf.rsp.session.devices import check_values, device, same_values
+from rcmlconf.rsp.session.events import StateReceived
 from rcmlconf.rsp.session.timing import Beat, Liveness, Silence
 from rcmlconf.rsp.session.wire import SENT_TO_ROBOT, SessionWire, drop_unsent
 from rcmlconf.values import Value
@@ -59,11 +61,9 @@ Address = events.Address
 _HELLO = bytes([PacketType.HELLO])
 #: 48-bit session IDs (D-RSP-10).
 _SESSION_BITS = 48
-#: Looked up every period: a global costs a tenth of an enum member's class attribute.
-_DOWNLINK, _UPLINK = PacketType.DOWNLINK, PacketType.UPLINK
-_NEWER = Arrival.NEWER
-_StateReceived = events.StateReceived
-_new = tuple.__new__
+#: Read every period, so held as globals (see `members`).
+_DOWNLINK, _UPLINK = members(PacketType, "DOWNLINK", "UPLINK")
+(_NEWER,) = members(Arrival, "NEWER")
 
 
 @dataclass(slots=True)
@@ -317,7 +317,9 @@ class RobotEndpoint:
         period_ms = max(hello.period_ms, self._min_period_ms)
         robot_nonce = self._random(NONCE_SIZE)
         signed = wire.encryption is not Encryption.NONE
-        welcome = Welcome(hello.client_nonce, robot_nonce, period_ms, bytes(MAC_SIZE) * signed)
+        welcome = Welcome(
+            hello.client_nonce, robot_nonce, period_ms, bytes(MAC_SIZE) if signed else b""
+        )
         data = wire.build(PacketType.WELCOME, welcome, now, self.free_buffers, self._psk)
         wire.secure(self._psk or b"", hello.client_nonce, robot_nonce)
         period = period_ms / 1000
@@ -391,7 +393,7 @@ class RobotEndpoint:
                 if module is None or module in active:
                     found = devices[position]
                     session.motion.receive(found, values, stamp, now)
-                    self._events.append(_new(_StateReceived, (found.name, values, stamp)))
+                    self._events.append(make_namedtuple(StateReceived, (found.name, values, stamp)))
         if acks:
             self._send(session, PacketType.ACK, MapBody(tuple(acks)), now)
 
@@ -443,7 +445,7 @@ class RobotEndpoint:
         for position in self._reported & session.requested:
             values = states.get(position)
             if values is not None and self._in_active(session, position):
-                items[position] = _new(Item, (position, None, values))
+                items[position] = make_namedtuple(Item, (position, None, values))
         for occurrence in self._events_out.ride():
             position = occurrence.device.position
             items[position] = Item(position, occurrence.id, occurrence.values)

@@ -9,6 +9,7 @@ Nothing a packet says moves the replay window before the packet proved authentic
 from __future__ import annotations
 
 from rcmlconf.errors import ProtocolError
+from rcmlconf.hotpath import make_namedtuple
 from rcmlconf.rctp.datastream.order import Arrival, SequenceTracker
 from rcmlconf.rsp.codec import Encryption, Header, Packet, PacketType, RspCodec
 from rcmlconf.rsp.codec.bodies import Body
@@ -31,7 +32,6 @@ REPLAY_WINDOW = 64
 SIGNED = frozenset({PacketType.HELLO, PacketType.WELCOME})
 _STAMP = 1 << 32
 _SEQUENCE = 1 << 16
-_new = tuple.__new__
 
 
 def drop_unsent(data: bytes, sent: frozenset[PacketType], receiver: str) -> None:
@@ -97,7 +97,7 @@ class SessionWire:
             epoch = self._epoch = now
         index = self.sent
         self.sent = index + 1
-        header = _new(
+        header = make_namedtuple(
             Header,
             (
                 1,
@@ -137,7 +137,7 @@ class SessionWire:
         if self.tracker.replayed(header.sequence, REPLAY_WINDOW):
             raise ProtocolError("seen before, or more than 64 behind the newest", SEQUENCE_AT, DROP)
         body = self._body(header, data, psk)
-        return _new(Packet, (header, body)), self.tracker.see(header.sequence)
+        return make_namedtuple(Packet, (header, body)), self.tracker.see(header.sequence)
 
     def _body(self, header: Header, data: bytes, psk: bytes | None) -> Body:
         if self.encryption is not Encryption.NONE and header.type in SIGNED:
