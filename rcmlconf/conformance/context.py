@@ -1,5 +1,8 @@
-"""What a case gets: the target, its transcript, probes that clean up after themselves, and the
-checks that turn an answer into a verdict."""
+"""What a case is given to run: the `Context`.
+
+A context holds the target and the case's transcript. It opens probes, and closes them when the
+case ends. Its checks turn what the target answered into a verdict.
+"""
 
 from __future__ import annotations
 
@@ -28,14 +31,16 @@ if TYPE_CHECKING:
 
 T = TypeVar("T")
 #: A hold of the harness's loop this long (seconds, times --timeout-scale) makes a failed timing
-#: check inconclusive: its ticks are due every 5 ms, and the timing checks allow tens of ms.
+#: check inconclusive. The loop's ticks are due every 5 ms, and timing checks allow tens of ms.
 LATE = 0.02
 _ANY = Permission(0)
 
 
 class CaseRules(Protocol):
-    """What a context reads of its case (`registry.Case`): it names the case, scales its time,
-    says which flows run impaired and which role it plays."""
+    """What a context reads of its case (`registry.Case`).
+
+    It names the case, gives its time, says which flows run impaired and which role it plays.
+    """
 
     @property
     def id(self) -> str: ...
@@ -57,7 +62,7 @@ class CaseRules(Protocol):
 
 
 def outside_bounds(value: float, low: float, high: float) -> float:
-    """How far `value` lies outside [low, high] (0 within): a failed check's `by`, in its units."""
+    """How far `value` lies outside [low, high], or 0 within. It serves as a failed check's `by`."""
     return max(low - value, value - high, 0.0)
 
 
@@ -71,34 +76,36 @@ class Context:
     seed: int = 0
     #: The run's free RSP robots (`Target.rsp`), shared by its cases.
     robots: asyncio.Queue[Address] | None = None
-    #: --impair: the impairment of the UDP flows of every case that declares none of its own.
+    #: --impair: the impairment of the UDP flows of each case that declares none of its own.
     impair: Impairment | None = None
     transcript: Transcript = field(default_factory=Transcript)
     _closers: list[Callable[[], None]] = field(default_factory=list)
     #: The requests of the case's control connections waiting for answers (`answers_in_place`).
     _outstanding: list[Outstanding] = field(default_factory=list)
-    #: Whether the client started for the case is stopped when it closes (`client`).
+    #: Whether closing the case stops the client started for it (`client`).
     _finishing: bool = False
     #: The impairment channels of the case's probes (`watch`), for `excuse`.
     _channels: list[ImpairedChannel] = field(default_factory=list)
-    #: How late the harness's loop ran (the run's), for `expect(..., timing=True)`.
+    #: How late the harness's loop ran, for `expect(..., timing=True)`. One for the whole run.
     loop_watch: LoopWatch | None = None
     #: --session-wait: the longest session timeout the case waits out (D-RCTP-11).
     session_wait: float = SESSION_WAIT
-    #: The RSP robot the runner took for the case before it started (`rsp`).
+    #: The RSP robot that the runner took for the case before the case started (`rsp`).
     taken: Address | None = None
     #: Parts of the case's requirement it could not check on this target (`cannot_check`).
     unchecked: list[str] = field(default_factory=list)
     #: When the case started, in loop time.
     started: float = field(default_factory=lambda: asyncio.get_running_loop().time())
-    #: The case's control connections to the server, or datagrams to the robot, and how they
-    #: went (the runner's give-up).
+    #: The case's control connections to the server, or its datagrams to the robot, and how
+    #: they went. The runner reads it to decide whether to give up on the target.
     contact: Contact = field(default_factory=Contact)
 
     @property
     def timeout(self) -> float:
-        """The case's time, scaled: its own, and for a case that waits out the server's session
-        timeout, what --session-wait adds."""
+        """The case's time, scaled by --timeout-scale.
+
+        A case that waits out the server's session timeout also gets what --session-wait adds.
+        """
         extra = self.session_wait - SESSION_WAIT if self.case.waits_session else 0.0
         return (self.case.timeout + max(extra, 0.0)) * self.scale
 
@@ -109,19 +116,24 @@ class Context:
 
     @property
     def left(self) -> float:
-        """Seconds left of the case's time: what its waits may still take."""
+        """Seconds left of the case's time. Its waits may take no more."""
         return self.started + self.timeout - asyncio.get_running_loop().time()
 
     def cannot_check(self, part: str) -> None:
-        """Say that this part of what the case checks cannot be checked on this target (its
-        robot has no node that could show it, its client refused what would): a pass then says
-        so, never silently."""
+        """Record that this part of the case cannot be checked on this target.
+
+        For example, its robot has no node that could show it, or its client refused what would.
+        A pass then says so; it never passes silently.
+        """
         if part not in self.unchecked:
             self.unchecked.append(part)
 
     def waited_session(self, announced: int) -> int:
-        """`announced`, the session timeout a CONNECT answer gives (D-RCTP-11), if the run waits
-        that long; inconclusive otherwise, saying how to wait for it."""
+        """`announced`, the session timeout of a CONNECT answer (D-RCTP-11).
+
+        The run must wait that long. If it waits less, the case is inconclusive, and the message
+        says how to wait for it.
+        """
         if announced > self.session_wait:
             raise Inconclusive(
                 f"the session timeout is {announced} s and the run waits out"
@@ -131,14 +143,17 @@ class Context:
 
     @property
     def impairment(self) -> Impairment:
-        """What the case's UDP flows go through: the case's own (it needs that loss or
-        reordering to check what it checks), else --impair's, else nothing."""
+        """The impairment the case's UDP flows go through.
+
+        It is the case's own if it declares one: the case needs that loss or reordering to check
+        what it checks. Otherwise it is --impair's, or none.
+        """
         if self.case.impairment:
             return parse_impairment(self.case.impairment)
         return self.impair or parse_impairment("none")
 
     def impairment_seed(self, *path: int | str) -> int:
-        """A seed of its own for each flow of the case, from --seed (same seed, same run)."""
+        """A seed for one flow of the case, from --seed. The same seed gives the same run."""
         return derive_seed(self.seed, self.case.id, *path)
 
     def watch(self, *channels: ImpairedChannel | None) -> None:
@@ -146,11 +161,17 @@ class Context:
         self._channels.extend(c for c in channels if c is not None)
 
     def excuse(self) -> str:
-        """Why a failure may be the run's impairment and not the target: what --impair did to
-        the flows of a case written for a clean path, or "" when it did nothing to them. Such a
-        failure is inconclusive: loss, reordering or duplication the case did not plan for can
-        explain it. A case that declares an impairment runs under its own, written to tell its
-        effects from the target's faults: its failure stands."""
+        """Why a failure may be the run's impairment and not the target's fault.
+
+        It says what --impair did to the flows of a case written for a clean path. It is ""
+        when --impair did nothing to them.
+
+        Such a failure is inconclusive. Loss, reordering or duplication that the case did not
+        plan for can explain it.
+
+        A case that declares an impairment runs under its own. It was written to tell the
+        impairment's effects from the target's faults, so its failure stands.
+        """
         if self.impair is None or self.case.impairment:
             return ""
         counts = Counts()
@@ -166,7 +187,7 @@ class Context:
             )
             if number
         ]
-        if self.impair.jitter and counts.sent:  # gaps between datagrams are no longer the peer's
+        if self.impair.jitter and counts.sent:  # the gaps between datagrams are not the peer's
             done.append(f"delayed with {self.impair.jitter * 1000:g} ms of jitter")
         return f"--impair {self.impair}: datagrams {', '.join(done)}" if done else ""
 
@@ -174,8 +195,11 @@ class Context:
 
     @property
     def robot(self) -> RcmlDocument:
-        """The RCTP target's robot, or for a client case the robot the harness plays to the
-        client (D-RCTP-31); not applicable without one."""
+        """The RCTP target's robot.
+
+        For a client case, it is the robot that the harness plays to the client (D-RCTP-31).
+        Not applicable when there is none.
+        """
         if self.case.role is Role.CLIENT and self.target.clients is not None:
             return self.target.clients.robot
         if self.target.robot is None:
@@ -192,8 +216,10 @@ class Context:
         permission: Permission = _ANY,
         where: Callable[[AccessNode], bool] = lambda _: True,
     ) -> AccessNode:
-        """The first access of the robot of `kind` with `permission` (and `where`); not
-        applicable when the robot has none."""
+        """The robot's first access of `kind` that has `permission` and for which `where` holds.
+
+        Not applicable when the robot has none.
+        """
         for access in self.robot.access_nodes():
             of_kind = kind is None or access.type is kind
             if of_kind and permission in access.permission and where(access):
@@ -220,8 +246,10 @@ class Context:
         return probe
 
     async def session(self) -> ControlProbe:
-        """A control connection with a session open; inconclusive if CONNECT fails (the
-        rctp/session cases check CONNECT itself)."""
+        """A control connection with a session open.
+
+        Inconclusive if CONNECT fails. The rctp/session cases check CONNECT itself.
+        """
         probe = await self.control()
         answer = await probe.connect(self.target.site_path)
         if answer.status != 200 or probe.session is None:
@@ -230,21 +258,23 @@ class Context:
         return probe
 
     async def client(self) -> ControlProbe:
-        """The next connection of the RCTP client under test (the harness is its server)."""
+        """The next connection of the RCTP client under test. The harness is its server."""
         listener = self.target.clients
         if listener is None:
             raise NotApplicable("no RCTP client under test (--role client)")
         probe = await listener.accept(self.case.id, self.transcript, self.wait)
         self._closers.append(probe.close)
         self._outstanding.append(probe.outstanding)
-        if not self._finishing:  # the client started for the case: stopped, and how it ran
+        if not self._finishing:  # on close, stop the case's client and note how it ran
             self._finishing = True
             self._closers.insert(0, lambda: self.transcript.notes(listener.finish(self.case.id)))
         return probe
 
     async def client_session(self, timeout: int = 60) -> tuple[ControlProbe, Request]:
-        """A client's connection whose CONNECT was answered 200 with a new session (D-RCTP-11);
-        the CONNECT request too."""
+        """A client's connection, and its CONNECT request.
+
+        The CONNECT was answered 200 with a new session (D-RCTP-11).
+        """
         probe = await self.client()
         connect = await probe.next_request(requirement="R-RCTP-17")
         if connect.method != "CONNECT":
@@ -254,9 +284,13 @@ class Context:
         return probe, connect
 
     async def local(self, *, again: bool = False) -> LocalProbe:
-        """The next session of the RSP local system under test, the harness its robot: the next
-        HELLO of a new session (D-RSP-24). `again`: the one the local system opens itself after
-        a REFUSED of the case's (no other local system is summoned for it)."""
+        """The next session of the RSP local system under test. The harness is its robot.
+
+        The session starts with the next HELLO of a new session (D-RSP-24).
+
+        With `again`, it is the session that the local system opens itself after the case sent
+        REFUSED. No other local system is summoned for it.
+        """
         listener = self.target.locals
         if listener is None:
             raise NotApplicable("no RSP local system under test (--role local)")
@@ -264,9 +298,10 @@ class Context:
             self.transcript,
             self.wait,
             summon=not again,
-            # Beside other cases' local systems, whose first HELLOs ask for none, the one that
-            # follows a REFUSED 2 of this case's is told apart by asking for encryption
-            # (D-RSP-24 step 1): it may come from another socket of the same local system.
+            # Other cases' local systems may run beside this one. Their first HELLOs ask for no
+            # encryption. The HELLO that follows this case's REFUSED 2 asks for encryption
+            # (D-RSP-24 step 1), and that tells it apart. It may come from another socket of
+            # the same local system.
             sealed=again and listener.side_by_side,
             impairment=self.impairment,
             seed=self.impairment_seed("local", "forward"),
@@ -274,14 +309,16 @@ class Context:
         self.watch(probe.channel)
         probe.quiet *= self.scale
         self._closers.append(probe.close)
-        if not self._finishing:  # the local system started for the case: stopped, and how
+        if not self._finishing:  # on close, stop the case's local system and note how it ran
             self._finishing = True
             self._closers.insert(0, lambda: self.transcript.notes(listener.finish()))
         return probe
 
     async def rsp(self) -> Address:
-        """An RSP robot under test, this case's alone until it ends (a robot serves one session
-        at a time, D-RSP-12)."""
+        """An RSP robot under test, for this case alone until the case ends.
+
+        A robot serves one session at a time (D-RSP-12).
+        """
         if self.taken is not None:  # the runner gives it back when the case ends
             address, self.taken = self.taken, None
         else:
@@ -303,11 +340,14 @@ class Context:
             self._closers.pop()()
 
     def answers_in_place(self, doubts: bool = True) -> None:
-        """Raise the first answer out of place that a control connection of the case read
-        (`Outstanding`: R-RCTP-3, R-RCTP-5, D-RCTP-10). It fails the case whatever the case
-        made of it: a case that took it for silence, or went on, was misled by it. Then, with
-        `doubts` (the case did not fail on its own), the first answer without CSeq that said a
-        request could not be framed (`Outstanding.doubt`)."""
+        """Raise the first answer out of place that a control connection of the case read.
+
+        Such an answer breaks R-RCTP-3, R-RCTP-5 or D-RCTP-10 (`Outstanding`). It fails the case,
+        whatever the case made of it. A case that took it for silence, or went on, was misled.
+
+        With `doubts`, it then raises the first answer without CSeq that said a request could
+        not be framed (`Outstanding.doubt`). Pass `doubts` when the case did not fail on its own.
+        """
         for outstanding in self._outstanding:
             if outstanding.failure is not None:
                 raise outstanding.failure
@@ -330,15 +370,21 @@ class Context:
         timing: bool = False,
         by: float | None = None,
     ) -> None:
-        """Fail the case unless `holds`. A check of `timing` read off the harness's clock that
-        fails while the harness's event loop was held during the case is inconclusive instead,
-        as far as the holds explain it: the datagrams were read late, so the gaps measured are
-        the harness's, not the target's. `by`, where the check can say it: how far (seconds of
-        the harness's clock) what was seen lies past its bound. The holds must add up to that
-        much (D-RSP-26, D-RCTP-33: each delays what the harness reads by its length at most,
-        several by their sum: a process short of CPU is held many times a little), and to LATE
-        at least: a target that sends for half a second after it should stop is not excused by
-        a 250 ms hold. Without `by`, one hold of LATE or longer excuses it."""
+        """Fail the case unless `holds`.
+
+        A `timing` check reads times off the harness's clock. If it fails while the harness's
+        event loop was held during the case, it may be inconclusive instead. The datagrams were
+        read late, so the gaps measured are the harness's, not the target's. The holds must
+        explain the failure:
+
+        - `by`, where the check can say it, is how far past its bound the thing seen lies, in
+          seconds of the harness's clock. The holds must add up to that much, and to LATE at
+          least (D-RSP-26, D-RCTP-33). Each hold delays what the harness reads by its length at
+          most, and several by their sum: a process short of CPU is held many times a little.
+          So a target that sends for half a second after it should stop is not excused by a
+          250 ms hold.
+        - Without `by`, one hold of LATE or longer excuses the failure.
+        """
         if holds:
             return
         watch = self.loop_watch if timing else None
@@ -361,7 +407,7 @@ class Context:
         *,
         what: str = "",
     ) -> None:
-        """The answer's status is one of `statuses`; `what` names the request it answers."""
+        """Fail unless the answer's status is one of `statuses`. `what` names the request."""
         allowed = (statuses,) if isinstance(statuses, int) else tuple(statuses)
         prefix = f"{what}: " if what else ""
         self.expect(
