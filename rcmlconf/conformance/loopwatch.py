@@ -1,19 +1,26 @@
 """How late the harness's own event loop ran during a case.
 
-A timing check (packets T apart, a repeat after 250 ms) reads arrival times off the harness's
-event loop. When that loop is held up (a loaded CI machine, a collection pause; with the embedded
-reference, the target's timers too), datagrams are read late and the gaps between them are the
-harness's, not the target's. `LoopWatch` ticks every TICK seconds and keeps each tick that came
-more than NOTABLE late; `Context.expect(..., timing=True)` asks it how long the loop was held during
-the case, and turns a timing failure into inconclusive when the hold was long enough to explain it:
-where the check says by how much it missed, when the holds add up to that much (D-RSP-26,
-D-RCTP-33: a hold delays what the harness reads by its length at most).
+A timing check reads arrival times off the harness's event loop. Examples: packets T apart, or
+a repeat after 250 ms. The loop may be held up: by a loaded CI machine, by a pause of the garbage
+collector, or, with the embedded reference, by the target's own timers. Then datagrams are read
+late, and the gaps between them are the harness's, not the target's.
 
-What the targets under test send never excuses them: the CPU time the harness spends handling
-their datagrams (`charge`, by the probes' sockets, `cpu_spent`) is taken off the hold it fell in.
-A target that floods the harness holds its loop itself; a machine that gives the harness no CPU
-(other processes) holds it without that time, and still excuses; so does the garbage collector,
-whose pauses are the harness's own heap's, whichever allocation set them off.
+`LoopWatch` ticks every TICK seconds. It keeps each tick that came more than NOTABLE late.
+`Context.expect(..., timing=True)` asks it how long the loop was held during the case. A timing
+failure becomes inconclusive when the holds are long enough to explain it. When the check says by
+how much it missed, the holds must add up to that much. (D-RSP-26, D-RCTP-33: a hold delays what
+the harness reads by its length at most.)
+
+What a target sends never excuses the target. The harness's CPU time spent on the target's
+datagrams is taken off the hold it fell in. The probes' sockets report that time with `charge`,
+measured by `cpu_spent`. So a target that floods the harness is not excused by the hold it
+causes.
+
+Other holds do excuse:
+
+- Other processes that leave the harness no CPU hold it without using its CPU time.
+- Pauses of the garbage collector belong to the harness's own heap, whichever allocation set
+  them off. `cpu_spent` leaves them out, so they are never taken off a hold.
 """
 
 from __future__ import annotations
@@ -35,8 +42,11 @@ _KEPT = 4096
 
 @dataclass(slots=True)
 class _Charged:
-    """CPU seconds the process spent handling what targets sent it, since it started; and in
-    the garbage collector, and when the collection under way began."""
+    """CPU seconds the process spent, since it started, on what targets sent it.
+
+    It also holds the CPU seconds spent in the garbage collector, and when the collection under
+    way began.
+    """
 
     seconds: float = 0.0
     collecting: float = 0.0
@@ -58,26 +68,28 @@ gc.callbacks.append(_collected)
 
 
 def cpu_spent() -> float:
-    """CPU seconds this thread spent so far, but in the garbage collector."""
+    """CPU seconds this thread has spent so far, leaving out the garbage collector's."""
     return time.thread_time() - _CHARGED.collecting
 
 
 def charge(seconds: float) -> None:
-    """The process spent `seconds` of CPU time handling what a target sent it (a datagram)."""
+    """Record that the process spent `seconds` of CPU time on what a target sent (a datagram)."""
     _CHARGED.seconds += seconds
 
 
 class LoopWatch:
-    """Ticks on the running loop from `start` to `stop`; `held(since)` is the longest hold
-    since a loop time."""
+    """Ticks on the running loop from `start` to `stop`, and keeps the late ticks as holds.
+
+    `held(since)` is the longest hold since a loop time. `total(since)` is their sum.
+    """
 
     def __init__(self) -> None:
         self._loop = asyncio.get_running_loop()
         self._due = 0.0
-        #: `_CHARGED` at the last tick.
+        #: `_CHARGED.seconds` at the last tick.
         self._charged = 0.0
         self._handle: asyncio.TimerHandle | None = None
-        #: (loop time the late tick ran, seconds it was late)
+        #: Each late tick: (the loop time it ran, the seconds it was late).
         self._holds: deque[tuple[float, float]] = deque(maxlen=_KEPT)
 
     def start(self) -> None:
@@ -88,7 +100,7 @@ class LoopWatch:
     def _tick(self) -> None:
         now = self._loop.time()
         charged = _CHARGED.seconds
-        # Of how late this tick came, what the targets' datagrams took since the last is theirs.
+        # The CPU time the targets' datagrams took since the last tick is theirs, not a hold.
         late = now - self._due - (charged - self._charged)
         self._charged = charged
         if late > NOTABLE:
@@ -101,8 +113,10 @@ class LoopWatch:
         return max((lag for at, lag in self._holds if at >= since), default=0.0)
 
     def total(self, since: float) -> float:
-        """How long the loop was held (seconds) in all the holds that ended after `since`
-        together: the most that they can have moved what was read off the harness's clock."""
+        """The sum of the holds that ended after `since`, in seconds.
+
+        It is the most that the holds can have delayed what was read off the harness's clock.
+        """
         return sum(lag for at, lag in self._holds if at >= since)
 
     def stop(self) -> None:

@@ -1,16 +1,22 @@
-"""What a case awaits from its peer, as a harness whose event loop may be held up reads it
-(D-RSP-26: a hold of the harness's loop delays what it reads by its length at most, several by
-their sum).
+"""Waits for what a case expects from its peer, allowing for holds of the harness's loop.
 
-- `must_come`, and `came` for a datagram: what the peer must send, awaited within a window that
-  lies well past the bound of specs/ it sends it by (the case does not judge its timing). When
-  nothing came in it, the case waits as long again to learn how late it comes: a timing check,
-  excused as far as the harness's holds add up to how late it came, or, when it never came, to
-  how long the case waited past the window. On a machine that holds nothing, a peer that never
-  sends it fails, and so does one that sends it that late.
-- `may_come`: what the peer may send or not (the spec sets no bound for it), awaited within a
-  window and as much longer as the harness's holds add up to: what a held harness did not read
-  in its window, it reads then.
+The harness's event loop may be held up, for example on a loaded machine. A hold delays what the
+harness reads by the hold's length at most. Several holds delay it by their sum (D-RSP-26).
+
+`must_come` waits for something the peer must send. `came` does the same for one datagram.
+
+- specs/ sets a bound by which the peer must send it. The case waits for a window that ends well
+  past that bound. So this first wait does not judge the peer's timing.
+- If nothing came in the window, the case waits as long again. This tells how late it comes.
+- Then a timing check fails. It is excused only if the harness's holds add up to the lateness.
+  If nothing came at all, the lateness is how long the case waited past the window.
+- So, on a machine with no holds, a peer that never sends fails. A peer that sends only after
+  the window fails too.
+
+`may_come` waits for something the peer may or may not send. The spec sets no bound for it.
+
+- The case waits for a window, and then longer by the sum of the harness's holds.
+- What a held harness did not read in its window, it reads in that extra time.
 """
 
 from __future__ import annotations
@@ -29,13 +35,14 @@ T = TypeVar("T")
 #: A look for what the case awaits: given how long to wait (seconds), what came, or None.
 Look = Callable[[float], Awaitable[T | None]]
 
-#: Seconds (times --timeout-scale) of the case's time that the second window leaves for the
-#: verdict: the check's own, not the case's timeout (a fail that says nothing of what was late).
+#: Seconds (times --timeout-scale) of the case's time that the second wait leaves over.
+#: In that time the check gives its own verdict, which says what was late. Without it, the
+#: case's timeout would end the case with a fail that does not say.
 _SPARE = 0.1
 
 
 def _room(ctx: Context) -> float:
-    """Seconds a wait past its window may take of the case's time."""
+    """Seconds of the case's time that a wait past its window may take."""
     return max(ctx.left - _SPARE * ctx.scale, 0.0)
 
 
@@ -51,10 +58,17 @@ async def must_come(
     at: Callable[[T], float] | None = None,
     instead: Callable[[], str] | None = None,
 ) -> T:
-    """What `look` finds within `window`, which must come (Failed: `requirement`, `expected`;
-    `instead` says what came in its place). `again` looks for it from where `look` began (by
-    default `look` itself; a look that sends first must not send again); `at` says when what it
-    found came, in `probe`'s loop time (by default: when the look returned)."""
+    """What `look` finds within `window`. It must come.
+
+    If it does not come, the case fails with `requirement` and `expected`. `instead` says what
+    came in its place.
+
+    `again` is the look for the second wait. It looks from where `look` began. It defaults to
+    `look` itself. A look that sends a packet first needs an `again` that does not send again.
+
+    `at` says when the found thing came, in `probe`'s loop time. By default that is when the
+    look returned.
+    """
     since = probe.now
     found = await look(window)
     if found is None:
@@ -91,9 +105,15 @@ async def came(
     wait: float | None = None,
     instead: Callable[[], str] | None = None,
 ) -> Datagram:
-    """The first datagram of `kinds` for which `where` holds from `after` (by default: from now,
-    `send` sending its packet first as `answer_to` does), which must come (`must_come`) within
-    `wait` (the probe's by default); `expected` cites the bound of specs/ it is due by."""
+    """The first datagram of `kinds` for which `where` holds. It must come (`must_come`).
+
+    The search starts at `after`. By default it starts now. If `send` is given, it sends its
+    packet first, as `answer_to` does.
+
+    The window is `wait`. By default it is the probe's wait.
+
+    `expected` cites the bound in specs/ by which the datagram is due.
+    """
     start = probe.mark() if after is None else after
 
     def look(seconds: float) -> Awaitable[Datagram | None]:
@@ -119,10 +139,15 @@ async def came(
 async def may_come(
     ctx: Context, probe: DatagramLog, look: Look[T], since: float, window: float, what: str
 ) -> T | None:
-    """What `look` finds within `window`, and past it for as long as the holds of the harness's
-    loop since loop time `since` (when the case asked for it) add up to, as they grow while it
-    waits; None if it did not come. Inconclusive when the case's time ran out before the holds
-    were waited out (they may have hidden `what`)."""
+    """What `look` finds within `window`, or None if it does not come.
+
+    `since` is the loop time when the case asked for it. After the window, the case waits on
+    for as long as the holds of the harness's loop since `since` add up to. The holds may grow
+    while it waits; the wait grows with them.
+
+    Inconclusive if the case's time runs out before the holds are waited out. The holds may
+    have hidden `what`.
+    """
     due = probe.now + window
     found = await look(window)
     while found is None and probe.now < due + held(ctx, since) and _room(ctx) > 0:
