@@ -1,5 +1,6 @@
-"""The local system's side of an RSP session, without I/O (aioquic's shape): the Robot Device
-Manager and both packet handlers of the paper's Fig. 2.
+"""The local system's side of an RSP session, without I/O, in aioquic's shape.
+
+It is the Robot Device Manager and both packet handlers of the paper's Fig. 2.
 
     local = LocalEndpoint(model)
     local.connect(now)                       # HELLO
@@ -8,10 +9,14 @@ Manager and both packet handlers of the paper's Fig. 2.
     local.get_timer(); local.handle_timer(now)
     local.next_event()                       # events.SessionOpened, StateReceived ...
 
-The application sets effector values (`write`), requests sensors, monitors and events
-(`set_active`), activates modules, and issues commands and memory commands (`issue`). Every
-period T a DOWNLINK carries the active effectors' values, the module and request bits, and the
-occurrences due (D-RSP-14, D-RSP-17, D-RSP-18).
+The application calls the endpoint so:
+
+- `write` sets an effector's values.
+- `set_active` requests sensors, monitors and events, and activates modules.
+- `issue` issues commands and memory commands.
+
+Every period T, a DOWNLINK carries the active effectors' values, the module and request bits,
+and the occurrences due (D-RSP-14, D-RSP-17, D-RSP-18).
 """
 
 from __future__ import annotations
@@ -122,8 +127,9 @@ class LocalEndpoint:
         # The Robot Device Manager (paper §II.B): what every DOWNLINK carries.
         self._values: dict[int, dict[str, Value]] = {}
         self._active: set[int] = set()
-        #: What of them every DOWNLINK carries, in model order (D-RSP-14, D-RSP-18); None when
-        #: `write` or `set_active`, the only calls that change it, made it to be made again.
+        #: The items of them that every DOWNLINK carries, in model order (D-RSP-14, D-RSP-18).
+        #: Only `write` and `set_active` change them. They set this to None, and the next
+        #: DOWNLINK makes it again.
         self._standing: tuple[Item, ...] | None = None
         ids = 1 << (8 * model.id_length)
         self._sender = ReliableSender(ids, self.period)
@@ -234,7 +240,7 @@ class LocalEndpoint:
         if self.state != "open":
             return
         silence = self._live.check(now)
-        if silence is not None:  # most beats hear no silence: no enum member looked up
+        if silence is not None:  # most beats hear no silence, so they skip the enum lookups
             if silence is Silence.TIMEOUT:
                 self._bye(ByeReason.TIMEOUT, now)
                 return
@@ -275,8 +281,8 @@ class LocalEndpoint:
             assert isinstance(body, Bye)
             self.state = "closed"
             self._events.append(events.SessionClosed(body.reason, by_peer=True))
-        # Else a WELCOME again, answering a repeated HELLO: nothing to do (a REFUSED, of no
-        # session, the wire dropped).
+        # Else it is a WELCOME again, answering a repeated HELLO. There is nothing to do. (A
+        # REFUSED belongs to no session, and the wire has dropped it.)
 
     def _answer(self, data: bytes, now: float) -> None:
         """WELCOME or REFUSED to our HELLO (D-RSP-12)."""
@@ -354,7 +360,7 @@ class LocalEndpoint:
             values = self._values
             standing = tuple([Item(p, None, values.get(p)) for p in sorted(self._active)])
             self._standing = standing
-        self._credit = None  # counted at the first memory command due: most beats have none
+        self._credit = None  # counted at the first memory command due; most beats have none
         due = self._sender.due(now, self._may_start)
         carried = standing
         if due:

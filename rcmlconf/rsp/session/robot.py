@@ -1,5 +1,7 @@
-"""The robot's side of RSP, without I/O: the packet handler and the processors of the paper's
-§II.B (motion, sensor, security; the audio processor is `rsp.audio`, fed by the application).
+"""The robot's side of RSP, without I/O.
+
+It is the packet handler and the processors of the paper's §II.B: motion, sensor and security.
+The audio processor is `rsp.audio`; the application feeds it.
 
     robot = RobotEndpoint(model)
     robot.receive_datagram(data, addr, now)     # HELLO, DOWNLINK, ACK, PERIOD, BYE
@@ -7,10 +9,14 @@
     robot.get_timer(); robot.handle_timer(now)
     robot.next_event()                          # events.SessionOpened, OccurrenceReceived ...
 
-The application (a robot driver) reads what the effectors are to do from `effectors(now)` — the
-motion filter's output (D-RSP-20) — takes memory commands one at a time (`take_memory_command`,
-D-RSP-19), and reports sensors and monitors (`set_state`), events and memory events (`occur`).
-One session at a time: it drives the robot (REFUSED 3 to a second local system).
+The application is a robot driver. It calls the endpoint so:
+
+- `effectors(now)` says what the effectors are to do: the motion filter's output (D-RSP-20).
+- `take_memory_command` gives the memory commands one at a time (D-RSP-19).
+- `set_state` reports sensors and monitors; `occur` reports events and memory events.
+
+One session runs at a time, because a session drives the robot. A second local system gets
+REFUSED 3.
 """
 
 from __future__ import annotations
@@ -86,9 +92,10 @@ class RobotSession:
 class RobotEndpoint:
     """A robot's RSP side for one model.
 
-    A robot that breaks RSP on purpose, to test a conformance harness, is a subclass: it overrides
-    the protected methods where its bugs sit, `_welcome_again`, `_time_out` and `_stop_on_loss`
-    being the seams of rare paths made for it; the beat's methods have none.
+    A robot that breaks RSP on purpose, to test a conformance harness, is a subclass. It
+    overrides the protected methods where its bugs sit. `_welcome_again`, `_time_out` and
+    `_stop_on_loss` exist as seams for such subclasses, on rare paths. The beat's methods have
+    no seams, to keep them fast.
     """
 
     __slots__ = (
@@ -144,9 +151,9 @@ class RobotEndpoint:
         self._reported = {
             d.position for d in model.devices if bit(d.kind, MapPacket.UPLINK) is Bit.STATE
         }
-        #: D-RSP-14, from the model (immutable) once rather than by name at every item: the
-        #: modules, and the module of each device by position (None: in none; -1: one the model
-        #: lacks, never active).
+        #: D-RSP-14: the modules, and the module of each device by position. None means in no
+        #: module; -1 means a module the model lacks, which is never active. The model is
+        #: immutable, so this is worked out once here, not by name for every item.
         self._modules = frozenset(d.position for d in model.devices if d.kind is _K.MODULE)
         self._module_of = [_module_position(model, d) for d in model.devices]
 
@@ -161,16 +168,20 @@ class RobotEndpoint:
         found = device(self.codec, name, (_K.SENSOR, _K.MONITOR), "report a state")
         held = self._states.get(found.position)
         if held is not None and same_values(held, values):
-            # A body reports every tick, mostly what it reported before: the values held were
-            # checked and copied already, and checking these would give the same (D-RSP-18).
+            # A body reports every tick, mostly the same values as before. The values held
+            # were checked and copied already, so checking these again would change nothing
+            # (D-RSP-18).
             return
         self._states[found.position] = check_values(
             self.codec, PacketType.UPLINK, found, values, None
         )
 
     def reporting(self) -> list[str]:
-        """The sensors and monitors the next UPLINK carries (requested by the newest DOWNLINK, in
-        an active module, D-RSP-14): the only ones worth measuring and passing to `set_state`."""
+        """The sensors and monitors that the next UPLINK carries.
+
+        They are those the newest DOWNLINK requested, in an active module (D-RSP-14). Only these
+        are worth measuring and passing to `set_state`.
+        """
         session = self.session
         if session is None:
             return []
@@ -182,8 +193,11 @@ class RobotEndpoint:
         ]
 
     def occur(self, name: str, values: Mapping[str, Value]) -> int | None:
-        """An event or memory event; its ID, or None when the local system has not requested the
-        device (nothing of an unrequested device is reported, D-RSP-14)."""
+        """Report an event or memory event, and return its ID.
+
+        Returns None when the local system has not requested the device. Nothing of an
+        unrequested device is reported (D-RSP-14).
+        """
         found = device(self.codec, name, (_K.EVENT, _K.MEMORY_EVENT), "occur")
         checked = check_values(self.codec, PacketType.UPLINK, found, values, 0)
         if not self._reports(found.position):
@@ -216,7 +230,10 @@ class RobotEndpoint:
 
     @property
     def period(self) -> float:
-        """T now, seconds: the session's (PERIOD changes it, D-RSP-13), else the model's."""
+        """T now, in seconds: the session's if one is open, else the model's.
+
+        A PERIOD packet changes the session's T (D-RSP-13).
+        """
         return self.session.beat.period if self.session is not None else self.model.period
 
     def next_beat(self) -> float | None:
@@ -234,7 +251,7 @@ class RobotEndpoint:
         if session is None:
             return
         silence = session.live.check(now)
-        if silence is not None:  # most beats hear no silence: no enum member looked up
+        if silence is not None:  # most beats hear no silence, so they skip the enum lookups
             if silence is Silence.TIMEOUT:
                 self._time_out(now)
                 return
@@ -351,8 +368,11 @@ class RobotEndpoint:
                 return session_id
 
     def _refuse(self, header: Header, reason: RefusedReason, peer: Address, now: float) -> None:
-        """D-RSP-12: REFUSED belongs to no session; it echoes the HELLO's model ID and encryption
-        byte, so that a local system of another model reads it too."""
+        """Send REFUSED (D-RSP-12).
+
+        REFUSED belongs to no session. It echoes the HELLO's model ID and encryption byte, so
+        that a local system of another model can read it too.
+        """
         refused = Header(
             1,
             header.model_id,
@@ -370,7 +390,7 @@ class RobotEndpoint:
     def _downlink(
         self, session: RobotSession, header: Header, body: MapBody, arrival: Arrival, now: float
     ) -> None:
-        # Every period (D-RSP-13): items unpacked, names and enum members held in locals.
+        # This runs every period (D-RSP-13). So items are unpacked, and names are held in locals.
         items = body.items
         newer = arrival is _NEWER
         if newer:
@@ -389,7 +409,7 @@ class RobotEndpoint:
                 if self._occurrence(session, position, ident, values):
                     acks.append(Item(position, ident))  # R-RSP-26
             elif values is not None and newer:
-                module = module_of[position]  # `_in_active`, inline
+                module = module_of[position]  # `_in_active`, inlined for speed
                 if module is None or module in active:
                     found = devices[position]
                     session.motion.receive(found, values, stamp, now)
@@ -482,8 +502,11 @@ class RobotEndpoint:
 
 
 def _module_position(model: RobotModel, found: Device) -> int | None:
-    """The position of `found`'s module: None when it is in none, -1 when the model has no such
-    device (no DOWNLINK can activate it, D-RSP-14)."""
+    """The position of `found`'s module.
+
+    None when it is in no module. -1 when the model has no such device: then no DOWNLINK can
+    activate it (D-RSP-14).
+    """
     if found.module is None:
         return None
     owner = model.device(found.module)
@@ -491,5 +514,5 @@ def _module_position(model: RobotModel, found: Device) -> int | None:
 
 
 def _any(found: Device) -> bool:
-    """A robot's memory events start whenever due: it has no free-buffer credit to wait for."""
+    """Always true: a robot's memory events start when due. It waits for no free-buffer credit."""
     return True
