@@ -1,6 +1,8 @@
-"""The registry of cases. Each case is an async function registered with `@case`, in a module of
-`rcmlconf.conformance.cases` named after its area; its ID is stable (`rctp/msg/unknown-method`),
-never a number that shifts when a case is added.
+"""The registry of cases.
+
+Each case is an async function registered with `@case`. It lives in a module of
+`rcmlconf.conformance.cases` named after its area. Its ID is stable, such as
+`rctp/msg/unknown-method`: it is never a number that shifts when a case is added.
 """
 
 from __future__ import annotations
@@ -25,38 +27,41 @@ _ID = re.compile(r"^(rctp|rsp)/[a-z0-9-]+/[a-z0-9-]+$")
 CaseFunction = Callable[["Context"], Awaitable[None]]
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Case:
+    """One registered case. Built by `@case`; give every field by name."""
+
     id: str
     #: One line: what the target must do.
     purpose: str
-    #: The requirement IDs of specs/ it checks; a failure names one of them.
+    #: The requirement IDs of specs/ that it checks. A failure names one of them.
     requirements: tuple[str, ...]
     role: Role
-    #: Seconds, before --timeout-scale.
+    #: Seconds, before --timeout-scale multiplies them.
     timeout: float
-    #: An impairment spec (rcmlconf.impair) its UDP flows run under, or None.
+    #: An impairment spec (rcmlconf.impair) for its UDP flows, or None.
     impairment: str | None
-    #: Optional features (ICS keys) it needs; a target without one: not applicable.
+    #: Optional features (ICS keys) it needs. A target that lacks one: not applicable.
     features: tuple[str, ...]
-    #: Shares state with the other serial cases of its role (the access privilege, the one
-    #: client connection): they run one after another, beside the rest.
+    #: Shares state with the other serial cases of its role, such as the access privilege or
+    #: the one client connection. They run one after another, beside the rest.
     serial: bool
+    #: The coroutine function that runs the case.
     run: CaseFunction
-    #: Waits out the server's session timeout: its time grows by what --session-wait adds to
+    #: Waits out the server's session timeout. Its time grows by what --session-wait adds to
     #: run_defaults.SESSION_WAIT.
     waits_session: bool = False
-    #: A client case's own RCML, made from its robot's and the case's files URL (D-RCTP-31: a
-    #: case may serve another RCML to test step 1); served from the start of the run, since a
-    #: client may fetch it before the case's clock starts.
+    #: A client case's own RCML, made from its robot's RCML and the case's files URL. A case
+    #: may serve another RCML to test step 1 (D-RCTP-31). It is served from the start of the
+    #: run, as a client may fetch it before the case's clock starts.
     served: Served | None = None
-    #: Runs with no other case of the run in flight, after them: what it checks counts every
-    #: connection and session of the harness's address (D-RCTP-32's floors, R-RCTP-67).
+    #: Runs last, with no other case in flight. What it checks counts every connection and
+    #: session from the harness's address (D-RCTP-32's floors, R-RCTP-67).
     exclusive: bool = False
 
     @property
     def area(self) -> str:
-        """`rctp/msg` of `rctp/msg/unknown-method`: the JUnit classname."""
+        """The ID without its name: `rctp/msg` for `rctp/msg/unknown-method`. JUnit's classname."""
         return self.id.rsplit("/", 1)[0]
 
 
@@ -88,18 +93,18 @@ def case(
         if not found:
             raise ValueError(f"case {id} names no requirement")
         _CASES[id] = Case(
-            id,
-            purpose,
-            found,
-            role,
-            timeout,
-            impairment,
-            tuple(features),
-            serial,
-            run,
-            waits_session,
-            served,
-            exclusive,
+            id=id,
+            purpose=purpose,
+            requirements=found,
+            role=role,
+            timeout=timeout,
+            impairment=impairment,
+            features=tuple(features),
+            serial=serial,
+            run=run,
+            waits_session=waits_session,
+            served=served,
+            exclusive=exclusive,
         )
         return run
 
@@ -107,12 +112,13 @@ def case(
 
 
 def is_case_id(text: str) -> bool:
-    """True when `text` has the form of a case ID, whether or not a case has it (a baseline's)."""
+    """Whether `text` has the form of a case ID. No case need have it: a baseline may name
+    a case that is gone."""
     return _ID.fullmatch(text) is not None
 
 
 def all_cases() -> dict[str, Case]:
-    """Every case, by ID, in ID order (the case modules imported on first call)."""
+    """Every case, by ID, in ID order. The first call imports the case modules."""
     from rcmlconf.conformance import cases
 
     for module in pkgutil.walk_packages(cases.__path__, f"{cases.__name__}."):
@@ -121,7 +127,8 @@ def all_cases() -> dict[str, Case]:
 
 
 def select(found: Iterable[Case], only: Iterable[str] = (), skip: Iterable[str] = ()) -> list[Case]:
-    """The cases whose ID matches one of `only` (all when empty) and none of `skip` (globs)."""
+    """The cases whose ID matches a glob of `only` and none of `skip`. An empty `only`
+    matches every case."""
     only, skip = list(only), list(skip)
     return [
         c

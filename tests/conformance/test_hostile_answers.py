@@ -95,7 +95,15 @@ def test_a_wrong_answer_fails_a_case_that_took_it_for_something_else() -> None:
         await probe.request("RELEASE", "*")  # whatever it reads now, it is not judged again
 
     case = Case(
-        "test/swallowing", "", ("R-RCTP-33",), Role.SERVER, 5.0, None, (), False, swallowing
+        id="test/swallowing",
+        purpose="",
+        requirements=("R-RCTP-33",),
+        role=Role.SERVER,
+        timeout=5.0,
+        impairment=None,
+        features=(),
+        serial=False,
+        run=swallowing,
     )
 
     async def scenario() -> Result:
