@@ -131,15 +131,15 @@ async def _judged(
     except TimeoutError:
         seconds = ctx.timeout
         return Result(
-            case.id,
-            Verdict.FAIL,
-            time.monotonic() - started,
-            f"the case did not finish within {seconds:g} s",
-            case.requirements[0],
-            ("the exchange finished in time",),
-            "the target kept the case waiting",
-            _exchange(ctx),
-            run,
+            case=case.id,
+            verdict=Verdict.FAIL,
+            duration=time.monotonic() - started,
+            reason=f"the case did not finish within {seconds:g} s",
+            requirement=case.requirements[0],
+            expected=("the exchange finished in time",),
+            actual="the target kept the case waiting",
+            exchange=_exchange(ctx),
+            run=run,
             entries=_entries(ctx),
         )
     except OSError as error:  # what no probe caught: a reset fails, the rest is an error
@@ -161,15 +161,15 @@ def _failure(case: Case, ctx: Context, started: float, run: int, failed: Failed)
     """A failure, or inconclusive where the harness's own holds may explain it."""
     excuse = ctx.excuse()
     return Result(
-        case.id,
-        Verdict.INCONCLUSIVE if excuse else Verdict.FAIL,
-        time.monotonic() - started,
-        f"{failed.reason}; but {excuse}" if excuse else failed.reason,
-        failed.requirement,
-        failed.expected,
-        failed.actual,
-        _exchange(ctx),
-        run,
+        case=case.id,
+        verdict=Verdict.INCONCLUSIVE if excuse else Verdict.FAIL,
+        duration=time.monotonic() - started,
+        reason=f"{failed.reason}; but {excuse}" if excuse else failed.reason,
+        requirement=failed.requirement,
+        expected=failed.expected,
+        actual=failed.actual,
+        exchange=_exchange(ctx),
+        run=run,
         entries=_entries(ctx),
     )
 
@@ -192,7 +192,14 @@ async def _absent(case: Case, target: Target, options: RunOptions, run: int) -> 
         return None
     took = time.monotonic() - started
     why = f"{absent} ({report[0]})" if report else absent
-    return Result(case.id, Verdict.INCONCLUSIVE, took, why, exchange=tuple(report), run=run)
+    return Result(
+        case=case.id,
+        verdict=Verdict.INCONCLUSIVE,
+        duration=took,
+        reason=why,
+        exchange=tuple(report),
+        run=run,
+    )
 
 
 def capture_path(directory: Path, case: Case, run: int) -> Path:
@@ -302,7 +309,9 @@ def _dead(case: Case, target: Target, run: int, dead: dict[Role, GiveUp]) -> Res
     given_up = dead.get(case.role)
     if given_up is None or given_up.reason is None or _lacks(case, target):
         return None
-    return Result(case.id, Verdict.INCONCLUSIVE, 0.0, given_up.reason, run=run)
+    return Result(
+        case=case.id, verdict=Verdict.INCONCLUSIVE, duration=0.0, reason=given_up.reason, run=run
+    )
 
 
 def _result(
@@ -310,9 +319,16 @@ def _result(
 ) -> Result:
     took = time.monotonic() - started
     if verdict is Verdict.PASS:
-        return Result(case.id, verdict, took, reason, run=run)
-    entries = _entries(ctx)
-    return Result(case.id, verdict, took, reason, exchange=_exchange(ctx), run=run, entries=entries)
+        return Result(case=case.id, verdict=verdict, duration=took, reason=reason, run=run)
+    return Result(
+        case=case.id,
+        verdict=verdict,
+        duration=took,
+        reason=reason,
+        exchange=_exchange(ctx),
+        run=run,
+        entries=_entries(ctx),
+    )
 
 
 def _exchange(ctx: Context) -> tuple[str, ...]:

@@ -1,12 +1,14 @@
-"""The verdicts of a case (issue "The conformance harness": pass, fail, inconclusive, not
-applicable, error) and the exceptions a case stops with to give one.
+"""The five verdicts of a case, and the exceptions a case stops with to give one.
 
-A case that returns passes. `Failed` is the target's fault and carries the requirement broken,
-every outcome the requirement accepts and what happened. `Inconclusive` means the case could not
-tell (a precondition another case checks did not hold, the impairment hid the answer).
-`NotApplicable` means the target lacks an optional feature the case needs (ICS or model). An
-`error` is the harness's fault or the network's (a refused connection, a bug): never the
-target's failure.
+The verdicts are pass, fail, inconclusive, not applicable and error.
+A case that returns passes.
+`Failed` is the target's fault. It carries the requirement broken, every outcome the
+requirement accepts, and what happened.
+`Inconclusive` means the case could not tell. A precondition that another case checks did
+not hold, or the impairment hid the answer.
+`NotApplicable` means the target lacks an optional feature the case needs (ICS or model).
+An error is the fault of the harness or of the network, such as a refused connection or a
+bug. It is never the target's failure.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ class Verdict(enum.Enum):
 
 
 class CaseStop(Exception):
-    """How a case ends with another verdict than pass."""
+    """How a case ends with a verdict other than pass."""
 
     verdict: Verdict
 
@@ -62,30 +64,32 @@ class HarnessError(CaseStop):
     verdict = Verdict.ERROR
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Result:
-    """One case's run."""
+    """One run of one case. Give every field by name."""
 
+    #: The case's ID.
     case: str
     verdict: Verdict
     #: Seconds.
     duration: float
-    #: Why, in a sentence; empty for a pass.
+    #: Why, in a sentence. Empty for a pass.
     reason: str = ""
-    #: For a failure: the requirement broken, what it accepts, what happened.
+    #: For a failure: the requirement broken, what it accepts, and what happened.
     requirement: str | None = None
     expected: tuple[str, ...] = ()
     actual: str | None = None
-    #: The exchange that led there, one line a message or event.
+    #: The exchange that led to the verdict, one line a message or event.
     exchange: tuple[str, ...] = ()
-    #: Which of --repeat's runs, from 1.
+    #: Which of --repeat's runs it is, from 1.
     run: int = 1
-    #: A failure the baseline lists (known): it does not fail the run.
+    #: A failure that the baseline lists. It does not fail the run.
     known: bool = False
     #: The nodes and devices the case named (`Transcript.used`): what its checks could show.
     used: tuple[str, ...] = ()
-    #: When the case ended (time.time()): with `duration`, when it ran, for the reports' spans
-    #: (cases run side by side, so an area's time is not the sum of its cases').
+    #: When the case ended (time.time()). With `duration`, it says when the case ran. The
+    #: reports draw spans from it, as cases run side by side: an area's time is not the sum
+    #: of its cases' times.
     ended: float = 0.0
-    #: The exchange as data (`Transcript.entries`), kept as `exchange` is: --json, --html.
+    #: The exchange as data (`Transcript.entries`), for --json and --html.
     entries: tuple[Entry, ...] = ()

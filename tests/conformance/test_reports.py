@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -24,24 +25,40 @@ from rcmlconf.pcap.writer import MSS, Payload, write_pcap
 SPAN = (0.0, 1.0)
 
 
+def failure(case: str, exchange: tuple[str, ...]) -> Result:
+    """A failure of R-RCTP-9 by `case`, after `exchange`."""
+    return Result(
+        case=case,
+        verdict=Verdict.FAIL,
+        duration=0.2,
+        reason="expected 501; got 200 OK",
+        requirement="R-RCTP-9",
+        expected=("501",),
+        actual="200 OK",
+        exchange=exchange,
+    )
+
+
 def results() -> list[Result]:
     ids = list(all_cases())
+    failed = failure(ids[1], ("  0.001  -> FROB / RCTP/2.0\x01⏎",))
     return [
-        Result(ids[0], Verdict.PASS, 0.01, ended=100.0),
+        Result(case=ids[0], verdict=Verdict.PASS, duration=0.01, ended=100.0),
+        failed,
+        Result(case=ids[2], verdict=Verdict.ERROR, duration=0.0, reason="network error: refused"),
         Result(
-            ids[1],
-            Verdict.FAIL,
-            0.2,
-            "expected 501; got 200 OK",
-            "R-RCTP-9",
-            ("501",),
-            "200 OK",
-            ("  0.001  -> FROB / RCTP/2.0\x01⏎",),
+            case=ids[3],
+            verdict=Verdict.NOT_APPLICABLE,
+            duration=0.0,
+            reason="the robot has no stream access",
         ),
-        Result(ids[2], Verdict.ERROR, 0.0, "network error: refused"),
-        Result(ids[3], Verdict.NOT_APPLICABLE, 0.0, "the robot has no stream access"),
-        Result(ids[4], Verdict.INCONCLUSIVE, 0.1, "CONNECT was answered 503"),
-        Result(ids[1], Verdict.FAIL, 0.2, "again", "R-RCTP-9", ("501",), "200 OK", (), run=2),
+        Result(
+            case=ids[4],
+            verdict=Verdict.INCONCLUSIVE,
+            duration=0.1,
+            reason="CONNECT was answered 503",
+        ),
+        replace(failed, reason="again", exchange=(), run=2),
     ]
 
 
@@ -74,8 +91,8 @@ def test_an_area_s_suite_time_is_the_span_its_cases_ran_in_not_their_sum() -> No
     cases = all_cases()
     first, second = [c.id for c in cases.values() if c.area == "rctp/msg"][:2]
     both = [
-        Result(first, Verdict.PASS, 1.0, ended=11.0),
-        Result(second, Verdict.PASS, 1.5, ended=11.2),
+        Result(case=first, verdict=Verdict.PASS, duration=1.0, ended=11.0),
+        Result(case=second, verdict=Verdict.PASS, duration=1.5, ended=11.2),
     ]
     suite = etree.fromstring(to_junit(both, cases, 9.0, 12.0)).find("testsuite")
     assert suite is not None
@@ -145,7 +162,7 @@ def test_a_capture_reads_back_as_the_connection_and_datagrams_it_was() -> None:
 def test_a_long_exchange_is_whole_in_json_and_its_end_in_the_text_report() -> None:
     case = next(iter(all_cases().values()))
     lines = tuple(f"{i:7.3f}  c1 -> line {i}" for i in range(100))
-    failed = Result(case.id, Verdict.FAIL, 1.0, "why", "R-RCTP-1", ("x",), "y", lines)
+    failed = failure(case.id, lines)
     exchange = to_json([failed], all_cases(), "t", {}, SPAN)["results"][0]["exchange"]
     assert [(e["time"], e["direction"], e["channel"], e["summary"]) for e in exchange] == [
         (float(i), "sent", "c1", f"line {i}") for i in range(100)
