@@ -125,7 +125,14 @@ def run_suite(
     if baseline is not None:
         warn_unknown(output, baseline, known, registry)
     options = RunOptions(
-        timeout_scale, seed, concurrency, repeat, impairment, capture, session_wait, connect_timeout
+        timeout_scale=timeout_scale,
+        seed=seed,
+        concurrency=concurrency,
+        repeat=repeat,
+        impair=impairment,
+        capture=capture,
+        session_wait=session_wait,
+        connect_timeout=connect_timeout,
     )
     if capture is not None:
         try:

@@ -1,6 +1,10 @@
-"""Running cases: each bounded by its timeout (scaled), concurrently where they share no state
-(`Case.serial` ones one after another, in a lane of their role beside the rest; `Case.exclusive`
-ones last, with nothing else in flight), every exception turned into a verdict."""
+"""Runs cases and turns every exception into a verdict.
+
+Each case is bounded by its timeout, times --timeout-scale.
+Cases that share no state run side by side.
+`Case.serial` cases run one after another, in one lane a role, beside the rest.
+`Case.exclusive` cases run last, with nothing else in flight.
+"""
 
 from __future__ import annotations
 
@@ -23,30 +27,35 @@ from rcmlconf.conformance.verdicts import CaseStop, Failed, Result, Verdict
 from rcmlconf.impair.spec import Impairment
 from rcmlconf.pcap.writer import Gap, write_pcap
 
-#: How a pass that could not check all of its requirement begins its reason.
+#: The start of the reason of a pass that could not check all of its requirement.
 PARTLY = "checked in part; not checked: "
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class RunOptions:
+    """How the runner runs the cases. Give every field by name."""
+
+    #: --timeout-scale: multiplies every case's timeout.
     timeout_scale: float = 1.0
+    #: --seed: seeds every impairment.
     seed: int = 0
-    #: Cases in flight at once.
+    #: --concurrency: how many cases are in flight at once.
     concurrency: int = 16
+    #: --repeat: how many times each case runs.
     repeat: int = 1
-    #: --impair: applied to every UDP flow of every case that declares no impairment of its own.
+    #: --impair: the impairment of every UDP flow of a case that declares none of its own.
     impair: Impairment | None = None
-    #: --capture: a pcap of each case's traffic is written here.
+    #: --capture: the directory where a pcap of each case's traffic goes.
     capture: Path | None = None
-    #: --session-wait: the longest session timeout (D-RCTP-11) the cases wait out.
+    #: --session-wait: the longest session timeout (D-RCTP-11) that the cases wait out.
     session_wait: float = SESSION_WAIT
-    #: --connect-timeout: how long a client case waits for its client to connect, before its
-    #: own clock starts.
+    #: --connect-timeout: how long a client case waits for its client to connect. The case's
+    #: own clock starts after that.
     connect_timeout: float = CONNECT_TIMEOUT
 
 
 def under_test(case: Case, target: Target) -> bool:
-    """Whether the target has the role the case tests."""
+    """Whether the target plays the role that the case tests."""
     if case.role is Role.ROBOT:
         return bool(target.rsp)
     if case.role is Role.CLIENT:
@@ -57,10 +66,12 @@ def under_test(case: Case, target: Target) -> bool:
 
 
 def alone(case: Case, target: Target) -> bool:
-    """Whether the case runs in its role's lane, one after another (`Case.serial`). Client
-    cases run side by side when the harness starts the clients itself: each case has its own
-    URL, so each connection is its case's (D-RCTP-31); local cases when each summons a local
-    system of its own (`LocalListener.side_by_side`)."""
+    """Whether the case runs in its role's lane, one case after another (`Case.serial`).
+
+    Client cases run side by side when the harness starts the clients itself. Each case then
+    has its own URL, so each connection belongs to its case (D-RCTP-31). Local cases run side
+    by side when each starts a local system of its own (`LocalListener.side_by_side`).
+    """
     if case.role is Role.CLIENT and target.clients is not None and target.clients.starts_clients:
         return False
     if case.role is Role.LOCAL and target.locals is not None and target.locals.side_by_side:
@@ -69,7 +80,7 @@ def alone(case: Case, target: Target) -> bool:
 
 
 def robot_pool(target: Target) -> asyncio.Queue[Address]:
-    """The target's RSP robots, free for the taking (`Context.rsp`)."""
+    """A queue of the target's RSP robots. A case takes one from it (`Context.rsp`)."""
     pool: asyncio.Queue[Address] = asyncio.Queue()
     for address in target.rsp:
         pool.put_nowait(address)
@@ -91,10 +102,13 @@ async def run_case(
     robot: Address | None = None,
     contact: Contact | None = None,
 ) -> Result:
-    """One case, its timeout counted from now. `robot`: the RSP robot taken for it already (a
-    robot serves one session at a time, D-RSP-12, so a case may have waited for its turn; that
-    wait is not the case's time), else it takes one from `robots` when it asks. `contact`: where
-    its control connections, or datagrams to the robot, are kept (`GiveUp`)."""
+    """Run one case. Its timeout counts from now.
+
+    `robot` is the RSP robot already taken for the case. A robot serves one session at a time
+    (D-RSP-12), so the case may have waited for its turn; that wait is not the case's time.
+    Without `robot`, the case takes one from `robots` when it asks.
+    `contact` keeps the case's control connections, or its datagrams to the robot (`GiveUp`).
+    """
     pool = robots or robot_pool(target)
     ctx = Context(case, target, options.timeout_scale, options.seed, pool, options.impair)
     ctx.contact = contact or ctx.contact
@@ -108,7 +122,7 @@ async def run_case(
 async def _judged(
     case: Case, target: Target, options: RunOptions, run: int, ctx: Context
 ) -> Result:
-    """The case run in `ctx`: its verdict, every exception turned into one."""
+    """Run the case in `ctx` and give its verdict. Every exception becomes a verdict."""
     started = time.monotonic()
     try:
         lacks = _lacks(case, target)
@@ -117,12 +131,13 @@ async def _judged(
         try:
             await asyncio.wait_for(case.run(ctx), ctx.timeout)
         except Exception as error:
-            # An answer out of place comes before what it led to; a case that failed the
-            # answer for what it said judged it first (`Outstanding.doubt`).
+            # An answer out of place is judged before what it led to. A case that failed
+            # the answer for what it said has judged it already (`Outstanding.doubt`).
             ctx.answers_in_place(doubts=not isinstance(error, Failed))
             raise
         finally:
-            ctx.close()  # first: what closing notes (a client command's end) is in the exchange
+            # Close first: the exchange then holds what closing notes, such as a command's end.
+            ctx.close()
         ctx.answers_in_place()
     except Failed as failed:
         return _failure(case, ctx, started, run, failed)
@@ -142,12 +157,12 @@ async def _judged(
             run=run,
             entries=_entries(ctx),
         )
-    except OSError as error:  # what no probe caught: a reset fails, the rest is an error
+    except OSError as error:  # no probe caught it: a reset fails, the rest is an error
         judged = stop(error, case.requirements[0])
         if isinstance(judged, Failed):
             return _failure(case, ctx, started, run, judged)
         return _result(case, ctx, started, run, judged.verdict, judged.reason)
-    except Exception as error:  # a harness bug: reported as an error, never a traceback
+    except Exception as error:  # a harness bug: an error verdict, never a traceback
         reason = f"harness fault: {type(error).__name__}: {error}"
         return _result(case, ctx, started, run, Verdict.ERROR, reason)
     finally:
@@ -158,7 +173,7 @@ async def _judged(
 
 
 def _failure(case: Case, ctx: Context, started: float, run: int, failed: Failed) -> Result:
-    """A failure, or inconclusive where the harness's own holds may explain it."""
+    """A failure. It is inconclusive when the harness's own holds may explain it."""
     excuse = ctx.excuse()
     return Result(
         case=case.id,
@@ -175,10 +190,12 @@ def _failure(case: Case, ctx: Context, started: float, run: int, failed: Failed)
 
 
 async def _absent(case: Case, target: Target, options: RunOptions, run: int) -> Result | None:
-    """A client or local case's wait for its implementation to connect or send its HELLO,
-    before the case's clock starts (one that takes its time to start is not slow to answer):
-    the case's inconclusive if none came within --connect-timeout, with how the one started for
-    it ran."""
+    """Wait for a client or local case's implementation to connect or send its HELLO.
+
+    The case's clock starts after this wait: an implementation slow to start is not slow to
+    answer. If none came within --connect-timeout, the case is inconclusive, and its result
+    holds the report of the command started for it. Else None.
+    """
     started = time.monotonic()
     if case.role is Role.CLIENT and target.clients is not None:
         absent = await target.clients.arrival(case.id, options.connect_timeout)
@@ -203,14 +220,18 @@ async def _absent(case: Case, target: Target, options: RunOptions, run: int) -> 
 
 
 def capture_path(directory: Path, case: Case, run: int) -> Path:
-    """`rctp_msg_unknown-method.pcap`, `-run2` before the suffix for --repeat's later runs."""
+    """Where a case's pcap goes, such as `rctp_msg_unknown-method.pcap`. Later runs of
+    --repeat add `-run2` and so on before the suffix."""
     stem = case.id.replace("/", "_") + (f"-run{run}" if run > 1 else "")
     return directory / f"{stem}.pcap"
 
 
 def _capture(directory: Path, case: Case, run: int, ctx: Context) -> None:
-    """The case's payloads as the transcript kept them; pcapng (`.pcapng`) when it left some
-    out, whose blocks say where (rcmlconf.pcap.writer)."""
+    """Write the case's payloads as the transcript kept them.
+
+    The file is pcapng (`.pcapng`) when the transcript left some payloads out. Its blocks then
+    say where (rcmlconf.pcap.writer).
+    """
     captured = ctx.transcript.capture
     path = capture_path(directory, case, run)
     if any(isinstance(item, Gap) for item in captured):
@@ -218,7 +239,7 @@ def _capture(directory: Path, case: Case, run: int, ctx: Context) -> None:
     try:
         with path.open("wb") as file:
             write_pcap(file, captured)
-    except (OSError, ValueError) as error:  # ValueError: an endpoint named, not numbered
+    except (OSError, ValueError) as error:  # ValueError: an endpoint with a name, not an IP
         ctx.transcript.note(f"capture not written: {error}")
 
 
@@ -228,7 +249,7 @@ async def run_cases(
     options: RunOptions,
     done: Callable[[Result], None] = lambda _: None,
 ) -> list[Result]:
-    """Every case, `options.repeat` times; `done` hears of each result as it comes."""
+    """Run every case `options.repeat` times. `done` hears of each result as it comes."""
     results: list[Result] = []
     gate = asyncio.Semaphore(max(1, options.concurrency))
     robots = robot_pool(target)
@@ -236,15 +257,15 @@ async def run_cases(
     dead = {role: GiveUp() for role in GIVEN_UP}  # a target of each role, judged apart
 
     async def one(case: Case, run: int) -> None:
-        # A robot case waits for a free robot before it takes a slot, and its clock starts
-        # only then: one robot under test serves the robot cases one after another.
+        # A robot case waits for a free robot before it takes a slot. Its clock starts only
+        # then: one robot under test serves the robot cases one after another.
         robot = await robots.get() if needs_robot(case, target) else None
         if case.role is Role.LOCAL and target.locals is not None:
-            # Likewise a local case starts once the local system under test is done with the
-            # session of the case before (D-RSP-24: one at a time): not the case's time either.
+            # A local case starts once the local system under test is done with the case
+            # before (D-RSP-24: one session at a time). That wait is not the case's time.
             await target.locals.settled()
         try:
-            async with gate:  # a client waiting in line would wait on its own timers
+            async with gate:  # a client waiting in line would run out its own timers
                 result = await _absent(case, target, options, run) or _dead(case, target, run, dead)
                 if result is None:
                     given_up = dead.get(case.role)
@@ -267,8 +288,8 @@ async def run_cases(
         for case in serial:
             await one(case, run)
 
-    # Serial cases share state with each other (the access privilege, the one client
-    # connection), not with the rest: one lane a role, beside the concurrent cases.
+    # Serial cases share state with each other, such as the access privilege or the one
+    # client connection. They share none with the rest: one lane a role, beside the others.
     lanes: dict[Role, list[Case]] = {}
     for case in cases:
         if alone(case, target) and not case.exclusive:
@@ -284,18 +305,19 @@ async def run_cases(
         exclusive = [c for c in cases if c.exclusive]
         for run in range(1, options.repeat + 1):
             if run > 1 and exclusive:
-                # D-RCTP-33: what the exclusive cases held may count against the server's caps
-                # for a second after they closed it.
+                # What the exclusive cases held may count against the server's caps for a
+                # second after they closed it (D-RCTP-33).
                 await asyncio.sleep(options.timeout_scale)
-            # The longest first: a case that must wait out a protocol timer should not also
-            # wait for a free slot (the suite takes as long as its slowest case at best). Before
-            # them the BASIC ones, so that a dead target fails them before the run gives up.
+            # The longest cases first. A case that waits out a protocol timer should not also
+            # wait for a free slot: the suite takes at least as long as its slowest case.
+            # The BASIC cases go before them, so a dead target fails those before the run
+            # gives up.
             free = (c for c in cases if not alone(c, target) and not c.exclusive)
             longest_first = sorted(free, key=lambda c: (c.id not in BASIC, -c.timeout))
             concurrent = [one(c, run) for c in longest_first]
             await asyncio.gather(*concurrent, *(lane(serial, run) for serial in lanes.values()))
-            # Then alone: the other cases' connections would count against what they count
-            # (the caps of D-RCTP-32).
+            # The exclusive cases run alone. Other cases' connections would count against
+            # the caps they check (D-RCTP-32).
             for case in exclusive:
                 await one(case, run)
     finally:
@@ -305,7 +327,8 @@ async def run_cases(
 
 
 def _dead(case: Case, target: Target, run: int, dead: dict[Role, GiveUp]) -> Result | None:
-    """Why a case that applies is not run: the run gave up on its role's dead target."""
+    """The result of a case that applies but is not run, as the run gave up on its role's
+    dead target. None when the case runs."""
     given_up = dead.get(case.role)
     if given_up is None or given_up.reason is None or _lacks(case, target):
         return None
@@ -332,7 +355,7 @@ def _result(
 
 
 def _exchange(ctx: Context) -> tuple[str, ...]:
-    """The exchange's lines, as the transcript keeps them (its start and its end)."""
+    """The exchange's lines as the transcript keeps them: its start and its end."""
     return tuple(ctx.transcript.lines)
 
 
@@ -342,6 +365,6 @@ def _entries(ctx: Context) -> tuple[Entry, ...]:
 
 
 def _lacks(case: Case, target: Target) -> str:
-    """Why the case does not apply (the target's ICS lacks a feature it needs), or ""."""
+    """Why the case does not apply: the target's ICS lacks a feature it needs. Else ""."""
     missing = [f for f in case.features if f not in target.features]
     return "the ICS does not declare " + ", ".join(repr(f) for f in missing) if missing else ""
