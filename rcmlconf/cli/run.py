@@ -1,8 +1,8 @@
 """`rcmlconf run`: the conformance suite against an implementation, or the embedded reference.
 
-Only the options are declared here: the run itself (`run_suite`) is imported once they are read,
-so that a bad option is refused without loading the harness (its imports take three times what
-these do).
+This module declares the options and turns them into one `RunSettings`.
+The run itself (`run_suite`) is imported only after that. A bad option is then refused
+without loading the harness, whose imports take three times as long as these.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from rcmlconf.cli.hosts import address_option, listen_option
 from rcmlconf.cli.params import Bounded
 from rcmlconf.cli.run_options import report_option, site_option
 from rcmlconf.conformance.run_defaults import CONNECT_TIMEOUT, SESSION_WAIT
+from rcmlconf.conformance.settings import ReportFiles, RunSettings, TargetSettings
 from rcmlconf.impair.spec import MOST_BURST, MOST_TIME
 from rcmlconf.rcml.url import DEFAULT_PORT as RCTP_PORT
 from rcmlconf.reference.faults import Fault
@@ -204,6 +205,51 @@ def run(**options: Any) -> None:
       rcmlconf run --fault acquire-not-exclusive # the suite catches a bug
       rcmlconf run --list
     """
+    settings = run_settings(options)
     from rcmlconf.cli.run_suite import run_suite
 
-    run_suite(**options)
+    run_suite(settings)
+
+
+def target_settings(options: dict[str, Any]) -> TargetSettings:
+    """The target options, taken out of `options` (click's, by parameter name)."""
+    return TargetSettings(
+        target=options.pop("target"),
+        rcml=options.pop("rcml"),
+        site=options.pop("site"),
+        rsp_target=options.pop("rsp_target"),
+        model=options.pop("model"),
+        ics=options.pop("ics"),
+        role=options.pop("role"),
+        listen=options.pop("listen"),
+        client_command=options.pop("client_command"),
+        connect_timeout=options.pop("connect_timeout"),
+        faults=options.pop("faults"),
+    )
+
+
+def run_settings(options: dict[str, Any]) -> RunSettings:
+    """`run`'s options, taken out of `options` (click's, by parameter name). An option left
+    over is a bug: RunSettings has no field for it."""
+    settings = RunSettings(
+        tested=target_settings(options),
+        reports=ReportFiles(
+            junit=options.pop("junit"), json=options.pop("json_file"), html=options.pop("html_file")
+        ),
+        list_only=options.pop("list_only"),
+        strict=options.pop("strict"),
+        only=options.pop("only"),
+        skip=options.pop("skip"),
+        repeat=options.pop("repeat"),
+        timeout_scale=options.pop("timeout_scale"),
+        session_wait=options.pop("session_wait"),
+        seed=options.pop("seed"),
+        impair=options.pop("impair"),
+        concurrency=options.pop("concurrency"),
+        baseline=options.pop("baseline"),
+        capture=options.pop("capture"),
+        verbose=options.pop("verbose"),
+    )
+    if options:
+        raise TypeError(f"RunSettings has no field for {', '.join(sorted(options))}")
+    return settings

@@ -1,5 +1,8 @@
-"""`rcmlconf run` once its options are read (`rcmlconf.cli.run` declares them): each option and
-file checked, the targets reached once, the cases run, and the reports written."""
+"""`rcmlconf run` once click has read its options into a `RunSettings`.
+
+`rcmlconf.cli.run` declares the options. This module checks each option and file, reaches the
+targets once, runs the cases and writes the reports. Every check comes before any case runs.
+"""
 
 from __future__ import annotations
 
@@ -9,16 +12,15 @@ import json
 import sys
 import time
 from collections import Counter
-from collections.abc import AsyncIterator, Sequence
-from dataclasses import replace
+from collections.abc import AsyncIterator, Callable, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, NoReturn, TypeVar
 
 import click
 
 from rcmlconf.cli.cases import chosen_cases, list_cases
 from rcmlconf.cli.console import Output
-from rcmlconf.cli.hosts import Address
 from rcmlconf.cli.run_listen import (
     ClientTarget,
     LocalTarget,
@@ -41,6 +43,7 @@ from rcmlconf.cli.run_target import (
     robot_problem,
     server_problem,
 )
+from rcmlconf.conformance.command import Command
 from rcmlconf.conformance.files import shown
 from rcmlconf.conformance.giveup import NOT_RUN
 from rcmlconf.conformance.ics import EVERYTHING, Ics, load_ics
@@ -58,9 +61,10 @@ from rcmlconf.conformance.runner import (
     run_cases,
     under_test,
 )
+from rcmlconf.conformance.settings import ReportFiles, RunSettings, TargetSettings
 from rcmlconf.conformance.targets import Target, embedded_reference, quiet_reference_logs
 from rcmlconf.conformance.verdicts import Result, Verdict
-from rcmlconf.impair.spec import parse_impairment
+from rcmlconf.impair.spec import Impairment, parse_impairment
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.reference.faults import Fault, describe, faults_named
 from rcmlconf.rsp.model import RobotModel
@@ -75,116 +79,203 @@ _STYLE = {
     Verdict.ERROR: "magenta",
 }
 
+#: What the run tests: a target it reached, or a client or local system it waits for.
+#: None: the embedded reference.
+External = Target | ClientTarget | LocalTarget | None
 
-def run_suite(
-    target: Address | None,
-    rcml: Path | None,
-    site: str | None,
-    rsp_target: Address | None,
-    model: Path | None,
-    ics: Path | None,
-    role: str,
-    listen: Address | None,
-    client_command: str | None,
-    connect_timeout: float,
-    list_only: bool,
-    strict: bool,
-    only: tuple[str, ...],
-    skip: tuple[str, ...],
-    repeat: int,
-    timeout_scale: float,
-    session_wait: float,
-    seed: int,
-    impair: str | None,
-    concurrency: int,
-    junit: Path | None,
-    json_file: Path | None,
-    html_file: Path | None,
-    baseline: Path | None,
-    capture: Path | None,
-    faults: tuple[str, ...],
-    verbose: bool,
-) -> None:
-    """The run `rcmlconf run`'s help describes; its options by name."""
+T = TypeVar("T")
+V = TypeVar("V")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class _Inputs:
+    """What the options' files and specs hold, read and checked."""
+
+    #: --ics, or an ICS that declares everything.
+    declared: Ics
+    #: The case IDs of --baseline.
+    known: frozenset[str]
+    impairment: Impairment | None
+    command: Command | None
+    #: The robot of --rcml.
+    robot: RcmlDocument | None
+    #: The robot model of --model.
+    played: RobotModel | None
+
+
+def run_suite(settings: RunSettings) -> None:
+    """Run `rcmlconf run` as its help says, and exit with the run's status."""
     output = Output()
-    declared = loaded("--ics", load_ics, ics) if ics is not None else EVERYTHING
-    known = loaded("--baseline", load_baseline, baseline) if baseline is not None else frozenset()
-    impairment = loaded("--impair", parse_impairment, impair) if impair is not None else None
-    _check_roles(role, target, rcml, site, rsp_target, model, listen, faults)
-    command = listen_command(client_command, listen)
-    robot = robot_file("--rcml", load_robot, rcml) if rcml is not None else None
-    played = robot_file("--model", load_robot_model, model) if model is not None else None
-    if not list_only:
-        check_reports({"--junit": junit, "--json": json_file, "--html": html_file}, capture)
+    inputs = _inputs(settings)
     registry = all_cases()
-    chosen = chosen_cases(registry.values(), only, skip)
-    if list_only:
-        roles = _roles(role, target, rsp_target, listen)
+    chosen = chosen_cases(registry.values(), settings.only, settings.skip)
+    if settings.list_only:
+        roles = _roles(settings.tested)
         list_cases(output, [c for c in chosen if roles is None or c.role in roles])
         return
-    if baseline is not None:
-        warn_unknown(output, baseline, known, registry)
-    options = RunOptions(
-        timeout_scale=timeout_scale,
-        seed=seed,
-        concurrency=concurrency,
-        repeat=repeat,
-        impair=impairment,
-        capture=capture,
-        session_wait=session_wait,
-        connect_timeout=connect_timeout,
-    )
-    if capture is not None:
-        try:
-            capture.mkdir(parents=True, exist_ok=True)
-        except OSError as error:
-            raise click.BadParameter(
-                f"{shown(capture)} cannot be made: {error.strerror or error}",
-                param_hint="'--capture'",
-            ) from None
-    external: Target | ClientTarget | LocalTarget | None = None
-    if target is not None or rsp_target is not None:
-        if target is not None:
-            wait = CONNECT_WAIT * timeout_scale
-            reach(output, "--target", target, "RCTP over TCP", server_problem(target, wait))
-            robot = robot or fetched_robot(output, target, wait)
-        if rsp_target is not None:
-            reach(output, "--rsp-target", rsp_target, "RSP over UDP", robot_problem(rsp_target))
-        external = _external(output, target, robot, site, rsp_target, played, declared)
-    elif listen is not None and played is not None and role == "local":
-        external = LocalTarget(listen, played, declared, command)
-    elif listen is not None:
-        served = rcml if robot is not None and rcml is not None else HARNESS_RCML
-        robot = robot or load_robot(served)
-        external = ClientTarget(listen, robot, served, declared.features, command)
-    if external is None:
-        quiet_reference_logs()
-    started = time.time()
-    try:
-        tested, results = asyncio.run(
-            _run(external, declared, faults_named(faults), chosen, options, output, verbose)
-        )
-    except OSError as error:
-        why = error.strerror or str(error)
-        if listen is not None:
-            output.problem("run", f"cannot listen on --listen {described(listen)}: {why}")
-        else:
-            output.problem("run", f"cannot start the embedded reference: {why}")
-        sys.exit(2)
-    span = (started, time.time())
-    results = mark_known(results, known)
-    settings = {"seed": seed, "repeat": repeat, "timeout_scale": timeout_scale, "impair": impair}
-    files = _Reports(junit, json_file, html_file)
-    _write_reports(output, results, registry, tested, settings, span, files)
-    _report(output, results, registry, tested)
-    status, why = run_status(results, strict)
+    if settings.baseline is not None:
+        warn_unknown(output, settings.baseline, inputs.known, registry)
+    _make_capture(settings.capture)
+    external = _external(output, settings, inputs)
+    target, results, span = _run_or_exit(output, settings, inputs, external, chosen)
+    results = mark_known(results, inputs.known)
+    _write_reports(output, results, registry, target, settings, span)
+    _report(output, results, registry, target)
+    status, why = run_status(results, settings.strict)
     if why:
         output.problem("run", why)
     sys.exit(status)
 
 
+def _inputs(settings: RunSettings) -> _Inputs:
+    """Read and check what the options name. The order is the order of their errors."""
+    tested = settings.tested
+    declared = _given("--ics", load_ics, tested.ics, EVERYTHING)
+    known = _given("--baseline", load_baseline, settings.baseline, frozenset[str]())
+    impairment = _given("--impair", parse_impairment, settings.impair, None)
+    _check_roles(tested)
+    inputs = _Inputs(
+        declared=declared,
+        known=known,
+        impairment=impairment,
+        command=listen_command(tested.client_command, tested.listen),
+        robot=_given("--rcml", load_robot, tested.rcml, None, robot_file),
+        played=_given("--model", load_robot_model, tested.model, None, robot_file),
+    )
+    if not settings.list_only:
+        check_reports(_report_options(settings.reports), settings.capture)
+    return inputs
+
+
+def _given(
+    option: str,
+    load: Callable[[V], T],
+    value: V | None,
+    default: T,
+    read: Callable[[str, Callable[[V], T], V], T] = loaded,
+) -> T:
+    """`read(option, load, value)`: `loaded`, or `robot_file` for a robot's file. `default`
+    when the option is not given."""
+    return default if value is None else read(option, load, value)
+
+
+def _report_options(files: ReportFiles) -> dict[str, Path | None]:
+    """Each report option, with its file if given."""
+    return {"--junit": files.junit, "--json": files.json, "--html": files.html}
+
+
+def _make_capture(capture: Path | None) -> None:
+    """Make the directory of --capture, or refuse the option."""
+    if capture is None:
+        return
+    try:
+        capture.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise click.BadParameter(
+            f"{shown(capture)} cannot be made: {error.strerror or error}",
+            param_hint="'--capture'",
+        ) from None
+
+
+def _external(output: Output, settings: RunSettings, inputs: _Inputs) -> External:
+    """What the run tests. A target is reached once here, before any case runs."""
+    tested = settings.tested
+    robot = inputs.robot
+    if tested.target is not None or tested.rsp_target is not None:
+        if tested.target is not None:
+            wait = CONNECT_WAIT * settings.timeout_scale
+            problem = server_problem(tested.target, wait)
+            reach(output, "--target", tested.target, "RCTP over TCP", problem)
+            robot = robot or fetched_robot(output, tested.target, wait)
+        if tested.rsp_target is not None:
+            problem = robot_problem(tested.rsp_target)
+            reach(output, "--rsp-target", tested.rsp_target, "RSP over UDP", problem)
+        return _reached(tested, robot, inputs)
+    if tested.listen is None:
+        return None
+    if inputs.played is not None and tested.role == "local":
+        return LocalTarget(
+            listen=tested.listen, model=inputs.played, ics=inputs.declared, command=inputs.command
+        )
+    served = tested.rcml if robot is not None and tested.rcml is not None else HARNESS_RCML
+    return ClientTarget(
+        listen=tested.listen,
+        robot=robot or load_robot(served),
+        rcml=served,
+        features=inputs.declared.features,
+        command=inputs.command,
+    )
+
+
+def _reached(tested: TargetSettings, robot: RcmlDocument | None, inputs: _Inputs) -> Target:
+    """The --target and --rsp-target given, as one target."""
+    addresses = (tested.target, tested.rsp_target)
+    names = [described(address) for address in addresses if address is not None]
+    return Target(
+        server=tested.target,
+        robot=robot,
+        site_path=tested.site or (robot.site.path if robot is not None else "/"),
+        rsp=(tested.rsp_target,) if tested.rsp_target is not None else (),
+        rsp_model=inputs.played,
+        rsp_psk=inputs.declared.psk,
+        features=inputs.declared.features,
+        name=" and ".join(names),
+    )
+
+
+def _run_or_exit(
+    output: Output,
+    settings: RunSettings,
+    inputs: _Inputs,
+    external: External,
+    chosen: Sequence[Case],
+) -> tuple[Target, list[Result], tuple[float, float]]:
+    """Run the cases. Give the target tested, the results, and when the run started and
+    ended (time.time()). Exit with status 2 when the harness cannot listen or start."""
+    if external is None:
+        quiet_reference_logs()
+    options = RunOptions(
+        timeout_scale=settings.timeout_scale,
+        seed=settings.seed,
+        concurrency=settings.concurrency,
+        repeat=settings.repeat,
+        impair=inputs.impairment,
+        capture=settings.capture,
+        session_wait=settings.session_wait,
+        connect_timeout=settings.tested.connect_timeout,
+    )
+    faults = faults_named(settings.tested.faults)
+    started = time.time()
+    try:
+        run = _run(external, inputs.declared, faults, chosen, options, output, settings.verbose)
+        target, results = asyncio.run(run)
+    except OSError as error:
+        _cannot_start(output, settings.tested, error)
+    return target, results, (started, time.time())
+
+
+def _cannot_start(output: Output, tested: TargetSettings, error: OSError) -> NoReturn:
+    """Say why the harness could not listen, or start the embedded reference. Exit 2."""
+    why = error.strerror or str(error)
+    if tested.listen is not None:
+        output.problem("run", f"cannot listen on --listen {described(tested.listen)}: {why}")
+    else:
+        output.problem("run", f"cannot start the embedded reference: {why}")
+    sys.exit(2)
+
+
+def _recorded(settings: RunSettings) -> dict[str, Any]:
+    """The settings that the JSON report records."""
+    return {
+        "seed": settings.seed,
+        "repeat": settings.repeat,
+        "timeout_scale": settings.timeout_scale,
+        "impair": settings.impair,
+    }
+
+
 async def _run(
-    external: Target | ClientTarget | LocalTarget | None,
+    external: External,
     declared: Ics,
     faults: frozenset[Fault],
     chosen: Sequence[Case],
@@ -192,6 +283,7 @@ async def _run(
     output: Output,
     verbose: bool,
 ) -> tuple[Target, list[Result]]:
+    """Run the chosen cases of the roles the target plays, with a progress bar."""
     async with _target(external, declared, faults, output) as target:
         cases = [c for c in chosen if under_test(c, target)]
         if len(cases) < len(chosen):
@@ -203,28 +295,32 @@ async def _run(
                 def done(result: Result) -> None:
                     step(f"{result.verdict.value}: {result.case}")
                     logged(result)
-                    if verbose or result.verdict in (Verdict.FAIL, Verdict.ERROR):
-                        output.live(
-                            [
-                                (f"{result.verdict.value:>14} ", _STYLE[result.verdict]),
-                                (result.case, "bold"),
-                                (f"  {result.reason}", "dim"),
-                            ]
-                        )
-                    if verbose and result.used:
-                        output.live([(f"{'':>14} used {', '.join(result.used)}", "dim")])
+                    _live(output, result, verbose)
 
                 results = await run_cases(cases, target, options, done)
         return target, results
 
 
+def _live(output: Output, result: Result, verbose: bool) -> None:
+    """Show a result as it comes: failures and errors, and with -v every result."""
+    if verbose or result.verdict in (Verdict.FAIL, Verdict.ERROR):
+        output.live(
+            [
+                (f"{result.verdict.value:>14} ", _STYLE[result.verdict]),
+                (result.case, "bold"),
+                (f"  {result.reason}", "dim"),
+            ]
+        )
+    if verbose and result.used:
+        output.live([(f"{'':>14} used {', '.join(result.used)}", "dim")])
+
+
 @contextlib.asynccontextmanager
 async def _target(
-    external: Target | ClientTarget | LocalTarget | None,
-    declared: Ics,
-    faults: frozenset[Fault],
-    output: Output,
+    external: External, declared: Ics, faults: frozenset[Fault], output: Output
 ) -> AsyncIterator[Target]:
+    """The target for the cases. It listens for a client or local system, or starts the
+    embedded reference, for as long as the run lasts."""
     if isinstance(external, LocalTarget):
         async with local_target(external, output) as target:
             yield target
@@ -242,7 +338,7 @@ async def _target(
         yield reference
 
 
-#: How a run tests each role: what to give `run` for it.
+#: What to give `run` to test each role.
 _HOW = {
     Role.SERVER: "an RCTP server: --target",
     Role.ROBOT: "an RSP robot: --rsp-target",
@@ -252,75 +348,38 @@ _HOW = {
 
 
 def _left_out(cases: Sequence[Case], tested: str) -> str:
-    """Which of the cases chosen test a role `tested` does not play, and how to test it."""
+    """Say which chosen cases test a role that `tested` does not play, and how to test it."""
     roles = Counter(case.role for case in cases)
     each = "; ".join(f"{plural(n, 'case')} of {_HOW[role]}" for role, n in roles.items())
     return f"left out, as {tested} does not play their role: {each}"
 
 
-def _external(
-    output: Output,
-    target: Address | None,
-    robot: RcmlDocument | None,
-    site: str | None,
-    rsp_target: Address | None,
-    rsp_model: RobotModel | None,
-    declared: Ics,
-) -> Target:
-    names = [described(address) for address in (target, rsp_target) if address is not None]
-    return Target(
-        server=target,
-        robot=robot,
-        site_path=site or (robot.site.path if robot is not None else "/"),
-        rsp=(rsp_target,) if rsp_target is not None else (),
-        rsp_model=rsp_model,
-        rsp_psk=declared.psk,
-        features=declared.features,
-        name=" and ".join(names),
-    )
-
-
-def _check_roles(
-    role: str,
-    target: Address | None,
-    rcml: Path | None,
-    site: str | None,
-    rsp_target: Address | None,
-    model: Path | None,
-    listen: Address | None,
-    faults: tuple[str, ...],
-) -> None:
-    """The options that go together, for the role tested."""
+def _check_roles(tested: TargetSettings) -> None:
+    """Refuse options that do not go together, for the role tested."""
+    target, rsp_target, listen = tested.target, tested.rsp_target, tested.listen
+    model = tested.model
     if rsp_target is not None and model is None:
         raise click.UsageError("--rsp-target needs the robot's --model")
-    if role == "client":
+    if tested.role == "client":
         if listen is None:
             raise click.UsageError("--role client needs --listen PORT for the client to connect")
         if target is not None or rsp_target is not None:
             raise click.UsageError("--role client tests a client: leave out --target/--rsp-target")
-    elif role == "local":
+    elif tested.role == "local":
         if listen is None or model is None:
             raise click.UsageError("--role local needs --listen PORT and the --model to play")
         if target is not None or rsp_target is not None:
             raise click.UsageError("--role local tests a local system: leave out the targets")
     elif listen is not None:
         raise click.UsageError("--listen is for --role client and --role local")
-    if faults and (target is not None or rsp_target is not None or listen is not None):
+    if tested.faults and (target is not None or rsp_target is not None or listen is not None):
         raise click.UsageError("--fault is for the embedded reference: leave out the targets")
-    if (rcml is not None or site is not None) and target is None:
+    if (tested.rcml is not None or tested.site is not None) and target is None:
         raise click.UsageError("--rcml and --site describe --target: give --target too")
-    if model is not None and rsp_target is None and role != "local":
+    if model is not None and rsp_target is None and tested.role != "local":
         raise click.UsageError(
             "--model describes --rsp-target, or the robot --role local plays: give one of them"
         )
-
-
-class _Reports(NamedTuple):
-    """The files the run's reports go to (--junit, --json, --html)."""
-
-    junit: Path | None
-    json: Path | None
-    html: Path | None
 
 
 def _write_reports(
@@ -328,17 +387,18 @@ def _write_reports(
     results: list[Result],
     registry: dict[str, Case],
     target: Target,
-    settings: dict[str, Any],
+    settings: RunSettings,
     span: tuple[float, float],
-    files: _Reports,
 ) -> None:
-    """`span`: when the run started and ended (time.time())."""
+    """Write the reports that the settings ask for. `span`: when the run started and ended
+    (time.time())."""
+    files = settings.reports
     try:
         if files.junit is not None:
             files.junit.write_bytes(to_junit(results, registry, *span))
         if files.json is None and files.html is None:
             return
-        report = to_json(results, registry, target.name, settings, span)
+        report = to_json(results, registry, target.name, _recorded(settings), span)
         if files.json is not None:
             files.json.write_text(json.dumps(report, indent=2, ensure_ascii=False) + "\n")
         if files.html is not None:
@@ -354,6 +414,7 @@ def _write_reports(
 def _report(
     output: Output, results: list[Result], registry: dict[str, Case], target: Target
 ) -> None:
+    """Show each failure and error, the verdicts by area, and a summary line."""
     from rcmlconf.specs import requirements
 
     texts = requirements()
@@ -365,6 +426,16 @@ def _report(
         for name, text in explain(result, registry[result.case], texts):
             output.out.line([(f"  {name:>11}  ", "dim"), (text, "")])
     _table(output, results, registry)
+    _notices(output, results, target)
+    found = counts(results)
+    fresh = new_failures(results)
+    line = ", ".join(f"{n} {v.value}" for v, n in found.items() if n)
+    output.summary(f"{target.name}: {len(results)} results: {line}", not fresh)
+
+
+def _notices(output: Output, results: list[Result], target: Target) -> None:
+    """Say how many passes checked only part of their requirement, and which cases the run
+    gave up on."""
     partly = sum(1 for r in results if r.verdict is Verdict.PASS and r.reason.startswith(PARTLY))
     if partly:
         output.notice(
@@ -373,13 +444,9 @@ def _report(
             " part and why)"
         )
     skipped = [r for r in results if r.reason.startswith(NOT_RUN)]
-    if skipped:  # GiveUp: the same reason for each
+    if skipped:  # GiveUp gives each the same reason
         not_run = f"{plural(len(skipped), 'case')} {skipped[0].reason}"
         output.notice(f"gave up on {target.name}: {not_run}")
-    found = counts(results)
-    fresh = new_failures(results)
-    line = ", ".join(f"{n} {v.value}" for v, n in found.items() if n)
-    output.summary(f"{target.name}: {len(results)} results: {line}", not fresh)
 
 
 def _table(output: Output, results: list[Result], registry: dict[str, Case]) -> None:
@@ -395,12 +462,11 @@ def _table(output: Output, results: list[Result], registry: dict[str, Case]) -> 
         output.err.line([(f"{area:<16}", ""), *cells])
 
 
-def _roles(
-    role: str, target: Address | None, rsp_target: Address | None, listen: Address | None
-) -> set[Role] | None:
-    """The roles a run with these options tests; None: every one (the embedded reference)."""
-    if target is not None or rsp_target is not None:
-        return {r for r, given in ((Role.SERVER, target), (Role.ROBOT, rsp_target)) if given}
-    if listen is not None:
-        return {Role.CLIENT if role == "client" else Role.LOCAL}
+def _roles(tested: TargetSettings) -> set[Role] | None:
+    """The roles a run with these settings tests. None: every role (the embedded reference)."""
+    if tested.target is not None or tested.rsp_target is not None:
+        given = ((Role.SERVER, tested.target), (Role.ROBOT, tested.rsp_target))
+        return {role for role, address in given if address is not None}
+    if tested.listen is not None:
+        return {Role.CLIENT if tested.role == "client" else Role.LOCAL}
     return None
