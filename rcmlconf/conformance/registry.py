@@ -3,6 +3,14 @@
 Each case is an async function registered with `@case`. It lives in a module of
 `rcmlconf.conformance.cases` named after its area. Its ID is stable, such as
 `rctp/msg/unknown-method`: it is never a number that shifts when a case is added.
+
+A case declares itself in its decorator:
+
+    @case("rctp/priv/write-not-acquired", "WRITE of a node no session holds is answered 470",
+          ["R-RCTP-34"], serial=True, timeout=5.0)
+
+The ID, the purpose and the requirements come first. The rest are keywords; `Case` says what
+each one means.
 """
 
 from __future__ import annotations
@@ -82,7 +90,8 @@ def case(
     served: Served | None = None,
     exclusive: bool = False,
 ) -> Callable[[CaseFunction], CaseFunction]:
-    """Register the decorated coroutine function as a case."""
+    """Register the decorated coroutine function as a case. A failure names one of
+    `requirements`. `timeout` is in seconds, before --timeout-scale."""
 
     def register(run: CaseFunction) -> CaseFunction:
         if not _ID.match(id):
