@@ -33,9 +33,8 @@ FAULTS = {
     # A server that checks the permission of WRITE only.
     "permission-of-write-only": (
         "reference/server/session.py",
-        "            if needed not in node.permission and Fault.PERMISSION_IGNORED not in",
-        "            if needed is Permission.WRITE and needed not in node.permission and"
-        " Fault.PERMISSION_IGNORED not in",
+        "        if needed not in node.permission:",
+        "        if needed is Permission.WRITE and needed not in node.permission:",
         UNREADABLE,
         READS,
         "R-RCTP-27",

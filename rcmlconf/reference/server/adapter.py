@@ -42,6 +42,7 @@ from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
 from rcmlconf.reference.datagrams import DataSocket
 from rcmlconf.reference.drivers import Driver
 from rcmlconf.reference.faults import CONTROL_FAULTS, Fault, describe, rewrite_control
+from rcmlconf.reference.server.faulty_session import FaultySession
 from rcmlconf.reference.server.files import FileServer, robot_files
 from rcmlconf.reference.server.limits import (
     ACCEPT_ERRNOS,
@@ -114,7 +115,7 @@ class _Control(asyncio.Protocol):
             transport.abort()
             return
         loop = server.loop
-        self.session = ServerSession(server.robot, (peer[0], peer[1]), loop.time())
+        self.session = server.new_session((peer[0], peer[1]), loop.time())
         self.timer = LoopTimer(loop, self._timer_fired)
         self.timer.set(self.session.maintenance_timer())  # D-RCTP-32: from the first moment
         server.controls[self.session] = self
@@ -386,6 +387,12 @@ class ReferenceServer:
     def robot(self) -> Robot[ServerSession]:
         assert self._robot is not None, "start() first"
         return self._robot
+
+    def new_session(self, peer: Address, now: float) -> ServerSession:
+        """The session of a new control connection: a faulty one when the server has faults."""
+        if self.settings.faults:
+            return FaultySession(self.settings.faults, self.robot, peer, now)
+        return ServerSession(self.robot, peer, now)
 
     # -- life --------------------------------------------------------------------------------
 

@@ -1,9 +1,9 @@
 """The data stream of a faulty reference server (`reference.faults.STREAM_FAULTS`).
 
-The data stream's rules live in the core's `Endpoint`, which the client and the harness share:
-the faults are not put there. A server session with one of these faults makes its endpoint of
-this subclass instead (`ServerSession._endpoint`), which breaks the rules as a server's own data
-stream code would. Without them the server makes the core's `Endpoint`, untouched.
+The data stream's rules live in the core's `Endpoint`, which the client and the harness share.
+The faults are not put there. A faulty session with one of these faults makes its endpoint of
+this subclass instead (`FaultySession._new_endpoint`). It breaks the rules as a server's own
+data-stream code would. Without these faults the session makes the core's `Endpoint`.
 """
 
 from __future__ import annotations

@@ -1,23 +1,24 @@
 """One client of the reference server, without I/O: its control connection and its data stream.
 
-The protocol core (`rctp.connection`) makes the first checks of D-RCTP-25 and answers them; what
-reaches `_answer` is a request the robot must judge. Each method has a handler that makes the
-remaining checks in D-RCTP-25's order — the node (404, 405), the permission (403), the privilege
-(470, 471), the transport (461), the body (411, 415, 422) — raising `Refused` at the first that
-fails, then does what the request asks. The server's own requests — data-change WRITEs
-(D-RCTP-27), STOP of a stream whose receive timeout passed (R-RCTP-45), BYE — leave from here too.
+The protocol core (`rctp.connection`) makes the first checks of D-RCTP-25 and answers them. What
+reaches `_answer` is a request the robot must judge. Each method has a handler. The handler makes
+the remaining checks in D-RCTP-25's order: the node (404, 405), the permission (403), the
+privilege (470, 471), the transport (461), the body (411, 415, 422). It raises `Refused` at the
+first check that fails. Otherwise it does what the request asks.
 
-The adapter feeds bytes, datagrams and timers in and sends what `data_to_send` and
-`datagrams_to_send` give; `finished` tells it to close the connection once everything is sent.
+The server's own requests leave from here too: data-change WRITEs (D-RCTP-27), STOP of a stream
+whose receive timeout passed (R-RCTP-45), and BYE.
+
+The adapter feeds bytes, datagrams and timers in. It sends what `data_to_send` and
+`datagrams_to_send` give. `finished` tells it to close the connection once everything is sent.
 """
 
 from __future__ import annotations
 
 import logging
 from collections import deque
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from functools import partial
 
 from rcmlconf import __version__
 from rcmlconf.errors import ProtocolError, ValueTextError
@@ -48,9 +49,8 @@ from rcmlconf.rctp.messages import TEXT_TYPE, VALUES_TYPE, Request
 from rcmlconf.rctp.states import Role, SessionState, StreamState
 from rcmlconf.rctp.targets import STAR, Target, format_target
 from rcmlconf.reference.ends import SessionEnd
-from rcmlconf.reference.faults import STREAM_FAULTS, Fault, nan_blind
-from rcmlconf.reference.server.faulty_stream import FaultyEndpoint
 from rcmlconf.reference.server.robot import Robot
+from rcmlconf.values import Value
 from rcmlconf.wording import shorten
 
 log = logging.getLogger("rcmlconf.server")
@@ -87,8 +87,6 @@ class ServerSession(SessionEnd):
         super().__init__(Role.SERVER, now)
         self.robot = robot
         self.peer = peer
-        #: `reference.faults`: none but to test a conformance harness.
-        self.faults = robot.faults
         self.id: str | None = None
         #: Stream accesses set up, by path; a stream keeps its id after STOP (D-RCTP-28).
         self._streams: dict[str, _StreamSetUp] = {}
@@ -213,10 +211,7 @@ class ServerSession(SessionEnd):
                 log.info("%s session timed out: BYE", self._who())
             elif isinstance(event, ProtocolFailure):
                 log.info("%s %s [%s]", self._who(), event.error.reason, event.error.rule)
-                if Fault.OPEN_AFTER_BAD_FRAMING in self.faults:  # fault: open-after-bad-framing
-                    self.conn.session_state = SessionState.CLOSED  # the connection stays open
-                else:
-                    self._end()
+                self._protocol_failed()
             elif isinstance(event, SessionEnded | ConnectionClosed):
                 self._end()
         endpoint = self.endpoint
@@ -232,6 +227,10 @@ class ServerSession(SessionEnd):
             else:
                 log.debug("%s data stream: %s", self._who(), stream_event)
         self._pump(now)
+
+    def _protocol_failed(self) -> None:
+        """R-RCTP-8, R-RCTP-12: a message the server cannot frame or take ends the connection."""
+        self._end()
 
     def _end(self) -> None:
         if not self.finished:
@@ -254,8 +253,9 @@ class ServerSession(SessionEnd):
 
     def _answer(self, event: RequestReceived, now: float) -> None:
         request = event.request
+        handler: _Handler = getattr(self, _HANDLERS[request.method])
         try:
-            status, headers, body = _HANDLERS[request.method](self, request, event.target, now)
+            status, headers, body = handler(request, event.target, now)
         except Refused as refusal:
             status, body = refusal.status, refusal.reason.encode("utf-8")
             headers = [("Content-Type", TEXT_TYPE)]
@@ -298,8 +298,6 @@ class ServerSession(SessionEnd):
             if self.id is None:
                 cap = self.robot.limits.sessions_per_peer
                 raise Refused(503, f"{cap} sessions of {self.peer[0]} are open", "R-RCTP-67")
-        elif Fault.REFRESH_REFUSED in self.faults:  # fault: refresh-refused
-            raise Refused(455, "this connection has a session already", "R-RCTP-22")
         session = f"{self.id};timeout={self.robot.session_timeout}"
         return 200, [("Session", session), ("Server", PRODUCT)], b""
 
@@ -311,14 +309,8 @@ class ServerSession(SessionEnd):
         return 200, [], b""
 
     def _release(self, request: Request, target: Target, now: float) -> Answer:
-        writing = [
-            path
-            for path, setup in self._streams.items()
-            if Direction.WRITE in MODE_DIRECTIONS[setup.mode]
-            and (target.is_session or is_within(path, target.path))
-        ]
-        # R-RCTP-35: the stream would write without the privilege; fault: release-while-writing
-        if writing and Fault.RELEASE_WHILE_WRITING not in self.faults:
+        writing = self._writing_below(target)
+        if writing:  # R-RCTP-35: the stream would write without the privilege
             raise Refused(455, f"{writing[0]} is set up for writing: STOP it first", "R-RCTP-35")
         if target.is_session:
             self.robot.privileges.release_all(self._session_id())
@@ -327,6 +319,15 @@ class ServerSession(SessionEnd):
         if not self.robot.privileges.release(self._session_id(), target.path):
             raise Refused(470, f"this session did not acquire {target.path}", "R-RCTP-35")
         return 200, [], b""
+
+    def _writing_below(self, target: Target) -> list[str]:
+        """The stream accesses set up for writing at or below `target` (all of them for `*`)."""
+        return [
+            path
+            for path, setup in self._streams.items()
+            if Direction.WRITE in MODE_DIRECTIONS[setup.mode]
+            and (target.is_session or is_within(path, target.path))
+        ]
 
     def _read(self, request: Request, target: Target, now: float) -> Answer:
         kind = self._node_kind(request, target)
@@ -346,27 +347,30 @@ class ServerSession(SessionEnd):
             self._privileged(node.path)
         if "Content-Length" not in request.headers:
             raise Refused(411, "a WRITE carries its values, with Content-Length", "R-RCTP-6")
-        media = request.headers.get("Content-Type")
-        if Fault.CASE_SENSITIVE_TOKENS in self.faults:  # fault: case-sensitive-tokens
-            media = media if media == VALUES_TYPE else None
-        if not same_token(media, VALUES_TYPE):  # D-RCTP-30
+        if not self._same_token(request.headers.get("Content-Type"), VALUES_TYPE):
             raise Refused(415, f"a WRITE's body is {VALUES_TYPE}", "R-RCTP-6")
         try:
             values = self.robot.codec(target.path, nodes).decode(request.body)
         except ProtocolError as error:
             raise Refused(422, f"{error.reason} (body byte {error.offset})", "R-RCTP-28") from None
+        self._apply(nodes, values, now)
+        return 200, [], b""
+
+    def _same_token(self, given: str | None, token: str) -> bool:
+        """D-RCTP-30: a token of the grammar is read in any letter case."""
+        return same_token(given, token)
+
+    def _apply(self, nodes: Sequence[DataNode], values: Mapping[str, Value], now: float) -> None:
+        """R-RCTP-28, R-RCTP-29: a WRITE's values are applied all together, or none is (422)."""
         for node in nodes:
-            if Fault.NAN_IN_RANGE in self.faults:  # fault: nan-in-range
-                problem = nan_blind(node, values[node.name])
-            else:
-                problem = node.out_of_range(values[node.name])
+            problem = self._out_of_range(node, values[node.name])
             if problem is not None:
-                if Fault.PARTIAL_WRITE in self.faults:  # fault: partial-write
-                    fine = [n for n in nodes if n.out_of_range(values[n.name]) is None]
-                    self.robot.command(self, {n.path: values[n.name] for n in fine}, now)
                 raise Refused(422, problem, "R-RCTP-28")
         self.robot.command(self, {node.path: values[node.name] for node in nodes}, now)
-        return 200, [], b""
+
+    def _out_of_range(self, node: DataNode, value: Value) -> str | None:
+        """Why `value` is outside the node's range, or None (R-RCTP-28)."""
+        return node.out_of_range(value)
 
     def _nodes(
         self, request: Request, target: Target, kind: TargetKind, needed: Permission
@@ -378,14 +382,17 @@ class ServerSession(SessionEnd):
             nodes: tuple[DataNode, ...] = (node,)
         else:
             nodes = self._listed(request, self._access(target), needed)
-        verb = "read" if needed is Permission.READ else "written"
         for node in nodes:
-            # R-RCTP-27; fault: permission-ignored
-            if needed not in node.permission and Fault.PERMISSION_IGNORED not in self.faults:
-                raise Refused(
-                    403, f"{node.path} may not be {verb} ({node.permission.to_text()})", "R-RCTP-27"
-                )
+            self._permitted(node, needed)
         return nodes
+
+    def _permitted(self, node: DataNode, needed: Permission) -> None:
+        """R-RCTP-27: 403 for a node the request may not read or write."""
+        if needed not in node.permission:
+            verb = "read" if needed is Permission.READ else "written"
+            raise Refused(
+                403, f"{node.path} may not be {verb} ({node.permission.to_text()})", "R-RCTP-27"
+            )
 
     def _listed(
         self, request: Request, access: AccessNode, needed: Permission
@@ -414,8 +421,6 @@ class ServerSession(SessionEnd):
         """R-RCTP-34: writing needs the privilege of the path."""
         holder = self.robot.privileges.holder(path)
         if holder is None:
-            if Fault.WRITE_WITHOUT_ACQUIRE in self.faults:  # fault: write-without-acquire
-                return
             raise Refused(470, f"ACQUIRE {path} (or a path above it) first", "R-RCTP-34")
         if holder != self.id:
             raise Refused(471, f"another session holds {path}", "R-RCTP-34")
@@ -433,9 +438,7 @@ class ServerSession(SessionEnd):
             stream = self._stream_ids[access.path] = len(self._stream_ids) + 1
         assert transport.client_port is not None
         endpoint = self._endpoint(now)
-        # fault: first-client-port
-        if Fault.FIRST_CLIENT_PORT not in self.faults or endpoint.peer is None:
-            endpoint.peer = (self.peer[0], transport.client_port)  # R-RCTP-56
+        self._stream_to(endpoint, transport.client_port)
         endpoint.add_stream(stream, access, transport.mode)
         self._streams[access.path] = _StreamSetUp(access, stream, transport.mode)
         answer = Transport(
@@ -447,15 +450,17 @@ class ServerSession(SessionEnd):
         )
         return 200, [("Transport", str(answer))], b""
 
+    def _stream_to(self, endpoint: Endpoint, client_port: int) -> None:
+        """R-RCTP-56: the data stream goes to the client_port of the latest SETUP."""
+        endpoint.peer = (self.peer[0], client_port)
+
     def _transport(self, request: Request, access: AccessNode) -> Transport:
         """D-RCTP-28: the permission and the privilege of the mode, then the transport itself."""
         text = request.headers.get("Transport")
         if text is None:
             raise Refused(461, "SETUP of a stream access names its Transport", "R-RCTP-57")
         try:
-            if Fault.CASE_SENSITIVE_TOKENS in self.faults and text != text.lower():
-                raise ValueTextError(f"Transport {text!r} is not in lower case")  # fault
-            transport = parse_transport(text)
+            transport = self._parse_transport(text)
         except ValueTextError as exc:
             raise Refused(400, str(exc), "R-RCTP-38") from None
         directions = MODE_DIRECTIONS[transport.mode]
@@ -473,18 +478,22 @@ class ServerSession(SessionEnd):
             raise Refused(461, "the server chooses server_port, tag and stream", "R-RCTP-38")
         return transport
 
+    def _parse_transport(self, text: str) -> Transport:
+        """The Transport field, its tokens read in any letter case (D-RCTP-30)."""
+        return parse_transport(text)
+
     def _endpoint(self, now: float) -> Endpoint:
         if self.endpoint is None:
             robot = self.robot
-            faults = self.faults & STREAM_FAULTS  # fault: the data stream's (faulty_stream)
-            make = partial(FaultyEndpoint, faults) if faults else Endpoint
-            self.endpoint = make(
-                Role.SERVER,
-                robot.new_tag(self),
-                first_sequence=int.from_bytes(robot.random_bytes(2), "big"),  # R-RCTP-41
-                unix_offset=robot.unix_offset,
-            )
+            tag = robot.new_tag(self)
+            first_sequence = int.from_bytes(robot.random_bytes(2), "big")  # R-RCTP-41
+            self.endpoint = self._new_endpoint(tag, first_sequence)
         return self.endpoint
+
+    def _new_endpoint(self, tag: int, first_sequence: int) -> Endpoint:
+        """The session's data stream (D-RCTP-18)."""
+        unix_offset = self.robot.unix_offset
+        return Endpoint(Role.SERVER, tag, first_sequence=first_sequence, unix_offset=unix_offset)
 
     def _go(self, request: Request, target: Target, now: float) -> Answer:
         kind = self._node_kind(request, target)
@@ -503,10 +512,14 @@ class ServerSession(SessionEnd):
         kind = self._node_kind(request, target)
         if kind is TargetKind.EVENT_ACCESS:
             self.robot.unwatch(self, target.path)
-        elif Fault.PAUSE_IGNORED not in self.faults:  # fault: pause-ignored
-            assert self.endpoint is not None
-            self.endpoint.pause(self._streams[target.path].stream)
+        else:
+            self._pause_stream(target.path)
         return 200, [], b""
+
+    def _pause_stream(self, path: str) -> None:
+        """R-RCTP-44: a paused stream access sends no DATA."""
+        assert self.endpoint is not None
+        self.endpoint.pause(self._streams[path].stream)
 
     def _stop(self, request: Request, target: Target, now: float) -> Answer:
         kind = self._node_kind(request, target)
@@ -546,8 +559,6 @@ class ServerSession(SessionEnd):
         setup = self._stream_by_id(stream)
         if setup is None or self.endpoint is None:
             return
-        if Fault.NO_TIMEOUT_STOP in self.faults:  # fault: no-timeout-stop
-            return
         self.endpoint.pause(stream)
         self._stops.append((format_target(setup.access.path), "timeout"))
         log.info("%s %s: no DATA for its timeout: STOP", self._who(), setup.access.path)
@@ -566,11 +577,7 @@ class ServerSession(SessionEnd):
         conn = self.conn
         if not (self._stops or self._changes) or conn.session_state is not SessionState.OPEN:
             return
-        room = MAX_UNANSWERED - sum(
-            1 for r in conn.requests_unanswered if r.method in ("WRITE", "STOP")
-        )
-        if Fault.UNBOUNDED_PUSHES in self.faults:  # fault: unbounded-pushes
-            room = len(self._stops) + len(self._changes)
+        room = self._room()
         while room > 0 and (self._stops or self._changes):
             if self._stops:
                 target, reason = self._stops.popleft()
@@ -581,11 +588,14 @@ class ServerSession(SessionEnd):
                 self._push(access_path, names, now)
             room -= 1
 
+    def _room(self) -> int:
+        """R-RCTP-55: how many more WRITE and STOP requests the server may have unanswered."""
+        unanswered = self.conn.requests_unanswered
+        return MAX_UNANSWERED - sum(1 for r in unanswered if r.method in ("WRITE", "STOP"))
+
     def _push(self, access_path: str, names: set[str], now: float) -> None:
         """A data-change event: WRITE of the access with the changed nodes' newest values."""
         if self.conn.streams.get(access_path) is not StreamState.PLAYING:
-            return
-        if Fault.NO_CHANGE_PUSH in self.faults:  # fault: no-change-push
             return
         access = self.robot.model.node(access_path)
         assert isinstance(access, AccessNode)
@@ -596,17 +606,18 @@ class ServerSession(SessionEnd):
         self.conn.send_request("WRITE", format_target(access_path), headers, body, now=now)
 
 
-_Handler = Callable[[ServerSession, Request, Target, float], Answer]
-#: D-RCTP-12: what the server does with each method a client may send.
-_HANDLERS: dict[str, _Handler] = {
-    "CONNECT": ServerSession._connect,
-    "ACQUIRE": ServerSession._acquire,
-    "RELEASE": ServerSession._release,
-    "READ": ServerSession._read,
-    "WRITE": ServerSession._write,
-    "SETUP": ServerSession._setup,
-    "GO": ServerSession._go,
-    "PAUSE": ServerSession._pause,
-    "STOP": ServerSession._stop,
-    "BYE": ServerSession._bye,
+_Handler = Callable[[Request, Target, float], Answer]
+#: D-RCTP-12: the handler of each method a client may send, by its name on `ServerSession`.
+#: A name, not the function, so that a subclass's handler is the one called.
+_HANDLERS: dict[str, str] = {
+    "CONNECT": "_connect",
+    "ACQUIRE": "_acquire",
+    "RELEASE": "_release",
+    "READ": "_read",
+    "WRITE": "_write",
+    "SETUP": "_setup",
+    "GO": "_go",
+    "PAUSE": "_pause",
+    "STOP": "_stop",
+    "BYE": "_bye",
 }
