@@ -30,7 +30,9 @@ import logging
 import socket
 import struct
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -42,6 +44,7 @@ from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
 from rcmlconf.reference.datagrams import DataSocket
 from rcmlconf.reference.drivers import Driver
 from rcmlconf.reference.faults import CONTROL_FAULTS, Fault, describe, rewrite_control
+from rcmlconf.reference.server.faulty_robot import FaultyRobot
 from rcmlconf.reference.server.faulty_session import FaultySession
 from rcmlconf.reference.server.files import FileServer, robot_files
 from rcmlconf.reference.server.limits import (
@@ -430,7 +433,11 @@ class ReferenceServer:
             settings.host, port if settings.port else 0, self.data.datagram_received, log
         )
         self._udp = udp
-        self._robot = Robot(
+        # With faults, the robot and its sessions are the faulty subclasses (`reference.faults`).
+        make: Callable[..., Robot[ServerSession]] = (
+            partial(FaultyRobot, settings.faults) if settings.faults else Robot
+        )
+        self._robot = make(
             self.model,
             self.driver,
             loop.time(),
@@ -438,7 +445,6 @@ class ReferenceServer:
             data_port=udp.port,
             session_timeout=settings.session_timeout,
             unix_offset=time.time() - loop.time(),
-            faults=settings.faults,
             limits=settings.limits,
         )
         self._beats = BeatClock(loop, self._beat)

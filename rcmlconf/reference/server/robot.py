@@ -1,9 +1,9 @@
 """One robot served by the reference server, without I/O: what all its sessions share.
 
-The model, the driver that owns the values, the privilege table (D-RCTP-16), the sessions and
-their data-stream tags, and who watches which event access (D-RCTP-27). Time is a value: the
-adapter calls `handle_timer(now)` at `get_timer()`, when the driver moves on and changes are
-handed to the sessions that watch them.
+The robot holds the model and the driver that owns the values. It holds the privilege table
+(D-RCTP-16), the sessions and their data-stream tags. It knows which session watches which event
+access (D-RCTP-27). Time is a value: the adapter calls `handle_timer(now)` at `get_timer()`.
+Then the driver moves on, and the robot hands the changes to the sessions that watch them.
 """
 
 from __future__ import annotations
@@ -20,7 +20,6 @@ from rcmlconf.rctp.datastream.flow import Direction
 from rcmlconf.rctp.datastream.values import stream_codec
 from rcmlconf.rctp.fields import DEFAULT_SESSION_TIMEOUT
 from rcmlconf.reference.drivers import Driver
-from rcmlconf.reference.faults import LENIENT_VALUES, Fault, faulty_codec, faulty_stream_codec
 from rcmlconf.reference.server.limits import DEFAULT_LIMITS, ServerLimits
 from rcmlconf.reference.server.privileges import Privileges
 from rcmlconf.values import Value
@@ -59,13 +58,11 @@ class Robot(Generic[S]):
         session_timeout: int = DEFAULT_SESSION_TIMEOUT,
         unix_offset: float = 0.0,
         random_bytes: Callable[[int], bytes] = os.urandom,
-        faults: frozenset[Fault] = frozenset(),
         limits: ServerLimits = DEFAULT_LIMITS,
     ) -> None:
-        """`data_port` is the UDP port every session's data stream uses (D-RCTP-28);
-        `unix_offset` turns `now` into Unix time, for data-stream timestamps; `faults` are
-        none but to test a conformance harness (`reference.faults`); `limits` what one peer
-        may take (D-RCTP-32)."""
+        """`data_port` is the UDP port of every session's data stream (D-RCTP-28).
+        `unix_offset` turns `now` into Unix time, for data-stream timestamps. `limits` say
+        what one peer may take (D-RCTP-32)."""
         self.model = model
         self.site_path = model.site.path or "/"
         self.driver = driver
@@ -73,8 +70,7 @@ class Robot(Generic[S]):
         self.session_timeout = session_timeout
         self.unix_offset = unix_offset
         self.random_bytes = random_bytes
-        self.faults = faults
-        self.privileges = Privileges(faults)
+        self.privileges = Privileges()
         #: Open sessions by ID, and by their data-stream tag (the adapter's demultiplexer).
         self.sessions: dict[str, S] = {}
         self.limits = limits
@@ -106,25 +102,29 @@ class Robot(Generic[S]):
         if body is None:
             codec = self._stream_codecs.get(key)
             if codec is None:
-                codec = self._stream_codecs[key] = stream_codec(access, direction)
-                if self.faults & LENIENT_VALUES:  # what it took leniently, it sends back
-                    codec = self._stream_codecs[key] = faulty_stream_codec(codec, self.faults)
+                codec = self._stream_codecs[key] = self._stream_codec(access, direction)
             body = self._bodies[key] = codec.encode(self.values(codec.nodes))
         return body
 
+    def _stream_codec(self, access: AccessNode, direction: Direction) -> ValuesCodec[DataNode]:
+        """The codec of a stream's DATA in one direction (D-RCTP-20)."""
+        return stream_codec(access, direction)
+
     def codec(self, where: str, nodes: Sequence[DataNode]) -> ValuesCodec[DataNode]:
-        """The codec of READ and WRITE bodies of `nodes` of the access or node `where`, made
-        once: clients ask for the same few again and again. The memory is bounded, since a
-        client may name any subset of an event access's nodes."""
+        """The codec of READ and WRITE bodies of `nodes` of the access or node `where`.
+        Each is made once, since clients ask for the same few again and again. The memory is
+        bounded, since a client may name any subset of an event access's nodes."""
         key = (where, tuple(node.name for node in nodes))
         codec = self._codecs.get(key)
         if codec is None:
             if len(self._codecs) >= _CODECS_KEPT:
                 self._codecs.clear()
-            codec = self._codecs[key] = faulty_codec(
-                self.model, nodes, where, "R-RCTP-28", self.faults
-            )  # the core's ValuesCodec without faults
+            codec = self._codecs[key] = self._body_codec(where, nodes)
         return codec
+
+    def _body_codec(self, where: str, nodes: Sequence[DataNode]) -> ValuesCodec[DataNode]:
+        """The codec of READ and WRITE bodies of `nodes`, in canonical order (R-RCTP-28)."""
+        return ValuesCodec(nodes, where, "R-RCTP-28")
 
     def command(self, by: S, values: Mapping[str, Value], now: float) -> None:
         """Values a session wrote, checked already, applied together (R-RCTP-29)."""
@@ -160,12 +160,15 @@ class Robot(Generic[S]):
             self._per_peer[peer] -= 1
             if self._per_peer[peer] <= 0:
                 del self._per_peer[peer]
-            if Fault.PRIVILEGES_KEPT not in self.faults:  # fault: privileges-kept
-                self.privileges.release_all(session_id)
+            self._session_ended(session_id)
         if tag is not None:
             self.by_tag.pop(tag, None)
         for watchers in self._watchers.values():
             watchers.discard(session)
+
+    def _session_ended(self, session_id: str) -> None:
+        """R-RCTP-36: a session's privileges end with it."""
+        self.privileges.release_all(session_id)
 
     def watch(self, session: S, access: str) -> None:
         self._watchers.setdefault(access, set()).add(session)
@@ -198,8 +201,7 @@ class Robot(Generic[S]):
         self._bodies.clear()
         for access, names in by_access.items():
             for session in tuple(self._watchers.get(access, ())):
-                # fault: echo-own-writes
-                if session is not by or Fault.ECHO_OWN_WRITES in self.faults:
+                if session is not by:
                     session.note_changes(access, names, now)
                     self._touched.add(session)
 
