@@ -22,7 +22,7 @@ from that copy with only the cases of the role the mutated module serves:
     rsp     rcmlconf/rsp/session/{devices,events,timing,wire}.py (both sides use them)
             --only 'rsp/*'
 
-Left out, as not protocol logic or not on the suite's path: reference/server/faulty_stream.py
+Left out, as not protocol logic or not on the suite's path: reference/server/faulty_*.py
 (the --fault machinery: its code runs only when a fault is asked for), reference/rsp/batch.py
 (many endpoints on one loop, for the scale benches: the suite's reference does not use it),
 reference/rsp/{bodies,cubo}.py (the simulated bodies' physics), reference/rsp/log_text.py (the

@@ -1,19 +1,24 @@
 """Faults the reference implementations can be told to make, for testing a conformance harness.
 
-A harness that passes a conforming implementation proves half of what it must: it has to fail a
-broken one too. `rcmlconf serve --fault NAME` and `rcmlconf robot --fault NAME` (and
-`ServerSettings.faults`, `RobotSettings.faults`) make the reference server or RSP robot misbehave
-as an implementer's bug would, one requirement broken at a time, so that a test can check that
-some case of the harness fails, naming that requirement.
+A harness must pass a conforming implementation, and it must fail a broken one too. So
+`rcmlconf serve --fault NAME` and `rcmlconf robot --fault NAME` make the reference server or
+RSP robot misbehave as an implementer's bug would. `ServerSettings.faults` and
+`RobotSettings.faults` do the same. Each fault breaks one requirement. A test then checks that
+some case of the harness fails and names that requirement.
 
-Each fault lives where such a bug would: a check of `Fault.X in faults` at one spot of the
-server's session, privileges or robot (each marked `# fault: NAME`); the faults of the control
-connection's bytes are one rewrite of what the server writes (`rewrite_control`, applied in the
-adapter's flush); those of the data stream a subclass of the core's endpoint
-(`reference.server.faulty_stream`), and those of the RSP robot a subclass of the core's robot
-endpoint (`reference.rsp.faulty_session`); those of values a codec the server reads and writes
-bodies with (`faulty_codec`, and `loose_model` for the robot's packets). Without faults
-nothing of this runs: the reference behaves exactly as it does without this module.
+Each fault lives where such a bug would, outside the core:
+
+- The control connection's bytes: one rewrite of what the server writes (`rewrite_control`,
+  applied in the adapter's flush).
+- The server's sessions, robot and privileges: subclasses of the core's classes
+  (`reference.server.faulty_session`, `faulty_robot`, `faulty_privileges`).
+- The data stream: a subclass of the core's endpoint (`reference.server.faulty_stream`).
+- The RSP robot: a subclass of the core's robot endpoint (`reference.rsp.faulty_session`).
+- Values: a codec the server reads and writes bodies with (`faulty_codec`), and `loose_model`
+  for the robot's packets.
+
+Each spot is marked `# fault: NAME`. Without faults, none of this runs: the reference makes the
+core's classes.
 
 Never for a real robot: a faulty server or robot breaks the protocols on purpose.
 """
@@ -79,7 +84,7 @@ class Fault(enum.Enum):
     RELEASE_UNHELD = "release-unheld"
     RELEASE_WHILE_WRITING = "release-while-writing"
     PRIVILEGES_KEPT = "privileges-kept"
-    # -- the server: streams and the data stream (faulty_stream) ---------------------------------
+    # -- the server: streams (faulty_session) and the data stream (faulty_stream) ----------------
     NO_TIMEOUT_STOP = "no-timeout-stop"
     PAUSE_IGNORED = "pause-ignored"
     FIRST_CLIENT_PORT = "first-client-port"

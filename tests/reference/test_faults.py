@@ -6,10 +6,12 @@ each robot fault one on the sans-IO robot endpoint, on a simulated clock."""
 from __future__ import annotations
 
 import asyncio
+import inspect
 import re
 import socket
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -53,7 +55,13 @@ from rcmlconf.reference.faults import (
 from rcmlconf.reference.rsp.faulty_session import FaultyRobotEndpoint
 from rcmlconf.reference.rsp.robot import ReferenceRobot, RobotSettings
 from rcmlconf.reference.server.adapter import ReferenceServer, ServerSettings
+from rcmlconf.reference.server.faulty_privileges import FaultyPrivileges
+from rcmlconf.reference.server.faulty_robot import FaultyRobot
+from rcmlconf.reference.server.faulty_session import FaultySession
 from rcmlconf.reference.server.faulty_stream import FaultyEndpoint
+from rcmlconf.reference.server.privileges import Privileges
+from rcmlconf.reference.server.robot import Robot
+from rcmlconf.reference.server.session import ServerSession
 from rcmlconf.rsp.codec import (
     CLEAR_BUFFER,
     ByeReason,
@@ -103,6 +111,36 @@ def test_without_faults_nothing_changes() -> None:
     assert type(ReferenceRobot(robot_model(), RobotSettings()).endpoint) is RobotEndpoint
     data = b"RCTP/2.0 404 Not Found\r\nCSeq: 3\r\n\r\nREAD /x RCTP/2.0\r\nCSeq: 1\r\n\r\n"
     assert rewrite_control(data, frozenset()) == data
+
+
+#: The server's core modules. Its faults are subclasses of their classes, not checks in them.
+SERVER_CORE = ("session.py", "robot.py", "privileges.py")
+
+
+def test_the_servers_core_knows_no_fault() -> None:
+    folder = Path(inspect.getfile(ServerSession)).parent
+    for name in SERVER_CORE:
+        found = re.search(r".*(?i:\bfault).*", (folder / name).read_text())
+        assert found is None, f"{name}: {found and found.group().strip()}"
+
+
+def test_a_server_makes_the_faulty_classes_only_with_faults() -> None:
+    async def main() -> list[tuple[type, ...]]:
+        made = []
+        for faults in (frozenset(), frozenset({Fault.PAUSE_IGNORED})):
+            async with serving(TESTBOT, faults=faults) as server:
+                session = await RawSession.open(server)
+                (control,) = server.controls.values()
+                robot = server.robot
+                made.append((type(robot), type(robot.privileges), type(control.session)))
+                session.close()
+        return made
+
+    made = asyncio.run(asyncio.wait_for(main(), TEST_BOUND))
+    assert made == [
+        (Robot, Privileges, ServerSession),
+        (FaultyRobot, FaultyPrivileges, FaultySession),
+    ]
 
 
 def test_rewrite_control_changes_only_what_its_faults_say() -> None:
