@@ -26,6 +26,11 @@ _COUNTER = '_COUNTER = __import__("itertools").count(1)\n'
 #: The reference robot sending the ACKs of a DOWNLINK, and its motion filter's output.
 _ACKS_SENT = "            self._send(session, PacketType.ACK, MapBody(tuple(acks)), now)\n"
 _OUTPUT = "        # Most hold their target, no ramp running (R-RSP-34): that one without a call.\n"
+#: Where the session's wire hands a packet it read on, and the robot's module globals.
+_WIRE_READ = (
+    "        return make_namedtuple(Packet, (header, body)), self.tracker.see(header.sequence)\n"
+)
+_ROBOT_GLOBALS = '_DOWNLINK, _UPLINK = members(PacketType, "DOWNLINK", "UPLINK")\n'
 #: The reference's retransmission timeout held within D-RSP-17's bounds.
 _BOUNDED = "        return min(max(seconds, self._floor), MAX_RTO)\n"
 
@@ -293,10 +298,10 @@ def test_a_local_system_keeping_the_largest_number_fails_robot_sequence_wraps(
         tmp_path,
         "rsp/session/wire.py",
         (
-            "        return _new(Packet, (header, body)), self.tracker.see(header.sequence)\n",
+            _WIRE_READ,
             "        if self._sends is Direction.DOWNLINK:\n"
             "            _MAX[id(self)] = max(_MAX.get(id(self), 0), header.sequence)\n"
-            "        return _new(Packet, (header, body)), self.tracker.see(header.sequence)\n",
+            + _WIRE_READ,
         ),
         (
             "                self.tracker.highest or 0,\n",
@@ -359,8 +364,8 @@ def test_a_robot_acknowledging_memory_commands_with_its_next_uplink_fails(tmp_pa
             "            _HELD.clear()\n",
         ),
         (
-            "_DOWNLINK, _UPLINK = PacketType.DOWNLINK, PacketType.UPLINK\n",
-            "_DOWNLINK, _UPLINK = PacketType.DOWNLINK, PacketType.UPLINK\n_HELD: list[Item] = []\n",
+            _ROBOT_GLOBALS,
+            _ROBOT_GLOBALS + "_HELD: list[Item] = []\n",
         ),
     )
     _caught(
@@ -471,8 +476,8 @@ def test_a_robot_counting_the_memory_command_it_executes_fails_executing_left_bu
             "        return found\n",
         ),
         (
-            "_DOWNLINK, _UPLINK = PacketType.DOWNLINK, PacketType.UPLINK\n",
-            "_DOWNLINK, _UPLINK = PacketType.DOWNLINK, PacketType.UPLINK\n_RUN = object()\n",
+            _ROBOT_GLOBALS,
+            _ROBOT_GLOBALS + "_RUN = object()\n",
         ),
     )
     _caught(
