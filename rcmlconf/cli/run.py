@@ -111,6 +111,17 @@ RSP_PORT = 7340
 @click.option("--skip", multiple=True, metavar="GLOB", help="Leave out the cases whose ID matches.")
 @click.option("--repeat", type=click.IntRange(1, 1000), default=1, show_default=True)
 @click.option(
+    "--verify",
+    type=click.IntRange(2, 1000),
+    is_flag=False,
+    flag_value=10,
+    default=None,
+    metavar="[N]",
+    help="Run each case N times (10 if no N) and report each case whose verdicts differ as"
+    " unstable, which fails the run (status 1); e.g. --verify 20 --only 'rsp/local/*'. Not"
+    " with --repeat.",
+)
+@click.option(
     "--timeout-scale",
     type=Bounded(0.1, 100),
     default=1.0,
@@ -189,8 +200,9 @@ def run(**options: Any) -> None:
     Every option and file is checked, and the targets reached once, before any case runs.
 
     Exit status: 0 when nothing failed but what --baseline lists, 1 when a case failed (or, with
-    --strict, was inconclusive), 2 for a usage error, a target that cannot be reached, a run in
-    which no case passed or failed, or when the harness could not do its job.
+    --strict, was inconclusive; with --verify, was unstable), 2 for a usage error, a target that
+    cannot be reached, a run in which no case passed or failed, or when the harness could not
+    do its job.
 
     \b
     Examples:
@@ -199,16 +211,25 @@ def run(**options: Any) -> None:
       rcmlconf run --only 'rctp/msg/*' --html report.html
       rcmlconf run --rsp-target 10.0.0.7 --model cubo.rmodel --only 'rsp/*'
       rcmlconf run --only 'rsp/*' --repeat 20 --impair loss=5%,reorder=2%
+      rcmlconf run --verify 20 --only 'rsp/local/*'   # unstable verdicts fail
       rcmlconf run --role client --listen 7330   # then start your client
       rcmlconf run --role client --listen 7330 --client-command 'my-client {url}'
       rcmlconf run --role local --listen 7340 --model cubo.rmodel
       rcmlconf run --fault acquire-not-exclusive # the suite catches a bug
       rcmlconf run --list
     """
+    _check_verify(options)
     settings = run_settings(options)
     from rcmlconf.cli.run_suite import run_suite
 
     run_suite(settings)
+
+
+def _check_verify(options: dict[str, Any]) -> None:
+    """Refuse --verify with --repeat: --verify N sets how many runs each case gets."""
+    given = click.get_current_context().get_parameter_source("repeat")
+    if options["verify"] is not None and given is not click.ParameterSource.DEFAULT:
+        raise click.UsageError("--verify N runs each case N times: leave out --repeat")
 
 
 def target_settings(options: dict[str, Any]) -> TargetSettings:
@@ -241,6 +262,7 @@ def run_settings(options: dict[str, Any]) -> RunSettings:
         only=options.pop("only"),
         skip=options.pop("skip"),
         repeat=options.pop("repeat"),
+        verify=options.pop("verify"),
         timeout_scale=options.pop("timeout_scale"),
         session_wait=options.pop("session_wait"),
         seed=options.pop("seed"),

@@ -62,6 +62,7 @@ from rcmlconf.conformance.runner import (
     under_test,
 )
 from rcmlconf.conformance.settings import ReportFiles, RunSettings, TargetSettings
+from rcmlconf.conformance.stability import Unstable, unstable
 from rcmlconf.conformance.targets import Target, embedded_reference, quiet_reference_logs
 from rcmlconf.conformance.verdicts import Result, Verdict
 from rcmlconf.impair.spec import Impairment, parse_impairment
@@ -119,9 +120,10 @@ def run_suite(settings: RunSettings) -> None:
     external = _external(output, settings, inputs)
     target, results, span = _run_or_exit(output, settings, inputs, external, chosen)
     results = mark_known(results, inputs.known)
-    _write_reports(output, results, registry, target, settings, span)
-    _report(output, results, registry, target)
-    status, why = run_status(results, settings.strict)
+    shaky = unstable(results) if settings.verify is not None else None
+    _write_reports(output, results, registry, target, settings, span, shaky)
+    _report(output, results, registry, target, shaky)
+    status, why = run_status(results, settings.strict, shaky or ())
     if why:
         output.problem("run", why)
     sys.exit(status)
@@ -238,7 +240,7 @@ def _run_or_exit(
         timeout_scale=settings.timeout_scale,
         seed=settings.seed,
         concurrency=settings.concurrency,
-        repeat=settings.repeat,
+        repeat=settings.runs,
         impair=inputs.impairment,
         capture=settings.capture,
         session_wait=settings.session_wait,
@@ -268,7 +270,8 @@ def _recorded(settings: RunSettings) -> dict[str, Any]:
     """The settings that the JSON report records."""
     return {
         "seed": settings.seed,
-        "repeat": settings.repeat,
+        "repeat": settings.runs,
+        "verify": settings.verify,
         "timeout_scale": settings.timeout_scale,
         "impair": settings.impair,
     }
@@ -389,16 +392,17 @@ def _write_reports(
     target: Target,
     settings: RunSettings,
     span: tuple[float, float],
+    shaky: list[Unstable] | None,
 ) -> None:
     """Write the reports that the settings ask for. `span`: when the run started and ended
-    (time.time())."""
+    (time.time()). `shaky`: the unstable cases, None without --verify."""
     files = settings.reports
     try:
         if files.junit is not None:
-            files.junit.write_bytes(to_junit(results, registry, *span))
+            files.junit.write_bytes(to_junit(results, registry, *span, shaky or ()))
         if files.json is None and files.html is None:
             return
-        report = to_json(results, registry, target.name, _recorded(settings), span)
+        report = to_json(results, registry, target.name, _recorded(settings), span, shaky)
         if files.json is not None:
             files.json.write_text(json.dumps(report, indent=2, ensure_ascii=False) + "\n")
         if files.html is not None:
@@ -412,9 +416,14 @@ def _write_reports(
 
 
 def _report(
-    output: Output, results: list[Result], registry: dict[str, Case], target: Target
+    output: Output,
+    results: list[Result],
+    registry: dict[str, Case],
+    target: Target,
+    shaky: list[Unstable] | None,
 ) -> None:
-    """Show each failure and error, the verdicts by area, and a summary line."""
+    """Show each failure and error, each unstable case, the verdicts by area, and a summary
+    line. `shaky`: the unstable cases, None without --verify."""
     from rcmlconf.specs import requirements
 
     texts = requirements()
@@ -425,12 +434,24 @@ def _report(
         output.out.line([(label, _STYLE[result.verdict]), (f" {result.case}", "bold")])
         for name, text in explain(result, registry[result.case], texts):
             output.out.line([(f"  {name:>11}  ", "dim"), (text, "")])
+    for found in shaky or []:
+        _unstable(output, found, [r for r in results if r.case == found.case])
     _table(output, results, registry)
     _notices(output, results, target)
-    found = counts(results)
+    tally = counts(results)
     fresh = new_failures(results)
-    line = ", ".join(f"{n} {v.value}" for v, n in found.items() if n)
-    output.summary(f"{target.name}: {len(results)} results: {line}", not fresh)
+    line = ", ".join(f"{n} {v.value}" for v, n in tally.items() if n)
+    line += f"; {len(shaky)} unstable" if shaky is not None else ""
+    output.summary(f"{target.name}: {len(results)} results: {line}", not fresh and not shaky)
+
+
+def _unstable(output: Output, found: Unstable, runs: list[Result]) -> None:
+    """An unstable case: its verdicts, and each run whose verdict is not the most frequent."""
+    output.out.line([("UNSTABLE", "bold red"), (f" {found.case}", "bold"), (f"  {found}", "")])
+    usual = found.verdicts[0][0]
+    for result in (r for r in runs if r.verdict is not usual):
+        said = result.verdict.value + (f": {result.reason}" if result.reason else "")
+        output.out.line([(f"  {f'run {result.run}':>11}  ", "dim"), (said, "")])
 
 
 def _notices(output: Output, results: list[Result], target: Target) -> None:

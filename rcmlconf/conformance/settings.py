@@ -76,6 +76,8 @@ class RunSettings:
     skip: tuple[str, ...]
     #: --repeat: how many times each case runs.
     repeat: int
+    #: --verify: how many times each case runs to judge it stable. None: no judgement.
+    verify: int | None
     #: --timeout-scale: multiplies every case's timeout.
     timeout_scale: float
     #: --session-wait: the longest session timeout (D-RCTP-11) that the cases wait out.
@@ -92,3 +94,8 @@ class RunSettings:
     capture: Path | None
     #: --verbose: a line for every case, passes too.
     verbose: bool
+
+    @property
+    def runs(self) -> int:
+        """How many times each case runs: --verify's N, else --repeat."""
+        return self.verify or self.repeat

@@ -4,7 +4,8 @@ offline and as a CI artifact), made from the JSON report (`json_report.to_json`)
 A summary of verdicts by area; filters by verdict, area and requirement; and for each result
 its case's purpose and requirements (with their text), what was expected and what happened,
 the exchange (every message and datagram, with its time), and for a case that received
-datagrams a small plot of their intervals (the jitter) and of the losses."""
+datagrams a small plot of their intervals (the jitter) and of the losses. A run with --verify
+lists its unstable cases first, and each of their results says so."""
 
 from __future__ import annotations
 
@@ -70,6 +71,7 @@ def to_html(report: Mapping[str, Any], requirements: Mapping[str, str]) -> str:
     verdicts = list(_COLOURS)
     title = f"rcmlconf run: {report['target']}"
     counts = ", ".join(f"{n} {v}" for v, n in report["counts"].items() if n)
+    shaky = {u["case"]: _counted(u) for u in report.get("unstable", [])}
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
@@ -79,13 +81,14 @@ def to_html(report: Mapping[str, Any], requirements: Mapping[str, str]) -> str:
         f"<p>Started {escape(report['started'])}, {report['duration']:g} s:"
         f" {len(results)} results: {escape(counts)}.</p>",
         _summary(results, areas, verdicts),
+        _unstable(report),
         '<div class="filters">',
         _select("verdict", "every verdict", verdicts),
         _select("area", "every area", areas),
         '<label>requirement or case <input id="requirement" type="search"'
         ' placeholder="R-RCTP-9"></label>',
         '<span id="shown"></span></div>',
-        *(_result(r, requirements) for r in results),
+        *(_result(r, requirements, shaky.get(r["case"])) for r in results),
         f"<script>{_SCRIPT}</script></body></html>",
     ]
     return "\n".join(parts) + "\n"
@@ -107,6 +110,27 @@ def _summary(results: Sequence[Mapping[str, Any]], areas: list[str], verdicts: l
     return "\n".join(rows)
 
 
+def _counted(unstable: Mapping[str, Any]) -> str:
+    """An unstable case's verdicts, such as `unstable: 9 pass, 1 inconclusive`."""
+    return "unstable: " + ", ".join(f"{n} {v}" for v, n in unstable["verdicts"].items())
+
+
+def _unstable(report: Mapping[str, Any]) -> str:
+    """What --verify found; nothing for a run without it."""
+    if "unstable" not in report:
+        return ""
+    found = report["unstable"]
+    runs = report["settings"].get("verify")
+    if not found:
+        return f"<p>--verify: every case gave the same verdict in each of its {runs} runs.</p>"
+    items = "".join(
+        f'<li><b>{escape(u["case"])}</b> <span style="color:{_COLOURS["fail"]}">'
+        f"{escape(_counted(u))}</span></li>"
+        for u in found
+    )
+    return f"<h2>{len(found)} unstable (--verify {runs})</h2><ul>{items}</ul>"
+
+
 def _select(name: str, everything: str, choices: list[str]) -> str:
     options = "".join(f'<option value="{escape(c)}">{escape(c)}</option>' for c in choices)
     return (
@@ -115,7 +139,10 @@ def _select(name: str, everything: str, choices: list[str]) -> str:
     )
 
 
-def _result(result: Mapping[str, Any], requirements: Mapping[str, str]) -> str:
+def _result(
+    result: Mapping[str, Any], requirements: Mapping[str, str], unstable: str | None
+) -> str:
+    """`unstable`: the verdicts of the case's runs if --verify found it unstable."""
     verdict = result["verdict"]
     ids = [*result["requirements"], *([result["requirement"]] if result["requirement"] else [])]
     searched = " ".join([result["case"], *ids])
@@ -123,6 +150,8 @@ def _result(result: Mapping[str, Any], requirements: Mapping[str, str]) -> str:
     known = " (known)" if result["known"] else ""
     badge = f'<span class="badge" style="background:{_COLOURS[verdict]}">{verdict}{known}</span>'
     facts = [("purpose", escape(result["purpose"]))]
+    if unstable is not None:
+        facts.append(("verify", escape(unstable)))
     facts += [("requirement", _requirement(i, requirements)) for i in result["requirements"]]
     if result["requirement"]:
         facts.append(("broken", _requirement(result["requirement"], requirements)))

@@ -4,7 +4,8 @@ grows by one whenever a field changes meaning or goes (a field added keeps it).
 
 Version 2 (version 1 had no `started`/`duration`, and its `exchange` was the transcript's
 display lines): `exchange` is a list of objects, see `exchange.exchange_json`; `left_out` says
-what the bounded transcript left out of it (`exchange.left_out_json`)."""
+what the bounded transcript left out of it (`exchange.left_out_json`). A run with --verify adds
+`unstable`: each case whose runs gave different verdicts, with their counts (`stability`)."""
 
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ from typing import Any
 from rcmlconf.conformance.registry import Case
 from rcmlconf.conformance.reports.exchange import exchange_json, left_out_json
 from rcmlconf.conformance.reports.summary import counts
+from rcmlconf.conformance.stability import Unstable
 from rcmlconf.conformance.transcript import Entry
 from rcmlconf.conformance.verdicts import Result
 
@@ -33,10 +35,12 @@ def to_json(
     target: str,
     settings: Mapping[str, Any],
     span: tuple[float, float],
+    unstable: Sequence[Unstable] | None = None,
 ) -> dict[str, Any]:
-    """`span`: when the run started and ended (time.time())."""
+    """`span`: when the run started and ended (time.time()). `unstable`: the judgement of
+    --verify, None without it."""
     started, ended = span
-    return {
+    report = {
         "version": VERSION,
         "target": target,
         "started": _stamp(started),
@@ -45,6 +49,9 @@ def to_json(
         "counts": {verdict.value: n for verdict, n in counts(results).items()},
         "results": [_result(r, cases[r.case]) for r in results],
     }
+    if unstable is not None:
+        report["unstable"] = [{"case": u.case, "verdicts": dict(u.counts())} for u in unstable]
+    return report
 
 
 def _stamp(at: float) -> str:

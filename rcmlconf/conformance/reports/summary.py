@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 
 from rcmlconf.conformance.registry import Case
+from rcmlconf.conformance.stability import Unstable
 from rcmlconf.conformance.verdicts import Result, Verdict
 from rcmlconf.specs import Requirement
 from rcmlconf.wording import plural
@@ -55,10 +56,16 @@ def shown_exchange(result: Result) -> list[str]:
     return [f"... {earlier} lines before (--json has them)", *lines[-SHOWN_EXCHANGE:]]
 
 
-def run_status(results: list[Result], strict: bool) -> tuple[int, str]:
-    """The run's exit status, and why where the table does not say it: 1 for a failure the
-    baseline does not list (or, `strict`, an inconclusive case); 2 for an error, or a run in which
-    no case passed or failed: it tested nothing, and must not pass a CI gate."""
+def run_status(
+    results: list[Result], strict: bool, unstable: Sequence[Unstable] = ()
+) -> tuple[int, str]:
+    """The run's exit status, and why where the table does not say it.
+
+    It is 1 for a failure the baseline does not list, an `unstable` case (--verify), or with
+    `strict` an inconclusive case. It is 2 for an error, or for a run in which no case passed or
+    failed: it tested nothing, and must not pass a CI gate. An error outranks an unstable case:
+    the harness could not do its job.
+    """
     fresh = new_failures(results)
     if any(r.verdict is Verdict.FAIL for r in fresh):
         return 1, ""
@@ -71,6 +78,8 @@ def run_status(results: list[Result], strict: bool) -> tuple[int, str]:
         reason = Counter(r.reason for r in results if r.reason).most_common(1)
         first = f"; most often: {reason[0][0]}" if reason else ""
         return 2, f"no case passed or failed ({shown}): nothing was tested{first}"
+    if unstable:
+        return 1, f"--verify: {plural(len(unstable), 'case')} unstable"
     unsure = [r for r in results if r.verdict is Verdict.INCONCLUSIVE and not r.known]
     if strict and unsure:
         return 1, f"--strict: {plural(len(unsure), 'case')} inconclusive"
