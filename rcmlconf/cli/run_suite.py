@@ -48,6 +48,7 @@ from rcmlconf.conformance.files import shown
 from rcmlconf.conformance.giveup import NOT_RUN
 from rcmlconf.conformance.ics import EVERYTHING, Ics, load_ics
 from rcmlconf.conformance.probes.clients import HARNESS_RCML
+from rcmlconf.conformance.probes.inbound import arrival_clock
 from rcmlconf.conformance.registry import Case, all_cases
 from rcmlconf.conformance.reports.baseline import load_baseline, mark_known
 from rcmlconf.conformance.reports.html import to_html
@@ -246,6 +247,12 @@ def _run_or_exit(
         session_wait=settings.session_wait,
         connect_timeout=settings.tested.connect_timeout,
     )
+    clock, why = arrival_clock()
+    if clock != "kernel":
+        output.notice(
+            f"datagrams are timed when the harness reads them, not when they came: {why}"
+            " (D-RSP-26, D-RCTP-33)"
+        )
     faults = faults_named(settings.tested.faults)
     started = time.time()
     try:
@@ -274,6 +281,7 @@ def _recorded(settings: RunSettings) -> dict[str, Any]:
         "verify": settings.verify,
         "timeout_scale": settings.timeout_scale,
         "impair": settings.impair,
+        "arrival_clock": arrival_clock()[0],
     }
 
 

@@ -19,6 +19,8 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import fcntl
+import functools
+import socket
 import struct
 import time
 from collections.abc import Callable
@@ -32,6 +34,28 @@ Arrived = Callable[[bytes, Address, float], None]
 #: linux/sockios.h: the receive time of the last datagram read, as a struct timespec.
 _SIOCGSTAMPNS = 0x8907
 _TIMESPEC = struct.Struct("@qq")
+
+
+@functools.cache
+def arrival_clock() -> tuple[str, str]:
+    """Which clock times the datagrams a probe receives: ("kernel", "") where the kernel stamps
+    them, else ("loop", why not). Found once a process, with one datagram sent to itself."""
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            sock.bind(("127.0.0.1", 0))
+            sock.settimeout(1.0)
+            with contextlib.suppress(OSError):
+                fcntl.ioctl(sock.fileno(), _SIOCGSTAMPNS, bytes(_TIMESPEC.size))
+            sock.sendto(b"stamp?", sock.getsockname())
+            sock.recv(16)
+            seconds, _ = _TIMESPEC.unpack(
+                fcntl.ioctl(sock.fileno(), _SIOCGSTAMPNS, bytes(_TIMESPEC.size))
+            )
+    except OSError as error:
+        return "loop", f"SIOCGSTAMPNS: {error.strerror or error}"
+    if seconds <= 0:
+        return "loop", "SIOCGSTAMPNS gave no time"
+    return "kernel", ""
 
 
 class Inbound(asyncio.DatagramProtocol):

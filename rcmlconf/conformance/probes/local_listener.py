@@ -143,34 +143,34 @@ class LocalListener:
         if self._transport is not None and not self._transport.is_closing():
             self._transport.sendto(data, peer)
 
-    def _arrived(self, data: bytes, source: Address, now: float) -> None:
+    def _arrived(self, data: bytes, source: Address, at: float) -> None:
         probe = self._bound.get(source)
         if not _is_hello(data) or len(data) < _NONCE_AT + NONCE_SIZE:
             if probe is not None:
-                probe._arrived(data, now)
+                probe._arrived(data, at)
                 return
             # Else of a session no case holds: one that ended, which the local system may go on
             # with (R-RSP-22). Nobody answers; `settled` hears it.
             for ended in self._ended:
-                if ended.source == source and ended.heard(data, now):
+                if ended.source == source and ended.heard(data, at):
                     self._hello.set()
             return
         nonce = data[_NONCE_AT : _NONCE_AT + NONCE_SIZE]
         if probe is not None and probe.nonce == nonce:
-            probe._arrived(data, now)
+            probe._arrived(data, at)
             return
         key = (source, nonce)
         if key in self._taken:
             return
         entry = self._pending.get(key)
         if entry is None:
-            if _repeated(data) and now - self._started < WARM_UP:
+            if _repeated(data) and at - self._started < WARM_UP:
                 return
             if len(self._pending) >= PENDING:
                 del self._pending[next(iter(self._pending))]
             entry = self._pending[key] = _Pending(source, nonce)
             self._ever_heard = True
-        entry.datagrams.append((now, data))
+        entry.datagrams.append((at, data))
         self._hello.set()
 
     def _next_live(self, sealed: bool = False) -> _Pending | None:

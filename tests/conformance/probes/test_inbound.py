@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import asyncio
+import json
 import socket
 import time
+from pathlib import Path
 
-from rcmlconf.conformance.probes.inbound import Inbound
+from support.processes import run_command
+
+from rcmlconf.conformance.probes.inbound import Inbound, arrival_clock
 from rcmlconf.conformance.transcript import Address
 
 HOLD = 0.3
@@ -50,3 +54,14 @@ def test_a_datagram_read_late_keeps_the_time_it_came() -> None:
     # The kernel's stamp is on the wall clock: moved onto the loop's, it may come out a few
     # microseconds before the send.
     assert sent_at - CLOCKS <= at < held_until - HOLD / 2
+
+
+def test_the_run_report_says_which_clock_timed_the_datagrams(tmp_path: Path) -> None:
+    """Linux stamps datagrams: the JSON report says "kernel", and no notice of the loop's clock
+    is printed (D-RSP-26, D-RCTP-33)."""
+    assert arrival_clock() == ("kernel", "")
+    report = tmp_path / "run.json"
+    done = run_command("run", "--only", "rsp/session/welcome", "--json", str(report))
+    assert done.returncode == 0, done.stderr
+    assert "timed when the harness reads them" not in done.stderr
+    assert json.loads(report.read_text())["settings"]["arrival_clock"] == "kernel"
