@@ -36,6 +36,21 @@ _SIOCGSTAMPNS = 0x8907
 _TIMESPEC = struct.Struct("@qq")
 
 
+def _stamp(fd: int) -> float:
+    """The kernel's receive time of the datagram last read from `fd`, on the wall clock.
+    OSError where there is none: the first ask only turns the stamps on."""
+    seconds: int
+    nanoseconds: int
+    seconds, nanoseconds = _TIMESPEC.unpack(fcntl.ioctl(fd, _SIOCGSTAMPNS, bytes(_TIMESPEC.size)))
+    return seconds + nanoseconds * 1e-9
+
+
+def _stamp_from_now_on(fd: int) -> None:
+    """Ask the kernel to stamp what `fd` receives from now on."""
+    with contextlib.suppress(OSError):
+        _stamp(fd)
+
+
 @functools.cache
 def arrival_clock() -> tuple[str, str]:
     """Which clock times the datagrams a probe receives: ("kernel", "") where the kernel stamps
@@ -44,16 +59,13 @@ def arrival_clock() -> tuple[str, str]:
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
             sock.bind(("127.0.0.1", 0))
             sock.settimeout(1.0)
-            with contextlib.suppress(OSError):
-                fcntl.ioctl(sock.fileno(), _SIOCGSTAMPNS, bytes(_TIMESPEC.size))
+            _stamp_from_now_on(sock.fileno())
             sock.sendto(b"stamp?", sock.getsockname())
             sock.recv(16)
-            seconds, _ = _TIMESPEC.unpack(
-                fcntl.ioctl(sock.fileno(), _SIOCGSTAMPNS, bytes(_TIMESPEC.size))
-            )
+            stamp = _stamp(sock.fileno())
     except OSError as error:
         return "loop", f"SIOCGSTAMPNS: {error.strerror or error}"
-    if seconds <= 0:
+    if stamp <= 0:
         return "loop", "SIOCGSTAMPNS gave no time"
     return "kernel", ""
 
@@ -75,9 +87,7 @@ class Inbound(asyncio.DatagramProtocol):
         if sock is None:
             return
         self._fd = sock.fileno()
-        # The first ask turns the kernel's stamps on; it fails, as nothing has come yet.
-        with contextlib.suppress(OSError):
-            fcntl.ioctl(self._fd, _SIOCGSTAMPNS, bytes(_TIMESPEC.size))
+        _stamp_from_now_on(self._fd)
 
     def datagram_received(self, data: bytes, addr: tuple[str | int, ...]) -> None:
         arrived = self.arrived
@@ -101,9 +111,7 @@ class Inbound(asyncio.DatagramProtocol):
         if self._fd < 0:
             return now
         try:
-            stamp = fcntl.ioctl(self._fd, _SIOCGSTAMPNS, bytes(_TIMESPEC.size))
+            ago = time.time() - _stamp(self._fd)
         except OSError:
             return now
-        seconds, nanoseconds = _TIMESPEC.unpack(stamp)
-        ago = time.time() - (seconds + nanoseconds * 1e-9)
         return now - ago if ago > 0 else now
