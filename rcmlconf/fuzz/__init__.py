@@ -1,0 +1,1 @@
+"""Stateful fuzzing of every role (issue 29)."""
