@@ -351,7 +351,9 @@ class ControlConnection:
             match = next(
                 (s for s in requester.pending if s.cseq == cseq and cseq is not None), None
             )
-            if match is None:
+            if match is None and sent.request.method == UNFRAMED and sent.cseq is None:
+                pass  # D-RCTP-10: its receiver may have read a CSeq the capture cannot tell
+            elif match is None:
                 findings.add(
                     Severity.ERROR,
                     "R-RCTP-3",

@@ -6,7 +6,8 @@ from __future__ import annotations
 from rcmlconf.dissect.context import Context, DataSession
 from rcmlconf.dissect.records import Severity
 from rcmlconf.errors import ValueTextError
-from rcmlconf.rctp.fields import parse_transport
+from rcmlconf.rcml.model import AccessNode, AccessType
+from rcmlconf.rctp.fields import Transport, parse_transport
 from rcmlconf.rctp.messages import Request, Response
 
 
@@ -24,17 +25,32 @@ def learn_data_stream(
     `addresses` are the client's and the server's; `session_id` is the RCTP session's, when
     known; `where` is the response's (record number, frame, time), for findings."""
     asked = request.headers.get("Transport")
-    if asked is None:
-        return  # an event access
+    kind = _access_kind(ctx, path)
+    if kind is False or (kind is None and asked is None):
+        return  # an event access: SETUP names no data stream (D-RCTP-26)
     number, frame, time = where
     findings = ctx.findings
     text = response.headers.get("Transport")
     try:
-        request_transport = parse_transport(asked)
         transport = parse_transport(text) if text is not None else None
     except ValueTextError as exc:
         findings.add(Severity.ERROR, "R-RCTP-38", f"SETUP {path}'s 200: {exc}", frame, time, number)
         return
+    try:
+        request_transport = parse_transport(asked or "")
+    except ValueTextError as exc:
+        if kind:  # a stream access's Transport the server cannot read: 461 is due
+            findings.add(
+                Severity.ERROR,
+                "R-RCTP-38",
+                f"SETUP {path} answered 200 to a Transport it cannot serve ({exc}): 461 is due",
+                frame,
+                time,
+                number,
+            )
+        if transport is None:
+            return
+        request_transport = Transport()
     if transport is None or None in (transport.server_port, transport.tag, transport.stream):
         findings.add(
             Severity.ERROR,
@@ -68,3 +84,12 @@ def learn_data_stream(
     if transport.stream is not None:
         session.streams[transport.stream] = (path, transport)
     ctx.learn(session)
+
+
+def _access_kind(ctx: Context, path: str) -> bool | None:
+    """Whether `path` is a stream access of the robot; None without its RCML."""
+    rcml = ctx.options.rcml
+    if rcml is None:
+        return None
+    node = rcml.node(path)
+    return isinstance(node, AccessNode) and node.type is AccessType.STREAM

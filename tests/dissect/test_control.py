@@ -15,11 +15,13 @@ from hypothesis import example, given
 from hypothesis import strategies as st
 from support.pcaps import TCP_ACK, TCP_PSH, TCP_SYN, TcpFlow, dissect, ipv4_tcp, ipv4_udp, pcap
 
+from rcmlconf.conformance.targets import REFERENCE_RCML
 from rcmlconf.dissect import RCTP, RCTP_DATA, Options, Severity
 from rcmlconf.dissect.control_results import Answer
 from rcmlconf.rctp.connection import Connection, RequestReceived, RequestRejected
 from rcmlconf.rctp.messages import METHODS, SERVER_METHODS
 from rcmlconf.rctp.states import Role, SessionState
+from rcmlconf.validate.validator import load_robot
 
 TRANSCRIPTS = sorted(
     (Path(__file__).parents[2] / "vectors" / "rctp" / "transcripts").glob("*.json")
@@ -491,3 +493,32 @@ def test_what_the_core_refuses_the_dissector_finds_due(
         assert f": {event.reason}; " in text
     answered = [f.text for f in dissected.analysis.findings if " answered " in f.text]
     assert not [text for text in answered if text.startswith(("the client", "the server"))]
+
+
+def test_an_answer_may_echo_the_cseq_of_a_request_that_cannot_be_framed() -> None:
+    """D-RCTP-10: the receiver may have read a CSeq the capture cannot tell (found by fuzz)."""
+    dissected = session(
+        ("c", "\r\nCSeq: 1\r\n\r\n"),
+        ("s", "RCTP/2.0 400 Bad Request\r\nCSeq: 1\r\n\r\n"),
+    )
+    assert not dissected.findings("R-RCTP-3")
+
+
+def _setup_answered_200(path: str) -> Any:
+    """SETUP of `path` with an unreadable Transport, answered 200 without one, judged with the
+    reference robot's RCML."""
+    flow = TcpFlow(CLIENT, SERVER).handshake()
+    setup = f"SETUP {path} RCTP/2.0\r\nCSeq: 2\r\n{SESSION}Transport: udp;tag=zz\r\n\r\n"
+    answer = f"RCTP/2.0 200 OK\r\nCSeq: 2\r\n{SESSION}\r\n"
+    for who, text in (CONNECT, CONNECTED, ("c", setup), ("s", answer)):
+        flow.send(CLIENT if who == "c" else SERVER, wire(text))
+    return dissect(pcap(flow.frames), Options(rcml=load_robot(REFERENCE_RCML)))
+
+
+def test_an_event_access_setup_names_no_data_stream() -> None:
+    """The RCML says /drive/settings is an event access: a Transport its SETUP carries is not
+    the server's to answer (D-RCTP-26), and a 200 without one breaks nothing (found by fuzz)."""
+    assert not _setup_answered_200("/drive/settings").findings("R-RCTP-38")
+    # The same on SETUP of a stream access: 461 was due (R-RCTP-38).
+    found = _setup_answered_200("/drive/wheels").findings("R-RCTP-38")
+    assert any("461 is due" in text for text in found)
