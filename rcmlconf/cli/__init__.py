@@ -39,6 +39,11 @@ COMMANDS = {
         "Decode and analyse a pcap/pcapng capture of RCTP/2.0 and RSP: a line a message, then"
         " the analysis.",
     ),
+    "fuzz": (
+        "rcmlconf.cli.fuzz",
+        "fuzz",
+        "Fuzz an RCTP/2.0 server through its states; each finding minimised, replayable.",
+    ),
     "local": (
         "rcmlconf.cli.local",
         "local",

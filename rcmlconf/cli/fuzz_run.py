@@ -1,0 +1,188 @@
+"""`rcmlconf fuzz` once click has read its options: reach the target, run the campaign, write
+the reports, exit with the campaign's status."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import Any, NoReturn
+
+from rcmlconf.cli.console import Output
+from rcmlconf.cli.run_target import fetched_robot
+from rcmlconf.conformance.settings import TargetSettings
+from rcmlconf.conformance.targets import REFERENCE_RCML
+from rcmlconf.fuzz.campaign import Budget, Stats
+from rcmlconf.fuzz.findings import FindingFileError
+from rcmlconf.fuzz.launch import (
+    ANSWER_WAIT,
+    Reached,
+    campaign_for,
+    embedded_command,
+    finish,
+    free_port,
+    replay,
+    resume_state,
+    started,
+    write_reports,
+)
+from rcmlconf.fuzz.monitor import LeakWatch, TargetCommandError, TargetNotReady
+from rcmlconf.fuzz.rctp_target import RctpTarget
+from rcmlconf.validate.validator import load_robot
+
+#: Without a terminal, a progress line this often (seconds).
+QUIET_TICK = 5.0
+DEFAULT_SECONDS = 60.0
+#: --max-rate's default off loopback (D-FUZZ-7).
+REMOTE_RATE = 200.0
+
+
+def _fail(output: Output, text: str, status: int = 2) -> NoReturn:
+    output.problem("fuzz", text)
+    sys.exit(status)
+
+
+def _reach(
+    output: Output, tested: TargetSettings, options: dict[str, Any]
+) -> tuple[tuple[str, int], str | None, Any, str, dict[str, Any]]:
+    """The address, the command that starts it, the robot, the site and the description."""
+    command = options.pop("target_command")
+    wait = ANSWER_WAIT * options.pop("timeout_scale")
+    if tested.target is None:
+        if command is not None:
+            _fail(output, "--target-command needs --target: the address the command listens on")
+        address = ("127.0.0.1", free_port())
+        command = embedded_command(address[1], tested.faults)
+        robot = load_robot(REFERENCE_RCML)
+        described = {"embedded": True, "faults": list(tested.faults)}
+    else:
+        if tested.faults:
+            _fail(output, "--fault is for the embedded reference: leave out --target")
+        address = (tested.target[0], tested.target[1])
+        if tested.rcml is not None:
+            robot = load_robot(tested.rcml)
+        elif command is None:
+            robot = fetched_robot(output, tested.target, wait)
+        else:
+            _fail(output, "--target-command needs --rcml: the server is not up to ask")
+        described = {"address": f"{address[0]}:{address[1]}", "command": command}
+    site = tested.site or robot.site.path or "/"
+    described["site"] = site
+    return address, command, robot, site, {"wait": wait, **described}
+
+
+def fuzz_target(tested: TargetSettings, options: dict[str, Any]) -> None:
+    output = Output()
+    address, command, robot, site, described = _reach(output, tested, options)
+    wait = described["wait"]
+    out: Path = options.pop("resume") or options.pop("out")
+    out.mkdir(parents=True, exist_ok=True)
+    loopback = address[0] in ("127.0.0.1", "::1", "localhost")
+    rate = options.pop("max_rate") or (None if loopback else REMOTE_RATE)
+    seconds, cases = options.pop("seconds"), options.pop("cases")
+    budget = Budget(
+        seconds=seconds if seconds is not None or cases is not None else DEFAULT_SECONDS,
+        cases=cases,
+        max_rate=rate,
+        max_memory=options.pop("max_memory"),
+    )
+    leaks = LeakWatch(rss_limit=options.pop("leak_rss") * 2**20, fd_limit=options.pop("leak_fds"))
+    try:
+        state = resume_state(out)
+    except ValueError as error:
+        _fail(output, str(error))
+    try:
+        with started(command, address, wait) as process:
+            reached = Reached(
+                address=address, robot=robot, site=site, process=process, described=described
+            )
+            campaign, subject = campaign_for(
+                reached,
+                out=out,
+                seed=options["seed"],
+                budget=budget,
+                wait=wait,
+                leaks=leaks,
+                progress=progress_for(output),
+            )
+            problem = subject.alive()
+            if problem is not None:
+                _fail(output, f"{address[0]}:{address[1]}: {problem.text}")
+            if state is not None:
+                campaign.resume(state)
+                output.notice(f"resuming {out}: {campaign.stats.cases} cases run before")
+            try:
+                campaign.run()
+            except KeyboardInterrupt:
+                campaign.stopped = "interrupted"
+            finally:
+                subject.close()
+            document = finish(campaign, {"seed": options["seed"], "target": described})
+    except (TargetNotReady, TargetCommandError) as error:
+        _fail(output, str(error))
+    write_reports(document, options["json_file"], options["junit"])
+    _summary(output, document, out)
+
+
+def _summary(output: Output, document: dict[str, Any], out: Path) -> NoReturn:
+    for item in document["findings"]:
+        output.live(
+            [
+                (f"{out / item['file']}: ", "bold"),
+                (f"{item['oracle']} ", "bold red"),
+                (f"[{item['requirement']}] in {item['state']}: {item['text']}", ""),
+                (f" (fired {item['count']}, stable {item['stable']})", "dim"),
+            ]
+        )
+    if document["stopped"]:
+        output.notice(f"stopped: {document['stopped']}")
+    found = len(document["findings"])
+    output.summary(
+        f"{document['cases']} cases in {document['seconds']:.1f} s"
+        f" ({document['cases_per_second']:.0f}/s), {document['states_reached']} states reached,"
+        f" {found} finding{'s' if found != 1 else ''}; report: {out / 'report.json'}",
+        found == 0,
+    )
+    sys.exit(1 if found else 0)
+
+
+def replay_finding(path: Path, tested: TargetSettings, options: dict[str, Any]) -> NoReturn:
+    output = Output()
+    address, command, robot, site, described = _reach(output, tested, options)
+    try:
+        with started(command, address, described["wait"]) as process:
+            subject = RctpTarget(address, robot, site, described["wait"])
+            try:
+                verdict = replay(path, subject, process)
+            except FindingFileError as error:
+                _fail(output, str(error))
+            finally:
+                subject.close()
+    except (TargetNotReady, TargetCommandError) as error:
+        _fail(output, str(error))
+    if verdict is None:
+        output.summary(f"{path}: did not reproduce", True)
+        sys.exit(0)
+    output.summary(f"{path}: reproduced: {verdict.oracle} [{verdict.rule}] {verdict.text}", False)
+    sys.exit(1)
+
+
+def tick(output: Output, every: float) -> Any:
+    """The progress callback: a line each `every` seconds."""
+    last = [0.0]
+
+    def show(stats: Stats) -> None:
+        now = time.monotonic()
+        if now - last[0] < every:
+            return
+        last[0] = now
+        output.notice(
+            f"{stats.cases} cases, {stats.rate:.0f}/s, {stats.states} states reached,"
+            f" {stats.findings} findings ({stats.fired} fired), {stats.restarts} restarts"
+        )
+
+    return show
+
+
+def progress_for(output: Output) -> Any:
+    return tick(output, 1.0 if sys.stderr.isatty() else QUIET_TICK)

@@ -1,0 +1,399 @@
+"""A fuzzing campaign: cases drawn where the state map is thin, judged by the oracles, each
+finding minimised, re-run and written once (D-FUZZ-1 to D-FUZZ-7).
+
+The campaign is the same for every role; a `Subject` runs a case against its target, judges
+it, and probes that the target lives. Under --target-command a `TargetProcess` starts the
+target, says when it exits, and restarts it; `LeakWatch` judges its resource use.
+"""
+
+from __future__ import annotations
+
+import json
+import random
+import resource
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+from rcmlconf.fuzz.findings import Finding
+from rcmlconf.fuzz.minimise import minimise
+from rcmlconf.fuzz.monitor import LeakWatch, TargetProcess
+from rcmlconf.fuzz.oracles import CRASH, HANG, LEAK, Verdict
+from rcmlconf.fuzz.rctp_exec import Outcome
+from rcmlconf.fuzz.statemap import StateMap
+from rcmlconf.fuzz.steps import TestCase
+
+#: A liveness probe after this many cases with nothing odd (D-FUZZ-4).
+PROBE_EVERY = 20
+#: Re-runs of a minimised finding that say whether it is stable (D-FUZZ-6).
+RERUNS = 3
+#: The most runs minimising one finding takes; a hang costs a wait each, so fewer.
+TRIES, HANG_TRIES = 150, 12
+#: The corpus's most cases (--max-memory bounds it further).
+CORPUS = 2000
+#: The most of the budget minimising one finding takes, and at most this many seconds.
+MINIMISE_SHARE, MINIMISE_SECONDS = 0.2, 60.0
+#: A resource sample of the target every this many cases (--target-command).
+SAMPLE_EVERY = 10
+
+
+class Subject(Protocol):
+    role: str
+
+    def run(self, case: TestCase) -> Outcome: ...
+    def judge(self, out: Outcome) -> Verdict | None: ...
+    def alive(self) -> Verdict | None: ...
+
+
+class Cases(Protocol):
+    @property
+    def states(self) -> tuple[str, ...]: ...
+    def kinds(self, state: str) -> tuple[str, ...]: ...
+    def make(self, state: str, kind: str, rng: random.Random, count: int = 1) -> TestCase: ...
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Budget:
+    seconds: float | None
+    cases: int | None
+    #: Cases a second at most; None: as fast as the target answers.
+    max_rate: float | None
+    #: The fuzzer's own memory, MiB: past it the corpus is trimmed.
+    max_memory: int
+
+
+@dataclass(slots=True)
+class Stats:
+    cases: int = 0
+    elapsed: float = 0.0
+    findings: int = 0
+    fired: int = 0
+    restarts: int = 0
+    states: int = 0
+
+    @property
+    def rate(self) -> float:
+        return self.cases / self.elapsed if self.elapsed > 0 else 0.0
+
+
+@dataclass
+class Campaign:
+    subject: Subject
+    cases: Cases
+    out: Path
+    seed: int
+    budget: Budget
+    target: dict[str, Any]
+    process: TargetProcess | None = None
+    leaks: LeakWatch | None = None
+    progress: Callable[[Stats], None] = lambda stats: None
+    stats: Stats = field(default_factory=Stats)
+    findings: dict[tuple[str, str, str, tuple[str, ...]], Finding] = field(default_factory=dict)
+    #: (oracle, rule, state, first kind) -> the finding it was minimised into.
+    _seen: dict[tuple[str, str, str, str], Finding] = field(default_factory=dict)
+    corpus: list[TestCase] = field(default_factory=list)
+    stopped: str | None = None
+
+    def __post_init__(self) -> None:
+        self.map = StateMap({state: self.cases.kinds(state) for state in self.cases.states})
+        self.rng = random.Random(self.seed)
+        self._since_probe: list[TestCase] = []
+        self._started = time.monotonic()
+
+    # -- the loop --
+
+    def run(self) -> Stats:
+        """Fuzz until the budget is spent. A resumed campaign's budget is this run's: its cases
+        and seconds count from now, its totals from the first run."""
+        started = self._started = time.monotonic()
+        before, first = self.stats.elapsed, self.stats.cases
+        last_tick = 0.0
+        while self.stopped is None and not self._spent(started, first):
+            case = self._next_case()
+            self._one(case)
+            self.stats.elapsed = before + time.monotonic() - started
+            self._pace(started, first)
+            if self.stats.elapsed - last_tick >= 1.0:
+                last_tick = self.stats.elapsed
+                self.stats.states = self.map.states_reached
+                self.progress(self.stats)
+        if self.stopped is None:
+            self._final_probe()
+        self._judge_leak()
+        self.stats.elapsed = before + time.monotonic() - started
+        self.stats.states = self.map.states_reached
+        return self.stats
+
+    def _past_end(self) -> bool:
+        seconds = self.budget.seconds
+        return seconds is not None and time.monotonic() - self._started >= seconds
+
+    def _spent(self, started: float, first: int) -> bool:
+        if self.budget.cases is not None and self.stats.cases - first >= self.budget.cases:
+            return True
+        return self._past_end()
+
+    def _pace(self, started: float, first: int) -> None:
+        rate = self.budget.max_rate
+        if rate is None:
+            return
+        ahead = (self.stats.cases - first) / rate - (time.monotonic() - started)
+        if ahead > 0:
+            time.sleep(ahead)
+
+    def _next_case(self) -> TestCase:
+        rng = self.rng
+        if self.corpus and rng.random() < 0.25:
+            base = rng.choice(self.corpus)
+            extra = self.cases.make(base.state, rng.choice(self.cases.kinds(base.state)), rng)
+            steps = (*base.steps, *extra.steps)[-6:]
+            return TestCase(base.state, base.prefix, steps, (*base.kinds, *extra.kinds)[-6:])
+        state, kind = self.map.pick(rng)
+        return self.cases.make(state, kind, rng, rng.choice((1, 1, 2, 3)))
+
+    def _one(self, case: TestCase) -> None:
+        out = self.subject.run(case)
+        self.stats.cases += 1
+        kind = case.kinds[0] if case.kinds else "none"
+        if self.map.record(case.state, kind, out.missed is None, tuple(out.statuses)):
+            self._keep(case)
+        self._since_probe.append(case)
+        verdict = self._verdict(out)
+        if verdict is not None:
+            self._found(case, verdict, out)
+            self._since_probe.clear()
+        elif len(self._since_probe) >= PROBE_EVERY:
+            self._probe()
+        if (
+            self.process is not None
+            and self.leaks is not None
+            and self.stats.cases % SAMPLE_EVERY == 0
+        ):
+            self.leaks.add(self.process.usage())
+
+    def _verdict(self, out: Outcome) -> Verdict | None:
+        """The oracles on one run: the process's exit first, then the case's own judgement,
+        then, when the case ended oddly, a liveness probe."""
+        verdict = self.subject.judge(out)
+        odd = out.end != "open" or out.missed is not None or verdict is not None
+        if verdict is None and odd:
+            verdict = self.subject.alive()
+        return self._exited() or verdict
+
+    def _exited(self) -> Verdict | None:
+        if self.process is None:
+            return None
+        exit = self.process.exited()
+        if exit is None:
+            return None
+        return Verdict(
+            CRASH,
+            "R-RCTP-5" if self.subject.role == "server" else "R-RSP-20",
+            f"the target's process {exit.text()}",
+        )
+
+    def _probe(self) -> None:
+        verdict = self._exited() or self.subject.alive()
+        window = list(self._since_probe)
+        self._since_probe.clear()
+        if verdict is None:
+            return
+        # The culprit is among the cases since the last probe: the first one that brings it
+        # about again on a fresh target is the finding's (without a restart, the last one).
+        culprit = window[-1]
+        if self.process is not None:
+            for candidate in reversed(window):
+                if self._fires(candidate, verdict):
+                    culprit = candidate
+                    break
+        self._found(culprit, verdict, None)
+
+    def _final_probe(self) -> None:
+        if self._since_probe:
+            self._probe()
+
+    def _keep(self, case: TestCase) -> None:
+        if len(self.corpus) >= CORPUS or self._memory() > self.budget.max_memory:
+            if not self.corpus:
+                return
+            self.corpus.pop(self.rng.randrange(len(self.corpus)))
+        self.corpus.append(case)
+
+    @staticmethod
+    def _memory() -> int:
+        """The fuzzer's own peak RSS, MiB (Linux gives KiB)."""
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024
+
+    # -- findings -------------------------------------------------------------------------------
+
+    def _found(self, case: TestCase, verdict: Verdict, out: Outcome | None) -> None:
+        self.stats.fired += 1
+        first = case.kinds[0] if case.kinds else "none"
+        self.map.found(case.state, first)
+        early = (verdict.oracle, verdict.rule, case.state, first)
+        known = self._seen.get(early)
+        if known is not None:
+            known.count += 1
+            self._recover(verdict)
+            return
+        output = self._output()
+        can_rerun = (
+            self.process is not None
+            or verdict.oracle not in (CRASH, HANG)
+            or (out is not None and self.subject.alive() is None)
+        )
+        self._recover(verdict)
+        minimised, last = case, out
+        if can_rerun:
+            slow = verdict.oracle == HANG or "no answer" in verdict.text
+            tries = HANG_TRIES if slow else TRIES
+            share = (self.budget.seconds or MINIMISE_SECONDS / MINIMISE_SHARE) * MINIMISE_SHARE
+            self._minimise_until = time.monotonic() + min(share, MINIMISE_SECONDS)
+            minimised = minimise(case, lambda c: self._fires(c, verdict), tries)
+            runs = fired = 0
+            self._minimise_until += self.subject_wait() * RERUNS * 2
+            for _ in range(RERUNS):
+                if self._past_end():
+                    break
+                runs += 1
+                fired += self._fires(minimised, verdict)
+            stable = (fired, runs)
+            last = self._last
+            if self._dirty:
+                self._restart()
+        else:
+            stable = (0, 0)
+        finding = Finding(
+            number=len(self.findings) + 1,
+            verdict=verdict,
+            role=self.subject.role,
+            case=minimised,
+            original=case,
+            stable=stable,
+            minimised=can_rerun,
+            at=self.stats.elapsed,
+            target=self.target,
+            output=output,
+            payloads=list(last.payloads) if last is not None else [],
+        )
+        existing = self.findings.get(finding.key)
+        if existing is not None:
+            existing.count += 1
+            self._seen[early] = existing
+            return
+        self.findings[finding.key] = finding
+        self._seen[early] = finding
+        self.stats.findings = len(self.findings)
+        finding.write(self.out)
+        if self.process is None and verdict.oracle in (CRASH, HANG) and self.subject.alive():
+            self.stopped = "the target no longer answers; give --target-command to restart it"
+
+    def _output(self) -> dict[str, Any] | None:
+        if self.process is None:
+            return None
+        exit = self.process.exited()
+        if exit is None:
+            return None
+        return {"exit": exit.text(), "status": exit.status, "stderr_tail": exit.stderr_tail}
+
+    _last: Outcome | None = None
+    _minimise_until: float = 0.0
+
+    def subject_wait(self) -> float:
+        return float(getattr(self.subject, "wait", 5.0))
+
+    #: The last run brought the target down: restart it before the next (--target-command).
+    _dirty: bool = False
+
+    def _fires(self, case: TestCase, verdict: Verdict) -> bool:
+        """Run `case` on a live target: does the same oracle fire, for the same requirement?
+        Past the budget's end, no more runs: the finding keeps what it has."""
+        if self._past_end() or time.monotonic() > self._minimise_until:
+            return False
+        if self._dirty and self.process is not None:
+            self._restart()
+        out = self.subject.run(case)
+        found = self.subject.judge(out)
+        if found is None and verdict.oracle in (CRASH, HANG):
+            found = self.subject.alive()
+        found = self._exited() or found
+        self._last = out
+        self._dirty = found is not None and found.oracle in (CRASH, HANG)
+        same = found is not None and found.oracle == verdict.oracle
+        if same and verdict.oracle not in (CRASH, HANG):
+            same = found is not None and found.rule == verdict.rule
+        return same
+
+    def _recover(self, verdict: Verdict) -> None:
+        """Restart a target that exited, or that a crash or a hang left (--target-command)."""
+        if self.process is None:
+            return
+        if self.process.exited() is not None or verdict.oracle in (CRASH, HANG) or self._dirty:
+            self._restart()
+
+    def _restart(self) -> None:
+        assert self.process is not None
+        self.process.restart()
+        self._dirty = False
+        self.stats.restarts += 1
+        if self.leaks is not None:
+            self.leaks.reset()
+
+    def _judge_leak(self) -> None:
+        if self.leaks is None:
+            return
+        leak = self.leaks.judge()
+        if leak is None:
+            return
+        verdict = Verdict(LEAK, "D-FUZZ-4", leak.text)
+        probe = (
+            self.corpus[-1]
+            if self.corpus
+            else self.cases.make(self.cases.states[0], "cseq", self.rng)
+        )
+        finding = Finding(
+            number=len(self.findings) + 1, verdict=verdict, role=self.subject.role, case=probe,
+            original=probe, stable=(0, 0), minimised=False, at=self.stats.elapsed,
+            target=self.target,
+        )  # fmt: skip
+        self.findings[finding.key] = finding
+        self.stats.findings = len(self.findings)
+        finding.write(self.out)
+
+    # -- resuming -------------------------------------------------------------------------------
+
+    def save(self) -> Path:
+        """state.json: the map, the corpus, the findings' keys, the counts; --resume reads it."""
+        path = self.out / "state.json"
+        item = {
+            "schema": "rcmlconf-fuzz-state/1",
+            "seed": self.seed,
+            "cases": self.stats.cases,
+            "elapsed": self.stats.elapsed,
+            "map": self.map.to_json(),
+            "corpus": [c.to_json() for c in self.corpus],
+            "findings": [f.to_json() for f in self.findings.values()],
+        }
+        path.write_text(json.dumps(item) + "\n", encoding="utf-8")
+        return path
+
+    def resume(self, item: dict[str, Any]) -> None:
+        self.map.load(item["map"])
+        self.corpus = [TestCase.from_json(c) for c in item["corpus"]][-CORPUS:]
+        self.stats.cases = int(item["cases"])
+        # A resumed campaign draws other cases than the first part did: the seed moves on.
+        self.rng = random.Random(f"{self.seed}:{self.stats.cases}")
+        for found in item["findings"]:
+            verdict = Verdict(found["oracle"], found["requirement"], found["text"])
+            case = TestCase.from_json(found["case"])
+            finding = Finding(
+                number=int(found["number"]), verdict=verdict, role=found["role"], case=case,
+                original=TestCase.from_json(found["original"]),
+                stable=(found["stable"]["fired"], found["stable"]["runs"]),
+                minimised=found["minimised"], at=found["first_seen"], target=found["target"],
+                output=found["target_output"], count=int(found["count"]),
+            )  # fmt: skip
+            self.findings[finding.key] = finding
+        self.stats.findings = len(self.findings)

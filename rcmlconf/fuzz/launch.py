@@ -1,0 +1,143 @@
+"""From `rcmlconf fuzz`'s settings to a running campaign: the robot, the target (started here
+under --target-command, or the embedded reference), the subject, and what is written at the end.
+"""
+
+from __future__ import annotations
+
+import json
+import shlex
+import socket
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from rcmlconf.conformance.targets import REFERENCE_RCML
+from rcmlconf.fuzz.campaign import Budget, Campaign, Stats
+from rcmlconf.fuzz.findings import load_finding
+from rcmlconf.fuzz.monitor import LeakWatch, TargetProcess
+from rcmlconf.fuzz.oracles import CRASH, HANG, Verdict
+from rcmlconf.fuzz.rctp_cases import RctpCases
+from rcmlconf.fuzz.rctp_drafts import STATES
+from rcmlconf.fuzz.rctp_robot import robot_paths
+from rcmlconf.fuzz.rctp_target import RctpTarget
+from rcmlconf.fuzz.report import report, write_json, write_junit
+from rcmlconf.fuzz.seeds import control_seeds
+from rcmlconf.rcml.model import RcmlDocument
+
+Address = tuple[str, int]
+#: D-FUZZ-4: the bound on every answer, and on a liveness probe's, before --timeout-scale.
+ANSWER_WAIT = 5.0
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Reached:
+    """The target of a campaign, once it answers."""
+
+    address: Address
+    robot: RcmlDocument
+    site: str
+    process: TargetProcess | None
+    #: What the reports say the target is.
+    described: dict[str, Any]
+
+
+def embedded_command(port: int, faults: tuple[str, ...]) -> str:
+    """The reference server as a process of its own, so a crash of it is seen as one."""
+    words = [sys.executable, "-m", "rcmlconf", "serve", str(REFERENCE_RCML), "--port", str(port)]
+    words += ["--no-http"] + [f"--fault={name}" for name in faults]
+    return shlex.join(words)
+
+
+def free_port(host: str = "127.0.0.1") -> int:
+    with socket.socket() as probe:
+        probe.bind((host, 0))
+        port: int = probe.getsockname()[1]
+        return port
+
+
+@contextmanager
+def started(command: str | None, address: Address, wait: float) -> Iterator[TargetProcess | None]:
+    """The target's process under --target-command (None without it), stopped at the end."""
+    if command is None:
+        yield None
+        return
+    process = TargetProcess(command, ready=(address[0], address[1], "tcp"), ready_timeout=wait)
+    process.start()
+    try:
+        yield process
+    finally:
+        process.stop()
+
+
+def campaign_for(
+    reached: Reached,
+    *,
+    out: Path,
+    seed: int,
+    budget: Budget,
+    wait: float,
+    leaks: LeakWatch | None,
+    progress: Callable[[Stats], None],
+) -> tuple[Campaign, RctpTarget]:
+    subject = RctpTarget(reached.address, reached.robot, reached.site, wait)
+    cases = RctpCases(robot_paths(reached.robot, reached.site), control_seeds())
+    campaign = Campaign(
+        subject,
+        cases,
+        out,
+        seed,
+        budget,
+        reached.described,
+        process=reached.process,
+        leaks=leaks if reached.process is not None else None,
+        progress=progress,
+    )
+    return campaign, subject
+
+
+def resume_state(out: Path) -> dict[str, Any] | None:
+    """The state.json of an earlier campaign in `out`, or None."""
+    path = out / "state.json"
+    if not path.is_file():
+        return None
+    item: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+    if item.get("schema") != "rcmlconf-fuzz-state/1":
+        raise ValueError(f"{path} is not a campaign's state")
+    return item
+
+
+def finish(campaign: Campaign, settings: dict[str, Any]) -> dict[str, Any]:
+    """Write the state, the state map and the report into the campaign's folder."""
+    campaign.save()
+    campaign.map.write(campaign.out, tuple(s for s in STATES if s in campaign.map.kinds))
+    document = report(
+        campaign.stats,
+        sorted(campaign.findings.values(), key=lambda f: f.number),
+        campaign.map,
+        settings,
+        campaign.stopped,
+    )
+    write_json(campaign.out / "report.json", document)
+    return document
+
+
+def write_reports(document: dict[str, Any], json_file: Path | None, junit: Path | None) -> None:
+    if json_file is not None:
+        write_json(json_file, document)
+    if junit is not None:
+        write_junit(junit, document)
+
+
+def replay(path: Path, subject: RctpTarget, process: TargetProcess | None) -> Verdict | None:
+    """Send a finding's case again: the verdict it gets now (None: it did not reproduce)."""
+    case, _ = load_finding(path)
+    out = subject.run(case)
+    found = subject.judge(out) or subject.alive()
+    if process is not None and (exit := process.exited()) is not None:
+        return Verdict(CRASH, "R-RCTP-5", f"the target's process {exit.text()}")
+    if found is not None and found.oracle in (CRASH, HANG, "violation"):
+        return found
+    return None

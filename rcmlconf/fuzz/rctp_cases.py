@@ -1,0 +1,98 @@
+"""Test cases for an RCTP/2.0 server: a valid prefix to a state, then mutated steps (D-FUZZ-1).
+
+A prefix's requests are numbered from CSeq 1 (D-RCTP-6); the steps go on from there, so a step
+whose mutation left its `CSeq` alone is next in order. Data-stream steps go only where a
+stream is set up: they need its port and tag (D-RCTP-18, D-RCTP-19).
+"""
+
+from __future__ import annotations
+
+import random
+from collections.abc import Sequence
+
+from rcmlconf.fuzz import mutate
+from rcmlconf.fuzz.rctp_drafts import STATES, Draft, moves, prefix
+from rcmlconf.fuzz.rctp_robot import RobotPaths
+from rcmlconf.fuzz.steps import Step, TestCase
+from rcmlconf.rctp.datastream.flow import (
+    Direction,
+    HeartbeatRequest,
+    IntervalSet,
+    TimeoutSet,
+    encode_flow,
+)
+from rcmlconf.rctp.datastream.packets import PayloadType, push_datagram
+
+#: The kinds that change bytes, not the grammar: any message, any state.
+BYTES, SPLICE = "bytes", "splice"
+CONTROL_KINDS = (*mutate.CONTROL, BYTES, SPLICE)
+DATA_KINDS = tuple(f"data-{name}" for name in mutate.DATA)
+#: The states with a data stream to send on.
+STREAM_STATES = frozenset({"stream ready", "playing"})
+
+
+class RctpCases:
+    """Makes test cases for one robot; `seeds` are whole control messages to splice with."""
+
+    def __init__(self, robot: RobotPaths, seeds: Sequence[bytes]) -> None:
+        self.robot = robot
+        self.seeds = list(seeds) or [d.with_cseq(1).render() for d in moves(robot)]
+        self._moves = moves(robot)
+        self.prefixes: dict[str, list[Draft]] = {}
+        for state in STATES:
+            found = prefix(state, robot)
+            if found is not None:
+                self.prefixes[state] = found
+
+    @property
+    def states(self) -> tuple[str, ...]:
+        return tuple(self.prefixes)
+
+    def kinds(self, state: str) -> tuple[str, ...]:
+        """The mutation kinds that apply in `state`."""
+        if state in STREAM_STATES:
+            return (*CONTROL_KINDS, *DATA_KINDS)
+        return CONTROL_KINDS
+
+    def make(self, state: str, kind: str, rng: random.Random, count: int = 1) -> TestCase:
+        """A case in `state` whose steps `kind` made (`count` of them, the first mutated)."""
+        drafts = self.prefixes[state]
+        steps = tuple(
+            Step("control", d.with_cseq(n).render()) for n, d in enumerate(drafts, start=1)
+        )
+        cseq = len(drafts) + 1
+        made: list[Step] = []
+        for index in range(count):
+            chosen = kind if index == 0 else rng.choice(self.kinds(state))
+            made.append(self._step(chosen, cseq + index, rng))
+        return TestCase(state, steps, tuple(made), tuple(s.kind for s in made))
+
+    def _step(self, kind: str, cseq: int, rng: random.Random) -> Step:
+        if kind.startswith("data-"):
+            name = kind.removeprefix("data-")
+            data = mutate.DATA[name](self._datagram(rng), rng)
+            return Step("data", data, kind, tagged=name not in ("tag", "stream-id"))
+        draft = rng.choice(self._moves).with_cseq(cseq)
+        if kind == BYTES:
+            return Step("control", mutate.flip_bytes(draft.render(), rng), kind)
+        if kind == SPLICE:
+            seed = rng.choice(self.seeds)
+            return Step("control", mutate.splice(draft.render(), seed, rng), kind)
+        return Step("control", mutate.CONTROL[kind](draft, rng).render(), kind)
+
+    def _datagram(self, rng: random.Random) -> bytes:
+        """A valid datagram of the session's stream (stream 1 and tag 0 until sent: the
+        executor fills in the session's, `Step.tagged`)."""
+        request = rng.randrange(1 << 16)
+        flows = [
+            encode_flow(HeartbeatRequest(request, rng.randrange(1 << 64))),
+            encode_flow(IntervalSet(request, Direction.READ, 100_000)),
+            encode_flow(TimeoutSet(request, Direction.READ, 10_000_000)),
+        ]
+        kind, body, stream = int(PayloadType.FLOW), rng.choice(flows), 1
+        data_body = self.robot.stream_body()
+        if data_body is not None and rng.random() < 0.4:
+            kind, body = int(PayloadType.DATA), data_body
+        if kind == int(PayloadType.FLOW) and body == flows[0]:
+            stream = 0  # a heartbeat is the session's (D-RCTP-22)
+        return push_datagram(rng.randrange(1 << 16), 0, 0, [(kind, body, stream)])

@@ -1,0 +1,71 @@
+"""`rcmlconf fuzz` as a user runs it, against the embedded reference: a real server process, real
+sockets. A fault of the reference is found, minimised, and replays; the correct reference gives
+no finding; a campaign resumes."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+from support.processes import COMMAND
+
+#: Every command here ends well within this (the budgets are seconds).
+BOUND = 120
+
+
+def fuzz(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [*COMMAND, "fuzz", *args], capture_output=True, text=True, timeout=BOUND, check=False
+    )
+
+
+def test_the_reference_gives_no_finding_and_every_file_is_written(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    done = fuzz("--seconds", "4", "--out", str(out), "--junit", str(tmp_path / "f.xml"))
+    assert done.returncode == 0, done.stderr
+    report = json.loads((out / "report.json").read_text())
+    assert report["schema"] == "rcmlconf-fuzz-report/1"
+    assert report["findings"] == []
+    assert report["cases"] > 20
+    assert report["states_reached"] == 7
+    assert {"state.json", "states.dot"} <= {p.name for p in out.iterdir()}
+    assert 'failures="0"' in (tmp_path / "f.xml").read_text()
+    # --resume goes on from the state: the count of cases grows.
+    again = fuzz("--cases", "10", "--resume", str(out))
+    assert again.returncode == 0, again.stderr
+    assert "resuming" in again.stderr
+    assert json.loads((out / "report.json").read_text())["cases"] == report["cases"] + 10
+
+
+def test_a_fault_of_the_reference_is_found_minimised_and_replayed(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    done = fuzz("--fault", "version-ignored", "--seconds", "10", "--out", str(out), "--seed", "3")
+    assert done.returncode == 1, done.stderr
+    report = json.loads((out / "report.json").read_text())
+    found = [f for f in report["findings"] if f["requirement"] == "R-RCTP-10"]
+    assert found, report["findings"]
+    finding = out / found[0]["file"]
+    item = json.loads(finding.read_text())
+    assert item["oracle"] == "violation"
+    assert item["minimised"]
+    assert item["stable"]["fired"] >= 1
+    assert len(item["case"]["steps"]) <= len(item["original"]["steps"])
+    assert finding.with_suffix(".pcap").stat().st_size > 24
+    # It reproduces where the fault is, and not where it is not.
+    assert fuzz("replay", str(finding), "--fault", "version-ignored").returncode == 1
+    fixed = fuzz("replay", str(finding))
+    assert fixed.returncode == 0, fixed.stderr
+    assert "did not reproduce" in fixed.stderr
+
+
+def test_usage_errors_exit_2_with_one_line(tmp_path: Path) -> None:
+    done = fuzz("--role", "client", "--out", str(tmp_path))
+    assert done.returncode == 2
+    assert "not fuzzed yet" in done.stderr
+    bad = tmp_path / "finding.json"
+    bad.write_text("{}")
+    replayed = fuzz("replay", str(bad))
+    assert replayed.returncode == 2
+    assert "Traceback" not in replayed.stderr
+    assert "not a finding" in replayed.stderr
