@@ -1,6 +1,7 @@
 """An independent RCTP/2.0 server of one robot, from specs/rctp-2.0.md and specs/rcml-2.0.md.
 
 python main.py [--port P] [--http-port H] [--ready-file F] [--rcml FILE] [--fault NAME]...
+    [--bug NAME]...
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import sys
 from pathlib import Path
 from urllib.parse import quote, unquote, urlsplit
 
+import bugs
 from rcml import RcmlError, Robot, check_streams, parse
 from server import MAX_CONNECTIONS, Connection, Server, _Udp
 
@@ -160,12 +162,23 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
     )
     ap.add_argument("--list-faults", action="store_true", help="print the faults and exit")
     ap.add_argument(
+        "--bug",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="plant a robustness bug, for the fuzzer's tests (see --list-bugs)",
+    )
+    ap.add_argument("--list-bugs", action="store_true", help="print the planted bugs and exit")
+    ap.add_argument(
         "-v", "--verbose", action="store_true", help="a line for every request on stderr"
     )
     args = ap.parse_args(argv)
     unknown = [f for f in args.fault if f not in FAULTS]
     if unknown:
         ap.error(f"unknown fault(s) {', '.join(unknown)}; see --list-faults")
+    unknown = [b for b in args.bug if b not in bugs.BUGS]
+    if unknown:
+        ap.error(f"unknown bug(s) {', '.join(unknown)}; see --list-bugs")
     if not 1 <= args.session_timeout <= 99999:
         ap.error("--session-timeout must be 1 to 99999 (five digits, D-RCTP-11)")
     for name in ("port", "http_port"):
@@ -332,6 +345,10 @@ def main(argv: list[str] | None = None) -> int:
         for name, (rule, text) in FAULTS.items():
             print(f"{name}\t{rule}\t{text}")
         return 0
+    if args.list_bugs:
+        print(bugs.listing(), end="")
+        return 0
+    bugs.active = set(args.bug)
     try:
         robot = parse(args.rcml.read_bytes())
         check_streams(robot)

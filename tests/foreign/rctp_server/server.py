@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import quote
 
+import bugs
 import datagram as dg
 import wire
 from body import Body
@@ -128,6 +129,8 @@ class Connection:
                 try:
                     msg = self.reader.next()
                 except wire.FrameError as exc:
+                    if bugs.on("bare-lf-hang") and str(exc) == "a line ending in a bare LF":
+                        self._bug_bare_lf()
                     if not exc.response:
                         self.respond(exc.status, exc.cseq, [], text=str(exc))
                         await self.writer.drain()
@@ -139,6 +142,8 @@ class Connection:
                         break
                     self.reader.feed(data)
                     continue
+                if bugs.on("zero-padded-length"):
+                    self._bug_zero_padded(msg)
                 if msg.request:
                     self.on_request(msg)
                 else:
@@ -156,6 +161,20 @@ class Connection:
             pass
         finally:
             self.close()
+
+    def _bug_bare_lf(self) -> None:
+        """The bug bare-lf-hang: with a session open, the line scanner waits for the CR."""
+        if self.session is not None and self.session.state == "open":
+            bugs.hang()
+
+    def _bug_zero_padded(self, msg: wire.Message) -> None:
+        """The bug zero-padded-length: once a stream is set up, a request's body goes to the
+        stream code's reader, which takes a leading zero for an octal prefix and fails."""
+        text = msg.one("content-length") or ""
+        sess = self.session
+        set_up = sess is not None and any(st.state != "init" for st in sess.streams.values())
+        if set_up and len(text) > 1 and text.startswith("0"):
+            bugs.crash(ValueError(f"invalid literal for int() with base 0: {text!r}"))
 
     async def _linger(self) -> None:
         """Half-close, then read and drop until the peer closes (at most BYE_WAIT seconds)."""
@@ -321,7 +340,11 @@ class Connection:
             raise Refuse(505, f"version {m.version} is not supported")
         if cseq is None:
             raise Refuse(400, "a missing or unreadable CSeq")
+        # repeated-field-acquired: the bug skips the check for a session holding a privilege
+        lax = bugs.on("repeated-field-acquired") and bool(self.session and self.session.acquired)
         for name in wire.ONCE:
+            if lax and name != "cseq":
+                continue
             if len(m.all(name)) > 1:
                 raise Refuse(400, f"{name} appears more than once")
         target = wire.parse_target(m.target)
@@ -785,6 +808,12 @@ class Server:
 
     def on_data(self, sess: Session, sid: int, body: bytes, now: float) -> None:
         st = sess.by_id.get(sid)
+        if bugs.on("bad-data-leak") and st is not None and st.state == "playing":
+            writable = st.access.data("w") if st.writes() else []
+            try:
+                decode_run(writable, body, check_range=False)
+            except Malformed:
+                bugs.leak(body)  # the bug: a copy kept "for the log", never freed
         if st is None or st.state != "playing" or not st.writes():
             return
         nodes = st.access.data("w")
@@ -855,6 +884,8 @@ class Server:
                 shortest = dg.micros(st.access.read_interval or 0)
                 if value < shortest and "accept-short-interval" not in self.faults:
                     return dg.flow_nack(op, rid, dg.NACK_REFUSED)
+                if bugs.on("flow-top-bit-hang") and value >= 2**31 and st.state == "playing":
+                    bugs.hang()  # the bug: the catch-up loop takes the interval as signed
                 st.read_us = value
                 st.next_send = min(st.next_send, asyncio.get_running_loop().time() + value / 1e6)
                 self.reschedule(sess)
@@ -862,5 +893,7 @@ class Server:
                 times = 1 if "timeout-min-one-interval" in self.faults else 2
                 if value < times * st.write_us:
                     return dg.flow_nack(op, rid, dg.NACK_REFUSED)
+                if bugs.on("flow-top-bit-hang") and value >= 2**31 and st.state == "playing":
+                    bugs.hang()  # the bug: the silence timer takes the timeout as signed
                 st.write_timeout_us = value
         return dg.flow_ack(op, rid, struct.pack("!BI", direction, value))

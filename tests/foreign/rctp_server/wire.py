@@ -6,6 +6,7 @@ import re
 from dataclasses import dataclass, field
 from urllib.parse import unquote_to_bytes
 
+import bugs
 from rcml import is_xml_name
 
 VERSION = "RCTP/2.0"
@@ -182,6 +183,9 @@ def _parse_head(head: bytes, start_limit: int = MAX_START_LINE) -> tuple[Message
     need = 0
     if lengths:
         text = lengths.pop()
+        if bugs.on("content-length-sign") and text[:1] in ("+", "-"):
+            # the bug: the sign is taken by int(), and a negative length reaches the buffer
+            bugs.crash(ValueError(f"negative or signed body length {text!r}"))
         if not _DIGITS.fullmatch(text):
             raise FrameError(400, "bad Content-Length", cseq, response)
         need = int(text)
