@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 HERE = Path(__file__).resolve().parent
-IMPLEMENTATIONS = ["rctp_server"]
+IMPLEMENTATIONS = ["rctp_server", "rsp_robot"]
 ORACLES = {"crash", "hang", "violation", "leak"}
 SHALLOW = {"connected", "any"}
 

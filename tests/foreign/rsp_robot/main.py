@@ -1,7 +1,7 @@
 """An independent RSP robot (specs/rsp.md), written from specs/ alone.
 
     python main.py [--model robot.rmodel] [--port 7340] [--ready-file F] [--psk-file KEY]
-                   [--fault NAME ...] [--list-faults] [-v]
+                   [--fault NAME ...] [--list-faults] [--bug NAME ...] [--list-bugs] [-v]
 
 It serves one session at a time on UDP until SIGINT or SIGTERM, then ends the session with BYE
 (reason 2, shutdown) and exits 0.
@@ -22,6 +22,7 @@ import time
 import traceback
 from pathlib import Path
 
+import bugs
 from rmodel import ModelError, load_model
 from robot import FAULTS, Out, Robot, log
 from wire import read_psk
@@ -44,6 +45,14 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     )
     parser.add_argument("--fault", action="append", default=[], metavar="NAME")
     parser.add_argument("--list-faults", action="store_true")
+    parser.add_argument(
+        "--bug",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="plant a robustness bug, for the fuzzer's tests (see --list-bugs)",
+    )
+    parser.add_argument("--list-bugs", action="store_true", help="print the planted bugs")
     parser.add_argument("-v", "--verbose", action="store_true")
     args = parser.parse_args(argv)
     if not 0 <= args.port <= 65535:
@@ -51,6 +60,9 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     unknown = [name for name in args.fault if name not in FAULTS]
     if unknown:
         parser.error(f"unknown fault {unknown[0]} (see --list-faults)")
+    unknown = [name for name in args.bug if name not in bugs.BUGS]
+    if unknown:
+        parser.error(f"unknown bug {unknown[0]} (see --list-bugs)")
     return args
 
 
@@ -141,6 +153,10 @@ def main(argv: list[str]) -> int:
         for name, (requirement, description) in FAULTS.items():
             print(f"{name}\t{requirement}\t{description}")
         return 0
+    if args.list_bugs:
+        print(bugs.listing(), end="")
+        return 0
+    bugs.active = set(args.bug)
     return serve(args)
 
 

@@ -13,6 +13,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
+import bugs
 from rmodel import (
     COMMAND,
     EFFECTOR,
@@ -280,6 +281,12 @@ class Robot:
         period = int.from_bytes(body[NONCE_LENGTH : NONCE_LENGTH + 2], "big")
         if period > MAX_PERIOD_MS:
             return []  # no T of RSP; no REFUSED reason says so
+        if bugs.on("hello-period-crash") and period < MIN_PERIOD_MS:
+            # the bug: the pace table divides by the period in steps of 5 ms before raising it
+            try:
+                _ = 1000 // (period // MIN_PERIOD_MS * MIN_PERIOD_MS)
+            except ZeroDivisionError as exc:
+                bugs.crash(exc)
         s = self.session
         if s is not None:
             same = s.address == address and s.client_nonce == nonce
@@ -522,6 +529,11 @@ class Session:
         if len(body) < length:
             raise Malformed("Device Map cut short")
         bits = [i for i in range(length * 8) if body[i // 8] & (0x80 >> (i % 8))]
+        if bits and bits[-1] >= len(devices) and bugs.on("map-padding-crash"):
+            try:  # the bug: the bits are looked up before they are checked
+                [devices[i].kind for i in bits]
+            except IndexError as exc:
+                bugs.crash(exc)
         if bits and bits[-1] >= len(devices):
             if "map-padding-unchecked" not in self.faults:
                 raise Malformed("a bit past the last device")
@@ -548,9 +560,19 @@ class Session:
                 ident = int.from_bytes(body[off : off + id_length], "big")
                 values, off = decode_fields(device.fields, body, off + id_length)
                 parsed.occurrences.append((i, ident, clamp_values(device.fields, values)))
-        if off != len(body):
+        # trailing-bytes-taken: the bug checks only that the payloads are not cut short
+        lax = bugs.on("trailing-bytes-taken") and kind == DOWNLINK and off < len(body)
+        if off != len(body) and not lax:
             raise Malformed(f"{len(body) - off} bytes after the payloads")
         return parsed
+
+    @staticmethod
+    def far(device: Device, values: Values) -> bool:
+        """The bug far-waypoint-leak: an integer field of magnitude 2^30 or more."""
+        return any(
+            f.numeric and not f.is_float and any(abs(v) >= 2**30 for v in value)
+            for f, value in zip(device.fields, values, strict=True)
+        )
 
     def is_new(self, device: Device, ident: int) -> bool:
         last = self.last_taken.get(device.index)
@@ -569,8 +591,11 @@ class Session:
         if clear and clear_first:
             self.clear_buffer()
         acks: list[tuple[int, int]] = []
+        far = bugs.on("far-waypoint-leak") and self.took_memory_command()
         for i, ident, values in parsed.occurrences:
             device = self.model.devices[i]
+            if far and device.kind == MEMORY_COMMAND and self.far(device, values):
+                bugs.leak(repr(values).encode())  # the bug: a path plan cached, never freed
             if not self.is_new(device, ident):
                 if "no-reack" not in self.faults:
                     acks.append((i, ident))
@@ -624,6 +649,11 @@ class Session:
     def apply_effector(self, state: EffectorState, values: Values, stamp: int, now: float) -> None:
         """The motion filter (D-RSP-20) and, for a speaker, the audio processor (D-RSP-22)."""
         device = state.device
+        # stamp-jump-hang: the bug's motor driver of a module replays every control period
+        # missed since the last value, counting the gap without sign
+        gap = (stamp - (state.last_stamp or 0)) % 2**32
+        if bugs.on("stamp-jump-hang") and device.module is not None and gap >= 2**24:
+            bugs.hang()
         if device.audio:
             fragment = values[0][0]
             if state.last_fragment is not None:
@@ -717,6 +747,11 @@ class Session:
         has left the buffer and runs on."""
         self.robot.note(f"Clear Buffer: {len(self.buffer)} dropped")
         self.buffer.clear()
+        if bugs.on("clear-buffer-crash") and self.took_memory_command():
+            self.buffer = None  # type: ignore[assignment]  # the bug: freed, never made again
+
+    def took_memory_command(self) -> bool:
+        return any(self.model.devices[i].kind == MEMORY_COMMAND for i in self.last_taken)
 
     def service(self, now: float) -> None:
         """Run the memory-command buffer: one job at a time, in the order taken (D-RSP-19).
