@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 HERE = Path(__file__).resolve().parent
-IMPLEMENTATIONS = ["rctp_server", "rsp_robot"]
+IMPLEMENTATIONS = ["rctp_server", "rsp_robot", "rctp_client"]
 ORACLES = {"crash", "hang", "violation", "leak"}
 SHALLOW = {"connected", "any"}
 

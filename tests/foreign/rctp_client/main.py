@@ -2,7 +2,8 @@
 
 python main.py --url rctp://HOST:PORT/PATH [--rcml FILE] [--fault NAME]... [-v]
 python main.py --cases http://HOST:PORT+1/cases [--fault NAME]... [-v]
-python main.py --list-faults
+python main.py --list-faults | --list-bugs
+(--bug NAME, repeatable, plants a robustness bug for the fuzzer's tests)
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from html.parser import HTMLParser
 from pathlib import Path
 from urllib.parse import urljoin, urlsplit
 
+import bugs
 from faults import FAULTS
 from rcml import MAX_DOCUMENT, Model, RcmlError, parse_rcml
 from scenario import Scenario
@@ -176,6 +178,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rcml", help="the robot's RCML file (skips step 1, the files)")
     parser.add_argument("--fault", action="append", default=[], metavar="NAME")
     parser.add_argument("--list-faults", action="store_true")
+    parser.add_argument(
+        "--bug",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="plant a robustness bug, for the fuzzer's tests (see --list-bugs)",
+    )
+    parser.add_argument("--list-bugs", action="store_true", help="print the planted bugs")
     parser.add_argument("-v", "--verbose", action="store_true")
     args = parser.parse_args(argv)
     if args.list_faults:
@@ -185,6 +195,13 @@ def main(argv: list[str] | None = None) -> int:
     unknown = [f for f in args.fault if f not in FAULTS]
     if unknown:
         parser.error(f"unknown fault {unknown[0]} (see --list-faults)")
+    unknown = [b for b in args.bug if b not in bugs.BUGS]
+    if unknown:
+        parser.error(f"unknown bug {unknown[0]} (see --list-bugs)")
+    if args.list_bugs:
+        print(bugs.listing(), end="")
+        return 0
+    bugs.active = set(args.bug)
     if not args.url and not args.cases:
         parser.error("--url or --cases is required")
     model = None

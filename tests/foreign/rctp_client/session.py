@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
 import os
 import re
 import struct
@@ -17,6 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+import bugs
 import datastream as ds
 import wire
 from rcml import BadValue, Codec, Model, Node, is_xml_name, text, zero
@@ -381,6 +383,10 @@ class Session:
         acc = self.accesses.get(path)
         if msg.method == "STOP":
             if acc is None or acc.state == "init":
+                # stray-stop-200: the bug answers any STOP while something plays
+                playing = any(a.state == "playing" for a in self.accesses.values())
+                if bugs.on("stray-stop-200") and playing:
+                    return 200, []
                 return 455, []
             self._to_init(acc)
             acc.stopped = True
@@ -415,7 +421,9 @@ class Session:
                 self.values.update((n.path, v) for n, v in zip(nodes, raw, strict=True))
         try:
             values = self.codec.decode(nodes, msg.body)
-        except BadValue:
+        except BadValue as exc:
+            if bugs.on("bad-push-crash") and acc.state == "playing":
+                bugs.crash(exc)  # the bug: the event handler lets the decoder's error escape
             return 400
         for node, value in zip(nodes, values, strict=True):
             self.values[node.path] = value
@@ -460,6 +468,11 @@ class Session:
                 self.close("CONNECT answered 200 without a valid Session (R-RCTP-18)")
                 return
             self.sid, self.timeout = m.group(1), int(m.group(2) or 60)
+            if bugs.on("session-timeout-crash"):
+                try:  # the bug: refreshes a second, from half the timeout in whole seconds
+                    _rate = 1 / (self.timeout // 2)
+                except ZeroDivisionError as exc:
+                    bugs.crash(exc)
             self.state = "open"
 
         target = "/" if "connect-to-root" in self.faults else self.url.path
@@ -659,6 +672,12 @@ class Session:
         if packet is None or (checks and packet.tag != self.tag):
             return  # dropped unread (R-RCTP-42)
         newer = self.order.newer(packet.seq)
+        if bugs.on("late-packet-leak") and not newer:
+            for ptype, sid, _body in packet.payloads:
+                acc = self._by_stream(sid)
+                if ptype == ds.DATA and acc is not None and acc.state == "playing":
+                    bugs.leak(data)  # the bug: a late packet waits for a reorder never done
+                    break
         answers = []
         for ptype, sid, body in packet.payloads:
             if ptype == ds.FLOW and len(body) < 4 and "broken-flow-ends-packet" in self.faults:
@@ -750,12 +769,16 @@ class Session:
             elif op == ds.SET_INTERVAL:
                 if value < ds.micros(acc.node.timing.get("writeInterval", 0.0)):
                     return ds.nack(op, rid, ds.REFUSED)
+                if bugs.on("flow-top-bit-hang") and value >= 2**31 and acc.state == "playing":
+                    bugs.hang()  # the bug: the sender's catch-up takes the interval as signed
                 if "write-interval-not-applied" not in self.faults:
                     acc.write_interval = value
             else:
                 times = 1 if "timeout-min-one-interval" in self.faults else 2
                 if value < times * acc.read_interval:
                     return ds.nack(op, rid, ds.REFUSED)
+                if bugs.on("flow-top-bit-hang") and value >= 2**31 and acc.state == "playing":
+                    bugs.hang()  # the bug: the loss watch takes the timeout as signed
                 acc.read_timeout = value
         if "flow-ack-no-direction" in self.faults:
             return ds.flow_body(ds.ACK, op, rid, struct.pack("!I", value))
@@ -774,6 +797,11 @@ class Session:
                 return
             t4 = time.time()
             t1, t2, t3 = struct.unpack("!QQQ", fields)
+            if bugs.on("heartbeat-ack-crash") and t3 < t2:
+                try:  # the bug: the server's hold time goes into a jitter estimate unchecked
+                    math.sqrt(t3 - t2)
+                except ValueError as exc:
+                    bugs.crash(exc)
             self.clock.add(ds.ntp_to_unix(t1), ds.ntp_to_unix(t2), ds.ntp_to_unix(t3), t4)
         elif len(fields) != 5:
             return
