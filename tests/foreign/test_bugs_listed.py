@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 HERE = Path(__file__).resolve().parent
-IMPLEMENTATIONS = ["rctp_server", "rsp_robot", "rctp_client"]
+IMPLEMENTATIONS = ["rctp_server", "rsp_robot", "rctp_client", "rsp_local"]
 ORACLES = {"crash", "hang", "violation", "leak"}
 SHALLOW = {"connected", "any"}
 
@@ -58,3 +58,7 @@ def test_an_unknown_bug_is_a_usage_error(name: str) -> None:
     done = _run(name, "--bug", "no-such-bug", "--list-bugs")
     assert done.returncode == 2, (done.returncode, done.stderr)
     assert "no-such-bug" in done.stderr
+
+
+def test_the_four_oracles_are_covered() -> None:
+    assert {row[1] for name in IMPLEMENTATIONS for row in _bugs(name)} == ORACLES

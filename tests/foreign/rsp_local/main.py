@@ -2,7 +2,8 @@
 """An RSP local system (the simulacrum side of specs/rsp.md) running D-RSP-24's scenario.
 
 main.py --robot HOST:PORT --model FILE [--loop] [--psk-file KEY] [--fault NAME]... [-v]
-main.py --list-faults
+main.py --list-faults | --list-bugs
+(--bug NAME, repeatable, plants a robustness bug for the fuzzer's tests)
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import bugs
 from rmodel import Device, Malformed, Model, ModelError, load_model
 from wire import (
     ACK,
@@ -394,6 +396,10 @@ class Run:
         self.estimator.update(h.seq)
         self.last_arrived = h.seq
         self.free_buffers = h.buffer
+        if bugs.on("welcome-buffer-crash"):
+            # the bug: one slot per buffer, the robot's count trusted as an index
+            slots: list[Occurrence | None] = [None] * self.model.command_buffers
+            self.last_slot = slots[h.buffer - 1] if h.buffer else None
         requested = min(10000, max(5, round(self.model.period * 1000)))
         self.period_ms = requested if "welcome-period-ignored" in self.faults else period
         if self.encryption:
@@ -603,6 +609,9 @@ class Run:
             elif h.type == ACK:
                 items = decode_ack(self.model, body, self.lenient)
             elif h.type == BYE:
+                if bugs.on("bye-reason-crash") and len(body) == 1:
+                    # the bug: the reason is named before it is checked
+                    log(self.verbose, f"<- BYE ({('closed', 'timeout', 'shutdown')[body[0]]})")
                 if len(body) != 1 or body[0] > 2:
                     raise Malformed("BYE reason")
             elif self.welcome_fields(h, data) is None:
@@ -634,6 +643,10 @@ class Run:
             box = self.outboxes.get(item.device)
             if box is None:
                 continue  # acknowledges nothing this side sends: ignored (D-RSP-17)
+            if bugs.on("future-ack-leak") and item.ident is not None:
+                ahead = (item.ident - box.next_id) % self.id_space
+                if ahead < self.id_space // 2:  # the bug: kept for an occurrence to come
+                    bugs.leak(item.ident.to_bytes(4, "big"))
             for occurrence in box.inflight:
                 if occurrence.ident == item.ident:
                     box.inflight.remove(occurrence)
@@ -669,7 +682,10 @@ class Run:
                     log(self.verbose, f"<- event {dev.name} #{item.ident} {item.values}")
                     self.echo()
             elif dev.kind == "memoryEvent":
+                last = self.taken.get(item.device)
                 new = self.take(item)
+                if bugs.on("old-memory-event-hang") and not new and item.ident != last:
+                    bugs.hang()  # the bug: the taken IDs are searched for it, one by one
                 if new or "memevent-ack-new-only" not in self.faults:
                     acks[item.device] = encode_id(self.model, item.ident or 0)
                 if new:
@@ -742,6 +758,14 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--list-faults", action="store_true", help="print the faults and exit")
     parser.add_argument(
+        "--bug",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="plant a robustness bug, for the fuzzer's tests (see --list-bugs)",
+    )
+    parser.add_argument("--list-bugs", action="store_true", help="print the planted bugs and exit")
+    parser.add_argument(
         "-v", "--verbose", action="store_true", help="log packets to standard error"
     )
     args = parser.parse_args(argv)
@@ -749,6 +773,13 @@ def main(argv: list[str] | None = None) -> int:
         for name, (rid, text) in FAULTS.items():
             print(f"{name}\t{rid}\t{text}")
         return 0
+    unknown = [b for b in args.bug if b not in bugs.BUGS]
+    if unknown:
+        parser.error(f"unknown bug {', '.join(unknown)} (see --list-bugs)")
+    if args.list_bugs:
+        print(bugs.listing(), end="")
+        return 0
+    bugs.active = set(args.bug)
     if not args.robot or not args.model:
         parser.error("--robot and --model are required")
     unknown = [f for f in args.fault if f not in FAULTS]

@@ -14,6 +14,8 @@ import xml.parsers.expat as expat
 from dataclasses import dataclass, field
 from typing import Any
 
+import bugs
+
 MAX_DOCUMENT = 16 * 1024 * 1024
 MAX_DEPTH = 256
 MAX_DEVICES = 1024
@@ -210,6 +212,10 @@ class Field:
                 if at + 2 > len(buf):
                     raise Malformed(f"{self.name}: cut short")
                 (n,) = struct.unpack_from(">H", buf, at)
+                if n > self.size and bugs.on("bad-field-crash"):
+                    # the bug: the value goes into a buffer of `size` bytes before the check
+                    slot = memoryview(bytearray(self.size))
+                    slot[:n] = bytes(buf[at + 2 : at + 2 + n]).ljust(n, b"\0")
                 if n > self.size:
                     raise Malformed(f"{self.name}: length {n} above size {self.size}")
                 if at + 2 + n > len(buf):
@@ -230,6 +236,10 @@ class Field:
                     raise Malformed(f"{self.name}: cut short")
                 if self.type == "bool":
                     byte = buf[at]
+                    if bugs.on("bad-field-crash"):
+                        values.append((False, True)[byte])  # the bug: the byte as an index
+                        at += width
+                        continue
                     if byte > 1 and not lenient_bool:
                         raise Malformed(f"{self.name}: bool byte {byte:#04x}")
                     values.append(byte != 0)
