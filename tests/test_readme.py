@@ -36,6 +36,11 @@ NOT_RUN = {
     "rcmlconf run --target 127.0.0.1:7330 --rcml robot.rcml": "a template: the user's robot",
     "rcmlconf sniff": "needs root or CAP_NET_RAW, and traffic on lo",
     "rcmlconf run --role client --listen 7330": "a template: the user's client is tested",
+    "rcmlconf fuzz --seconds 60": "a minute of fuzzing; tests/fuzz run it with short budgets",
+    "rcmlconf fuzz --fault": "tests/fuzz/test_fuzz_cli.py runs it, and replays its finding",
+    "rcmlconf fuzz --target": "a template: the user's server, started by its own command",
+    "rcmlconf fuzz replay": "a template: a finding of the campaign above",
+    "rcmlconf fuzz --resume": "a template: the campaign above, resumed",
 }
 
 
