@@ -14,7 +14,7 @@ from rcmlconf.dissect.records import Severity
 from rcmlconf.errors import ValueTextError
 from rcmlconf.rctp.fields import SessionField, parse_session
 from rcmlconf.rctp.messages import Response
-from rcmlconf.rctp.request_checks import Refusal, first_refusal
+from rcmlconf.rctp.request_checks import ORDER_RULE, Refusal, first_refusal
 from rcmlconf.rctp.states import (
     SESSION_TRANSITIONS,
     STREAM_METHODS,
@@ -99,6 +99,8 @@ class ControlStates:
         request = sent.request
         if status is None:
             return
+        if rule == ORDER_RULE:
+            return  # D-RCTP-6: a receiver need not check the order; one that does answers 400
         if 200 <= response.status < 300:
             self.findings.add(
                 Severity.ERROR,

@@ -31,6 +31,8 @@ from rcmlconf.rctp.targets import parse_target
 SINGLE_FIELDS = ("CSeq", "Session", "Content-Type", "Nodes", "Transport")
 #: D-RCTP-12, D-RCTP-15: a client's 405 to a method only clients send lists what a server sends.
 _SERVER_SENDS = "WRITE, STOP, BYE"
+#: The order check's rule: R-RCTP-4 binds the sender; a receiver may check it (D-RCTP-6).
+ORDER_RULE = "R-RCTP-4"
 _CLOSED = "the session is over (D-RCTP-13: nothing is sent in closed)"
 
 
@@ -93,7 +95,7 @@ def first_refusal(
         if names.count(name.lower()) > 1:
             return Refusal(400, f"{name} appears more than once", "R-RCTP-11")
     if expected is not None and cseq != expected:
-        return Refusal(400, f"CSeq {cseq}, where {expected} was next", "R-RCTP-4")
+        return Refusal(400, f"CSeq {cseq}, where {expected} was next", ORDER_RULE)
     if receiver is Role.CLIENT and method not in SERVER_METHODS:
         return Refusal(405, f"a server does not send {method}", "R-RCTP-25", _SERVER_SENDS)
     try:

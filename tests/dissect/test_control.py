@@ -522,3 +522,17 @@ def test_an_event_access_setup_names_no_data_stream() -> None:
     # The same on SETUP of a stream access: 461 was due (R-RCTP-38).
     found = _setup_answered_200("/drive/wheels").findings("R-RCTP-38")
     assert any("461 is due" in text for text in found)
+
+
+def test_a_server_may_serve_a_cseq_out_of_order() -> None:
+    """D-RCTP-6: R-RCTP-4 binds the sender; its receiver need not check (found by fuzz)."""
+    dissected = session(
+        CONNECT,
+        CONNECTED,
+        ("c", f"READ /a RCTP/2.0\r\nCSeq: 5\r\n{SESSION}\r\n"),
+        ("s", f"RCTP/2.0 200 OK\r\nCSeq: 5\r\n{SESSION}\r\n"),
+    )
+    errors = [
+        (f.rule, f.message) for f in dissected.analysis.findings if f.severity is Severity.ERROR
+    ]
+    assert errors == [("R-RCTP-4", 3)]  # the client's request, not the server's answer
