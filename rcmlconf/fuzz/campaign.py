@@ -35,6 +35,8 @@ TRIES, HANG_TRIES = 150, 12
 CORPUS = 2000
 #: The most of the budget minimising one finding takes, and at most this many seconds.
 MINIMISE_SHARE, MINIMISE_SECONDS = 0.2, 60.0
+#: How long a case that looked like a crash or a hang waits to see the process exit.
+EXIT_SETTLE = 0.25
 #: A resource sample of the target every this many cases (--target-command).
 SAMPLE_EVERY = 10
 
@@ -180,12 +182,19 @@ class Campaign:
         odd = out.end != "open" or out.missed is not None or verdict is not None
         if verdict is None and odd:
             verdict = self.subject.alive()
-        return self._exited() or verdict
+        return self._exited(settle=_downed(verdict)) or verdict
 
-    def _exited(self) -> Verdict | None:
+    def _exited(self, settle: bool = False) -> Verdict | None:
+        """The process's exit as a crash (--target-command). `settle`: the case looked like
+        one, so give a dying process EXIT_SETTLE to be seen exiting, and the crash is pinned on
+        this case, not on the next."""
         if self.process is None:
             return None
         exit = self.process.exited()
+        deadline = time.monotonic() + EXIT_SETTLE
+        while exit is None and settle and time.monotonic() < deadline:
+            time.sleep(0.01)
+            exit = self.process.exited()
         if exit is None:
             return None
         return Verdict(
@@ -318,7 +327,7 @@ class Campaign:
         found = self.subject.judge(out)
         if found is None and verdict.oracle in (CRASH, HANG):
             found = self.subject.alive()
-        found = self._exited() or found
+        found = self._exited(settle=_downed(found)) or found
         self._last = out
         self._dirty = found is not None and found.oracle in (CRASH, HANG)
         same = found is not None and found.oracle == verdict.oracle
@@ -397,3 +406,8 @@ class Campaign:
             )  # fmt: skip
             self.findings[finding.key] = finding
         self.stats.findings = len(self.findings)
+
+
+def _downed(verdict: Verdict | None) -> bool:
+    """Whether the verdict says the target may be going down (a crash or a hang)."""
+    return verdict is not None and verdict.oracle in (CRASH, HANG)

@@ -8,10 +8,22 @@ import json
 import subprocess
 from pathlib import Path
 
+import jsonschema
 from support.processes import COMMAND
+
+import rcmlconf.fuzz
 
 #: Every command here ends well within this (the budgets are seconds).
 BOUND = 120
+
+
+SCHEMAS = Path(rcmlconf.fuzz.__file__).parent
+
+
+def valid(document: object, schema: str) -> None:
+    """`document` is what the package's JSON Schema `schema` says."""
+    rules = json.loads((SCHEMAS / schema).read_text())
+    jsonschema.Draft202012Validator(rules).validate(document)
 
 
 def fuzz(*args: str) -> subprocess.CompletedProcess[str]:
@@ -25,7 +37,7 @@ def test_the_reference_gives_no_finding_and_every_file_is_written(tmp_path: Path
     done = fuzz("--seconds", "4", "--out", str(out), "--junit", str(tmp_path / "f.xml"))
     assert done.returncode == 0, done.stderr
     report = json.loads((out / "report.json").read_text())
-    assert report["schema"] == "rcmlconf-fuzz-report/1"
+    valid(report, "fuzz-report.schema.json")
     assert report["findings"] == []
     assert report["cases"] > 20
     assert report["states_reached"] == 7
@@ -47,6 +59,8 @@ def test_a_fault_of_the_reference_is_found_minimised_and_replayed(tmp_path: Path
     assert found, report["findings"]
     finding = out / found[0]["file"]
     item = json.loads(finding.read_text())
+    valid(item, "fuzz-finding.schema.json")
+    valid(report, "fuzz-report.schema.json")
     assert item["oracle"] == "violation"
     assert item["minimised"]
     assert item["stable"]["fired"] >= 1
