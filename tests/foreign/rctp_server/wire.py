@@ -43,6 +43,12 @@ REASONS = {
 _TOKEN = re.compile(rb"[!#$%&'*+\-.^_`|~0-9A-Za-z]+")
 _TARGET_CHARS = re.compile(rb"[\x21-\x7e\x80-\xff]+")  # its syntax is checked later
 _VALUE_BAD = re.compile(rb"[\x00-\x08\x0a-\x1f\x7f]")
+# a CR followed by a byte other than LF; a CR last in the buffer may yet be a CRLF
+_BARE_CR = re.compile(rb"\r[^\n]")
+# the first line end that is not CRLF: a bare LF, or a CR followed by another byte
+_BARE_END = re.compile(rb"(?<!\r)\n|\r(?=[^\n])")
+BARE_LF = "a line ending in a bare LF"
+BARE_CR = "a CR not followed by LF"
 # D-RCTP-30: "RCTP/2.0" is case-sensitive, but `rctp/2.0` parses as another version (505)
 _OTHER_VERSION = re.compile(r"RCTP/[0-9]+\.[0-9]+", re.ASCII | re.IGNORECASE)
 _STATUS = re.compile(rb"RCTP/2\.0 ([0-9]{3}) [\t\x20-\x7e\x80-\xff]*")
@@ -116,8 +122,19 @@ class Reader:
         return msg
 
     def _check_partial(self) -> None:
-        """Limits and bare line feeds found before the header section is complete."""
-        buf = self.buf
+        """Limits, bare LFs and bare CRs found before the header section is complete.
+
+        A bare CR is known as soon as the byte after it comes, so it is answered then: the
+        bytes before it are checked first (an earlier error wins), then the CR itself."""
+        bare_cr = _BARE_CR.search(self.buf)
+        if bare_cr is None:
+            self._check_lines(self.buf)
+            return
+        self._check_lines(self.buf[: bare_cr.start()])
+        raise FrameError(400, BARE_CR, response=self.buf.startswith(b"RCTP/"))
+
+    def _check_lines(self, buf: bytearray) -> None:
+        """Limits and bare line feeds in the lines of an incomplete header section."""
         first = buf.find(b"\n")
         response = buf.startswith(b"RCTP/")
         if first < 0:
@@ -125,7 +142,7 @@ class Reader:
                 raise FrameError(414, "start line above 4,096 bytes", response=response)
             return
         if first == 0 or buf[first - 1] != 0x0D:
-            raise FrameError(400, "a line ending in a bare LF", response=response)
+            raise FrameError(400, BARE_LF, response=response)
         if first - 1 > self.start_limit:
             raise FrameError(414, "start line above 4,096 bytes", response=response)
         pos, fields, total = first + 1, 0, 0
@@ -141,7 +158,7 @@ class Reader:
                     )
                 return
             if nl == pos or buf[nl - 1] != 0x0D:
-                raise FrameError(400, "a line ending in a bare LF", response=response)
+                raise FrameError(400, BARE_LF, response=response)
             total += nl + 1 - pos
             fields += 1
             if nl - 1 - pos > MAX_HEADER_LINE or total > MAX_HEADER_SECTION or fields > MAX_FIELDS:
@@ -153,8 +170,10 @@ def _parse_head(head: bytes, start_limit: int = MAX_START_LINE) -> tuple[Message
     lines = head.split(b"\r\n")[:-1]
     start = lines[0]
     response = start.startswith(b"RCTP/")
-    if b"\n" in head.replace(b"\r\n", b""):
-        raise FrameError(400, "a line ending in a bare LF", response=response)
+    bad = _BARE_END.search(head)
+    if bad:
+        why = BARE_LF if bad.group() == b"\n" else BARE_CR
+        raise FrameError(400, why, response=response)
     if len(start) > start_limit:
         raise FrameError(414, "start line above 4,096 bytes", response=response)
     header_lines = lines[1:]
