@@ -47,6 +47,8 @@ _TOKEN = re.compile(rb"[!#$%&'*+\-.^_`|~0-9A-Za-z]+")
 _VALUE = re.compile(rb"([\x21-\x7e\x80-\xff]([\x20\x09\x21-\x7e\x80-\xff]*[\x21-\x7e\x80-\xff])?)?")
 _STATUS = re.compile(rb"(RCTP/[0-9]+\.[0-9]+) ([0-9]{3}) ([\x09\x20-\x7e\x80-\xff]*)")
 _VERSION = re.compile(rb"RCTP/[0-9]+\.[0-9]+")
+# a CR followed by a byte other than LF; a CR last in the buffer may yet be a CRLF
+_BARE_CR = re.compile(rb"\r[^\n]")
 _PCHAR = re.compile(r"([A-Za-z0-9\-._~!$&'()*+,;=:@]|%[0-9A-Fa-f]{2})+")
 
 
@@ -120,20 +122,26 @@ class Parser:
         return FrameError(status, why, cseq)
 
     def _line(self, limit: int, code: int) -> bytes | None:
+        """The next line without its CRLF; None until it is whole. A bare CR is an error as
+        soon as the byte after it comes, without waiting for an LF. The line stays in the
+        buffer until it is good, so that `_fail` still sees a status line's `RCTP/`."""
         end = self._buf.find(b"\n", 0, limit + 2)
         if end < 0:
+            if _BARE_CR.search(self._buf, 0, limit + 2):
+                raise self._fail(400, "bare CR")
             if len(self._buf) >= limit + 2:
                 raise self._fail(code, "line over the limit")
             return None
         raw = bytes(self._buf[:end])
-        del self._buf[: end + 1]
-        if not raw.endswith(b"\r"):
+        ended = raw.endswith(b"\r")
+        if b"\r" in (raw[:-1] if ended else raw):
+            raise self._fail(400, "bare CR")
+        if not ended:
             raise self._fail(400, "bare LF")
         raw = raw[:-1]
-        if b"\r" in raw:
-            raise self._fail(400, "bare CR")
         if len(raw) > limit:
             raise self._fail(code, "line over the limit")
+        del self._buf[: end + 1]
         self._section += len(raw) + 2
         return raw
 
