@@ -35,7 +35,14 @@ from rcmlconf.rsp.codec.bodies import (
     Welcome,
     pull_session_body,
 )
-from rcmlconf.rsp.codec.header import ANY, Encryption, Header, HeaderRules, PacketType
+from rcmlconf.rsp.codec.header import (
+    ANY,
+    TYPE_AT,
+    Encryption,
+    Header,
+    HeaderRules,
+    PacketType,
+)
 from rcmlconf.rsp.layout import HEADER_SIZE
 from rcmlconf.rsp.model import DeviceKind
 
@@ -165,13 +172,15 @@ class RspDecoder:
         ctx = self.ctx
         number = ctx.count = ctx.count + 1
         codec = self.codec
+        # D-RSP-12: REFUSED echoes the HELLO's model ID, whatever model sent the HELLO.
+        refused = len(payload) > TYPE_AT and payload[TYPE_AT] == _REFUSED
         try:
-            header = self.rules.pull(payload)
+            header = (ANY if refused else self.rules).pull(payload)
             _, model_id, encryption, kind, sequence, stamp, session_id, _, _ = header
             mapped = kind in _MAPS
             if encryption is not _NONE and kind not in _PLAIN:
                 value: Any = _new(RspPacket, (header, payload[HEADER_SIZE:]))
-            elif codec is not None:
+            elif codec is not None and not refused:
                 value = codec.pull_packet(payload)
             elif mapped:
                 value = _new(RspPacket, (header, payload[HEADER_SIZE:]))
