@@ -28,7 +28,7 @@ Address = tuple[str, int]
 #: due within this share of the wait (1 s of 5).
 FRAMING_SHARE = 0.2
 #: How long the drain at the end of a case waits for one more message, in seconds.
-IDLE = 0.01
+IDLE = 0.004
 #: The most the fuzzer reads of one case's answers (a target that floods it gets cut off).
 MOST_READ = 4 * 1024 * 1024
 
