@@ -41,6 +41,8 @@ NOT_RUN = {
     "rcmlconf fuzz --target": "a template: the user's server, started by its own command",
     "rcmlconf fuzz replay": "a template: a finding of the campaign above",
     "rcmlconf fuzz --resume": "a template: the campaign above, resumed",
+    "rcmlconf fuzz --model": "a minute of fuzzing; tests/fuzz run the robot with short budgets",
+    "rcmlconf fuzz --rsp-target": "a template: the user's robot, started by its own command",
 }
 
 

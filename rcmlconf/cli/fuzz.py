@@ -68,7 +68,7 @@ def _wait_options(command: Any) -> Any:
 @click.option("--junit", type=click.Path(dir_okay=False, path_type=Path))
 @click.pass_context
 def fuzz(ctx: click.Context, /, **options: Any) -> None:
-    """Fuzz an RCTP/2.0 server through its states, and keep each finding minimised.
+    """Fuzz an RCTP/2.0 server or an RSP robot through its states; keep each finding minimised.
 
     Each test case drives the target to a state with valid requests (a session, a privilege,
     a stream set up or playing, an event access playing, a session closing), sends mutated
@@ -76,8 +76,12 @@ def fuzz(ctx: click.Context, /, **options: Any) -> None:
     back: a crash, a hang, or a violation of a MUST of specs/ (the requirement is named). Under
     --target-command a leak is a finding too. Effort goes where the state map is thin.
 
+    An RSP robot (--rsp-target with --model) is taken through a session (welcomed, an
+    effector driven, a module active, a memory command sent) and sent mutated DOWNLINKs: header
+    fields, Device Map bits (past the model's devices too), payloads, lengths.
+
     With no target, the embedded reference server is started as a process of its own and
-    fuzzed.
+    fuzzed; with --model and no target, the embedded reference robot of that model.
 
     Each finding is minimised (steps, then bytes), re-run 3 times, and written as
     finding-N.json and finding-N.pcap; `rcmlconf fuzz replay` sends it again.
@@ -90,6 +94,8 @@ def fuzz(ctx: click.Context, /, **options: Any) -> None:
       rcmlconf fuzz --target 127.0.0.1:7330 --rcml robot.rcml --seconds 600 --out run1
       rcmlconf fuzz --target 127.0.0.1:7330 --rcml robot.rcml \\
           --target-command 'my-server --port 7330' --junit fuzz.xml
+      rcmlconf fuzz --rsp-target 127.0.0.1:7340 --model cubo.rmodel --seconds 120
+      rcmlconf fuzz --model cubo.rmodel --seconds 60     # the embedded reference robot
       rcmlconf fuzz --resume run1 --target 127.0.0.1:7330 --rcml robot.rcml --seconds 600
       rcmlconf fuzz replay run1/finding-1.json --target 127.0.0.1:7330 --rcml robot.rcml
     """
@@ -104,11 +110,13 @@ def fuzz(ctx: click.Context, /, **options: Any) -> None:
 
 
 def _check_role(tested: TargetSettings) -> None:
-    if tested.role != "server" or tested.rsp_target is not None:
+    if tested.role != "server":
         raise click.UsageError(
-            "rcmlconf fuzz fuzzes RCTP/2.0 servers (--target, or the embedded reference); the"
-            " RSP robot, client and local roles are not fuzzed yet"
+            "rcmlconf fuzz fuzzes RCTP/2.0 servers (--target) and RSP robots (--rsp-target);"
+            " the client and local roles are not fuzzed yet"
         )
+    if tested.target is not None and tested.rsp_target is not None:
+        raise click.UsageError("give --target or --rsp-target: one campaign fuzzes one target")
 
 
 @fuzz.command()

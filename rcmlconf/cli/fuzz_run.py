@@ -24,11 +24,11 @@ from rcmlconf.fuzz.launch import (
     replay,
     resume_state,
     started,
+    subject_for,
     write_reports,
 )
 from rcmlconf.fuzz.monitor import LeakWatch, TargetCommandError, TargetNotReady
-from rcmlconf.fuzz.rctp_target import RctpTarget
-from rcmlconf.validate.validator import load_robot
+from rcmlconf.validate.validator import load_robot, load_robot_model
 
 #: Without a terminal, a progress line this often (seconds).
 QUIET_TICK = 5.0
@@ -44,37 +44,51 @@ def _fail(output: Output, text: str, status: int = 2) -> NoReturn:
 
 def _reach(
     output: Output, tested: TargetSettings, options: dict[str, Any]
-) -> tuple[tuple[str, int], str | None, Any, str, dict[str, Any]]:
-    """The address, the command that starts it, the robot, the site and the description."""
+) -> tuple[Reached, str | None, float]:
+    """The target, the command that starts it (None: it runs already) and the answer wait."""
     command = options.pop("target_command")
     wait = ANSWER_WAIT * options.pop("timeout_scale")
-    if tested.target is None:
-        if command is not None:
-            _fail(output, "--target-command needs --target: the address the command listens on")
+    given = tested.target or tested.rsp_target
+    if given is not None and tested.faults:
+        _fail(output, "--fault is for the embedded reference: leave out --target")
+    if given is None and command is not None:
+        _fail(output, "--target-command needs --target or --rsp-target: the address it listens on")
+    if tested.rsp_target is not None or (given is None and tested.model is not None):
+        if tested.model is None:
+            _fail(output, "--rsp-target needs --model: the robot's model")
+        model = load_robot_model(tested.model)
+        if given is None:
+            address = ("127.0.0.1", free_port())
+            command = embedded_command(address[1], tested.faults, tested.model)
+            described: dict[str, Any] = {"embedded": True, "model": str(tested.model)}
+        else:
+            address = (given[0], given[1])
+            described = {"address": f"{address[0]}:{address[1]}", "command": command}
+        described["role"] = "robot"
+        return Reached(address=address, model=model, described=described), command, wait
+    if given is None:
         address = ("127.0.0.1", free_port())
         command = embedded_command(address[1], tested.faults)
         robot = load_robot(REFERENCE_RCML)
         described = {"embedded": True, "faults": list(tested.faults)}
     else:
-        if tested.faults:
-            _fail(output, "--fault is for the embedded reference: leave out --target")
-        address = (tested.target[0], tested.target[1])
+        address = (given[0], given[1])
         if tested.rcml is not None:
             robot = load_robot(tested.rcml)
         elif command is None:
-            robot = fetched_robot(output, tested.target, wait)
+            robot = fetched_robot(output, given, wait)
         else:
             _fail(output, "--target-command needs --rcml: the server is not up to ask")
         described = {"address": f"{address[0]}:{address[1]}", "command": command}
     site = tested.site or robot.site.path or "/"
-    described["site"] = site
-    return address, command, robot, site, {"wait": wait, **described}
+    described |= {"role": "server", "site": site}
+    return Reached(address=address, robot=robot, site=site, described=described), command, wait
 
 
 def fuzz_target(tested: TargetSettings, options: dict[str, Any]) -> None:
     output = Output()
-    address, command, robot, site, described = _reach(output, tested, options)
-    wait = described["wait"]
+    reached, command, wait = _reach(output, tested, options)
+    address = reached.address
     out: Path = options.pop("resume") or options.pop("out")
     out.mkdir(parents=True, exist_ok=True)
     loopback = address[0] in ("127.0.0.1", "::1", "localhost")
@@ -92,12 +106,10 @@ def fuzz_target(tested: TargetSettings, options: dict[str, Any]) -> None:
     except ValueError as error:
         _fail(output, str(error))
     try:
-        with started(command, address, wait) as process:
-            reached = Reached(
-                address=address, robot=robot, site=site, process=process, described=described
-            )
+        with started(command, address, wait, reached.transport) as process:
             campaign, subject = campaign_for(
                 reached,
+                process=process,
                 out=out,
                 seed=options["seed"],
                 budget=budget,
@@ -117,7 +129,7 @@ def fuzz_target(tested: TargetSettings, options: dict[str, Any]) -> None:
                 campaign.stopped = "interrupted"
             finally:
                 subject.close()
-            document = finish(campaign, {"seed": options["seed"], "target": described})
+            document = finish(campaign, {"seed": options["seed"], "target": reached.described})
     except (TargetNotReady, TargetCommandError) as error:
         _fail(output, str(error))
     write_reports(document, options["json_file"], options["junit"])
@@ -148,10 +160,10 @@ def _summary(output: Output, document: dict[str, Any], out: Path) -> NoReturn:
 
 def replay_finding(path: Path, tested: TargetSettings, options: dict[str, Any]) -> NoReturn:
     output = Output()
-    address, command, robot, site, described = _reach(output, tested, options)
+    reached, command, wait = _reach(output, tested, options)
     try:
-        with started(command, address, described["wait"]) as process:
-            subject = RctpTarget(address, robot, site, described["wait"])
+        with started(command, reached.address, wait, reached.transport) as process:
+            subject = subject_for(reached, wait)
             try:
                 verdict = replay(path, subject, process)
             except FindingFileError as error:

@@ -43,10 +43,13 @@ SAMPLE_EVERY = 10
 
 class Subject(Protocol):
     role: str
+    #: D-FUZZ-4's bound on an answer, --timeout-scale applied.
+    wait: float
 
     def run(self, case: TestCase) -> Outcome: ...
     def judge(self, out: Outcome) -> Verdict | None: ...
     def alive(self) -> Verdict | None: ...
+    def close(self) -> None: ...
 
 
 class Cases(Protocol):
@@ -156,6 +159,10 @@ class Campaign:
         return self.cases.make(state, kind, rng, rng.choice((1, 1, 2, 3)))
 
     def _one(self, case: TestCase) -> None:
+        if self.process is not None and self.process.exited() is not None:
+            self._probe()  # it died after the case before had been judged: find which one
+            if self.process.exited() is not None:
+                self._restart()
         out = self.subject.run(case)
         self.stats.cases += 1
         kind = case.kinds[0] if case.kinds else "none"
@@ -207,12 +214,13 @@ class Campaign:
         verdict = self._exited() or self.subject.alive()
         window = list(self._since_probe)
         self._since_probe.clear()
-        if verdict is None:
+        if verdict is None or not window:
             return
         # The culprit is among the cases since the last probe: the first one that brings it
         # about again on a fresh target is the finding's (without a restart, the last one).
         culprit = window[-1]
         if self.process is not None:
+            self._dirty = True  # each candidate runs on a fresh target
             for candidate in reversed(window):
                 if self._fires(candidate, verdict):
                     culprit = candidate
@@ -262,7 +270,7 @@ class Campaign:
             self._minimise_until = time.monotonic() + min(share, MINIMISE_SECONDS)
             minimised = minimise(case, lambda c: self._fires(c, verdict), tries)
             runs = fired = 0
-            self._minimise_until += self.subject_wait() * RERUNS * 2
+            self._minimise_until += self.subject.wait * RERUNS * 2
             for _ in range(RERUNS):
                 if self._past_end():
                     break
@@ -310,9 +318,6 @@ class Campaign:
     _last: Outcome | None = None
     _minimise_until: float = 0.0
 
-    def subject_wait(self) -> float:
-        return float(getattr(self.subject, "wait", 5.0))
-
     #: The last run brought the target down: restart it before the next (--target-command).
     _dirty: bool = False
 
@@ -327,7 +332,8 @@ class Campaign:
         found = self.subject.judge(out)
         if found is None and verdict.oracle in (CRASH, HANG):
             found = self.subject.alive()
-        found = self._exited(settle=_downed(found)) or found
+        # A crash looked for may come a moment after the case (at the target's next packet).
+        found = self._exited(settle=_downed(found) or verdict.oracle == CRASH) or found
         self._last = out
         self._dirty = found is not None and found.oracle in (CRASH, HANG)
         same = found is not None and found.oracle == verdict.oracle

@@ -15,17 +15,19 @@ from pathlib import Path
 from typing import Any
 
 from rcmlconf.conformance.targets import REFERENCE_RCML
-from rcmlconf.fuzz.campaign import Budget, Campaign, Stats
+from rcmlconf.fuzz.campaign import Budget, Campaign, Cases, Stats, Subject
 from rcmlconf.fuzz.findings import load_finding
 from rcmlconf.fuzz.monitor import LeakWatch, TargetProcess
 from rcmlconf.fuzz.oracles import CRASH, HANG, Verdict
 from rcmlconf.fuzz.rctp_cases import RctpCases
-from rcmlconf.fuzz.rctp_drafts import STATES
 from rcmlconf.fuzz.rctp_robot import robot_paths
 from rcmlconf.fuzz.rctp_target import RctpTarget
 from rcmlconf.fuzz.report import report, write_json, write_junit
-from rcmlconf.fuzz.seeds import control_seeds
+from rcmlconf.fuzz.rsp_cases import RspCases
+from rcmlconf.fuzz.rsp_target import RspTarget
+from rcmlconf.fuzz.seeds import control_seeds, rsp_seeds
 from rcmlconf.rcml.model import RcmlDocument
+from rcmlconf.rsp.model import RobotModel
 
 Address = tuple[str, int]
 #: D-FUZZ-4: the bound on every answer, and on a liveness probe's, before --timeout-scale.
@@ -34,21 +36,30 @@ ANSWER_WAIT = 5.0
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Reached:
-    """The target of a campaign, once it answers."""
+    """The target of a campaign: an RCTP/2.0 server and its robot's RCML, or an RSP robot and
+    its model."""
 
     address: Address
-    robot: RcmlDocument
-    site: str
-    process: TargetProcess | None
+    robot: RcmlDocument | None = None
+    site: str = "/"
+    model: RobotModel | None = None
     #: What the reports say the target is.
     described: dict[str, Any]
 
+    @property
+    def transport(self) -> str:
+        return "udp" if self.model is not None else "tcp"
 
-def embedded_command(port: int, faults: tuple[str, ...]) -> str:
-    """The reference server as a process of its own, so a crash of it is seen as one."""
-    words = [sys.executable, "-m", "rcmlconf", "serve", str(REFERENCE_RCML), "--port", str(port)]
-    words += ["--no-http"] + [f"--fault={name}" for name in faults]
-    return shlex.join(words)
+
+def embedded_command(port: int, faults: tuple[str, ...], model: Path | None = None) -> str:
+    """The reference server (or, given a robot model, the reference robot) as a process of its
+    own, so a crash of it is seen as one."""
+    if model is not None:
+        words = [sys.executable, "-m", "rcmlconf", "robot", str(model), "--port", str(port)]
+    else:
+        words = [sys.executable, "-m", "rcmlconf", "serve", str(REFERENCE_RCML), "--port"]
+        words += [str(port), "--no-http"]
+    return shlex.join(words + [f"--fault={name}" for name in faults])
 
 
 def free_port(host: str = "127.0.0.1") -> int:
@@ -59,12 +70,14 @@ def free_port(host: str = "127.0.0.1") -> int:
 
 
 @contextmanager
-def started(command: str | None, address: Address, wait: float) -> Iterator[TargetProcess | None]:
+def started(
+    command: str | None, address: Address, wait: float, transport: str = "tcp"
+) -> Iterator[TargetProcess | None]:
     """The target's process under --target-command (None without it), stopped at the end."""
     if command is None:
         yield None
         return
-    process = TargetProcess(command, ready=(address[0], address[1], "tcp"), ready_timeout=wait)
+    process = TargetProcess(command, ready=(address[0], address[1], transport), ready_timeout=wait)
     process.start()
     try:
         yield process
@@ -72,18 +85,31 @@ def started(command: str | None, address: Address, wait: float) -> Iterator[Targ
         process.stop()
 
 
+def subject_for(reached: Reached, wait: float) -> Subject:
+    if reached.model is not None:
+        return RspTarget(reached.address, reached.model, wait)
+    assert reached.robot is not None
+    return RctpTarget(reached.address, reached.robot, reached.site, wait)
+
+
 def campaign_for(
     reached: Reached,
     *,
+    process: TargetProcess | None,
     out: Path,
     seed: int,
     budget: Budget,
     wait: float,
     leaks: LeakWatch | None,
     progress: Callable[[Stats], None],
-) -> tuple[Campaign, RctpTarget]:
-    subject = RctpTarget(reached.address, reached.robot, reached.site, wait)
-    cases = RctpCases(robot_paths(reached.robot, reached.site), control_seeds())
+) -> tuple[Campaign, Subject]:
+    subject = subject_for(reached, wait)
+    cases: Cases
+    if reached.model is not None:
+        cases = RspCases(reached.model, rsp_seeds(reached.model.model_id))
+    else:
+        assert reached.robot is not None
+        cases = RctpCases(robot_paths(reached.robot, reached.site), control_seeds())
     campaign = Campaign(
         subject,
         cases,
@@ -91,8 +117,8 @@ def campaign_for(
         seed,
         budget,
         reached.described,
-        process=reached.process,
-        leaks=leaks if reached.process is not None else None,
+        process=process,
+        leaks=leaks if process is not None else None,
         progress=progress,
     )
     return campaign, subject
@@ -112,7 +138,7 @@ def resume_state(out: Path) -> dict[str, Any] | None:
 def finish(campaign: Campaign, settings: dict[str, Any]) -> dict[str, Any]:
     """Write the state, the state map and the report into the campaign's folder."""
     campaign.save()
-    campaign.map.write(campaign.out, tuple(s for s in STATES if s in campaign.map.kinds))
+    campaign.map.write(campaign.out, campaign.cases.states)
     document = report(
         campaign.stats,
         sorted(campaign.findings.values(), key=lambda f: f.number),
@@ -131,13 +157,14 @@ def write_reports(document: dict[str, Any], json_file: Path | None, junit: Path 
         write_junit(junit, document)
 
 
-def replay(path: Path, subject: RctpTarget, process: TargetProcess | None) -> Verdict | None:
+def replay(path: Path, subject: Subject, process: TargetProcess | None) -> Verdict | None:
     """Send a finding's case again: the verdict it gets now (None: it did not reproduce)."""
     case, _ = load_finding(path)
     out = subject.run(case)
     found = subject.judge(out) or subject.alive()
     if process is not None and (exit := process.exited()) is not None:
-        return Verdict(CRASH, "R-RCTP-5", f"the target's process {exit.text()}")
+        rule = "R-RCTP-5" if subject.role == "server" else "R-RSP-20"
+        return Verdict(CRASH, rule, f"the target's process {exit.text()}")
     if found is not None and found.oracle in (CRASH, HANG, "violation"):
         return found
     return None

@@ -21,6 +21,7 @@ from rcmlconf.fuzz.rctp_exec import Address, Outcome
 from rcmlconf.pcap.reader import Capture
 from rcmlconf.pcap.writer import Payload, write_pcap
 from rcmlconf.rcml.model import RcmlDocument
+from rcmlconf.rsp.model import RobotModel
 
 CRASH, HANG, VIOLATION, LEAK = "crash", "hang", "violation", "leak"
 ORACLES = (CRASH, HANG, VIOLATION, LEAK)
@@ -58,16 +59,23 @@ def judge(out: Outcome, robot: RcmlDocument | None, port: int) -> Verdict | None
 
 
 def violation(
-    payloads: Sequence[Payload], ours: set[Address], robot: RcmlDocument | None, port: int
+    payloads: Sequence[Payload],
+    ours: set[Address],
+    robot: RcmlDocument | None,
+    port: int,
+    *,
+    model: RobotModel | None = None,
 ) -> Verdict | None:
     """The first MUST the dissector finds broken in a message the target sent (not from
-    `ours`, the fuzzer's own addresses)."""
+    `ours`, the fuzzer's own addresses): an RCTP/2.0 server's on `port`, or with `model` an
+    RSP robot's."""
     if not payloads:
         return None
     file = io.BytesIO()
     write_pcap(file, payloads)
     records: list[Record] = []
-    options = Options(rcml=robot, decode_as=(("rctp", port),), heuristics=False)
+    protocol = "rctp" if model is None else "rsp"
+    options = Options(rcml=robot, rsp_model=model, decode_as=((protocol, port),), heuristics=False)
     analysis = Dissector(options, records.append).run(Capture(file.getvalue(), "<case>"))
     theirs = {f"{host}:{number}" for host, number in {p.source for p in payloads} - ours}
     sources = {record.number: record.flow.source for record in records}

@@ -12,6 +12,7 @@ import jsonschema
 from support.processes import COMMAND
 
 import rcmlconf.fuzz
+from rcmlconf.conformance.targets import REFERENCE_RMODEL
 
 #: Every command here ends well within this (the budgets are seconds).
 BOUND = 120
@@ -71,6 +72,17 @@ def test_a_fault_of_the_reference_is_found_minimised_and_replayed(tmp_path: Path
     fixed = fuzz("replay", str(finding))
     assert fixed.returncode == 0, fixed.stderr
     assert "did not reproduce" in fixed.stderr
+
+
+def test_the_reference_robot_gives_no_finding(tmp_path: Path) -> None:
+    out = tmp_path / "robot"
+    done = fuzz("--model", str(REFERENCE_RMODEL), "--seconds", "4", "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    report = json.loads((out / "report.json").read_text())
+    valid(report, "fuzz-report.schema.json")
+    assert report["settings"]["target"]["role"] == "robot"
+    assert report["states_reached"] == 5
+    assert report["cases"] > 10
 
 
 def test_usage_errors_exit_2_with_one_line(tmp_path: Path) -> None:
