@@ -189,7 +189,7 @@ class Campaign:
         odd = out.end != "open" or out.missed is not None or verdict is not None
         if verdict is None and odd:
             verdict = self.subject.alive()
-        return self._exited(settle=_downed(verdict)) or verdict
+        return self._exited(settle=_downed(verdict) or out.end != "open") or verdict
 
     def _exited(self, settle: bool = False) -> Verdict | None:
         """The process's exit as a crash (--target-command). `settle`: the case looked like
@@ -268,15 +268,14 @@ class Campaign:
             tries = HANG_TRIES if slow else TRIES
             share = (self.budget.seconds or MINIMISE_SECONDS / MINIMISE_SHARE) * MINIMISE_SHARE
             self._minimise_until = time.monotonic() + min(share, MINIMISE_SECONDS)
-            minimised = minimise(case, lambda c: self._fires(c, verdict), tries)
-            runs = fired = 0
-            self._minimise_until += self.subject.wait * RERUNS * 2
-            for _ in range(RERUNS):
-                if self._past_end():
-                    break
-                runs += 1
-                fired += self._fires(minimised, verdict)
-            stable = (fired, runs)
+            minimised = minimise(case, lambda c: self._fires_again(c, verdict), tries)
+            self._minimise_until += self.subject.wait * RERUNS * 4
+            stable = self._stability(minimised, verdict)
+            if stable[0] == 0 and minimised != case:
+                # The smaller case does not fire again: keep the one that did, if it does.
+                whole = self._stability(case, verdict)
+                if whole[0] > 0:
+                    minimised, stable = case, whole
             last = self._last
             if self._dirty:
                 self._restart()
@@ -333,13 +332,31 @@ class Campaign:
         if found is None and verdict.oracle in (CRASH, HANG):
             found = self.subject.alive()
         # A crash looked for may come a moment after the case (at the target's next packet).
-        found = self._exited(settle=_downed(found) or verdict.oracle == CRASH) or found
+        settle = _downed(found) or verdict.oracle == CRASH or out.end != "open"
+        found = self._exited(settle=settle) or found
         self._last = out
         self._dirty = found is not None and found.oracle in (CRASH, HANG)
         same = found is not None and found.oracle == verdict.oracle
         if same and verdict.oracle not in (CRASH, HANG):
             same = found is not None and found.rule == verdict.rule
         return same
+
+    def _fires_again(self, case: TestCase, verdict: Verdict) -> bool:
+        """`_fires`, twice for a crash or a hang: a target brought down by something else (a
+        timer of its own, the case before) must not make the minimiser keep a smaller case."""
+        if not self._fires(case, verdict):
+            return False
+        return verdict.oracle not in (CRASH, HANG) or self._fires(case, verdict)
+
+    def _stability(self, case: TestCase, verdict: Verdict) -> tuple[int, int]:
+        """Of RERUNS runs of `case` (fewer past the budget's end), how many fire."""
+        runs = fired = 0
+        for _ in range(RERUNS):
+            if self._past_end():
+                break
+            runs += 1
+            fired += self._fires(case, verdict)
+        return fired, runs
 
     def _recover(self, verdict: Verdict) -> None:
         """Restart a target that exited, or that a crash or a hang left (--target-command)."""
