@@ -189,7 +189,9 @@ class Campaign:
         odd = out.end != "open" or out.missed is not None or verdict is not None
         if verdict is None and odd:
             verdict = self.subject.alive()
-        return self._exited(settle=_downed(verdict) or out.end != "open") or verdict
+        # Any finding may be a crash seen from outside (a close without an answer): give the
+        # process a moment to be seen exiting. A case with no finding costs no wait.
+        return self._exited(settle=verdict is not None) or verdict
 
     def _exited(self, settle: bool = False) -> Verdict | None:
         """The process's exit as a crash (--target-command). `settle`: the case looked like
@@ -332,7 +334,7 @@ class Campaign:
         if found is None and verdict.oracle in (CRASH, HANG):
             found = self.subject.alive()
         # A crash looked for may come a moment after the case (at the target's next packet).
-        settle = _downed(found) or verdict.oracle == CRASH or out.end != "open"
+        settle = found is not None or verdict.oracle == CRASH
         found = self._exited(settle=settle) or found
         self._last = out
         self._dirty = found is not None and found.oracle in (CRASH, HANG)
@@ -429,8 +431,3 @@ class Campaign:
             )  # fmt: skip
             self.findings[finding.key] = finding
         self.stats.findings = len(self.findings)
-
-
-def _downed(verdict: Verdict | None) -> bool:
-    """Whether the verdict says the target may be going down (a crash or a hang)."""
-    return verdict is not None and verdict.oracle in (CRASH, HANG)

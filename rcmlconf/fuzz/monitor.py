@@ -17,6 +17,7 @@ From an event loop, call them in a thread (`asyncio.to_thread`).
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import itertools
 import os
 import shlex
@@ -298,6 +299,7 @@ class TargetProcess:
                 stderr=subprocess.PIPE,
                 cwd=self.cwd,
                 start_new_session=True,  # its own process group: stopped with its children
+                preexec_fn=_die_with_parent,
             )
         except OSError as error:
             raise TargetNotReady(
@@ -678,3 +680,15 @@ def _has_children_files() -> bool:
 
 
 _HAS_CHILDREN_FILES = _has_children_files()
+
+
+#: prctl(2)'s PR_SET_PDEATHSIG.
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent() -> None:
+    """In the target's process, before it runs: SIGTERM it when the fuzzer dies, so that a
+    fuzzer killed (a CI job's timeout) leaves no target behind holding its port."""
+    with contextlib.suppress(OSError, AttributeError):
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)

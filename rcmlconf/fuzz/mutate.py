@@ -273,11 +273,13 @@ def payload_length(data: bytes, rng: random.Random) -> bytes:
 
 
 def flow_value(data: bytes, rng: random.Random) -> bytes:
-    """A FLOW body's last field (an interval, a timeout, a time) at an edge of its width."""
+    """A FLOW body's last field (an interval, a timeout, a time) at an edge of its width, or
+    any value with its top bit set (a signed reader's negative)."""
     body = _HEADER.size + _PAYLOAD.size
     if len(data) < body + 8:
         return data
-    return data[:-4] + _edge(rng, 32).to_bytes(4, "big")
+    value = _edge(rng, 32) if rng.random() < 0.7 else (1 << 31) | rng.randrange(1 << 31)
+    return data[:-4] + value.to_bytes(4, "big")
 
 
 def flow_operation(data: bytes, rng: random.Random) -> bytes:

@@ -70,7 +70,8 @@ class RctpCases:
     def _step(self, kind: str, cseq: int, rng: random.Random) -> Step:
         if kind.startswith("data-"):
             name = kind.removeprefix("data-")
-            data = mutate.DATA[name](self._datagram(rng), rng)
+            base = self._datagram(rng, flow=name.startswith("flow-"))
+            data = mutate.DATA[name](base, rng)
             return Step("data", data, kind, tagged=name not in ("tag", "stream-id"))
         draft = rng.choice(self._moves).with_cseq(cseq)
         if kind == BYTES:
@@ -80,19 +81,21 @@ class RctpCases:
             return Step("control", mutate.splice(draft.render(), seed, rng), kind)
         return Step("control", mutate.CONTROL[kind](draft, rng).render(), kind)
 
-    def _datagram(self, rng: random.Random) -> bytes:
+    def _datagram(self, rng: random.Random, flow: bool = False) -> bytes:
         """A valid datagram of the session's stream (stream 1 and tag 0 until sent: the
-        executor fills in the session's, `Step.tagged`)."""
+        executor fills in the session's, `Step.tagged`); a FLOW request when `flow`, whose last
+        field (an interval, a timeout) is what the FLOW mutations change."""
         request = rng.randrange(1 << 16)
+        direction = rng.choice((Direction.READ, Direction.WRITE))
         flows = [
+            encode_flow(IntervalSet(request, direction, 100_000)),
+            encode_flow(TimeoutSet(request, direction, 10_000_000)),
             encode_flow(HeartbeatRequest(request, rng.randrange(1 << 64))),
-            encode_flow(IntervalSet(request, Direction.READ, 100_000)),
-            encode_flow(TimeoutSet(request, Direction.READ, 10_000_000)),
         ]
         kind, body, stream = int(PayloadType.FLOW), rng.choice(flows), 1
         data_body = self.robot.stream_body()
-        if data_body is not None and rng.random() < 0.4:
+        if not flow and data_body is not None and rng.random() < 0.4:
             kind, body = int(PayloadType.DATA), data_body
-        if kind == int(PayloadType.FLOW) and body == flows[0]:
+        if kind == int(PayloadType.FLOW) and body == flows[2]:
             stream = 0  # a heartbeat is the session's (D-RCTP-22)
         return push_datagram(rng.randrange(1 << 16), 0, 0, [(kind, body, stream)])
