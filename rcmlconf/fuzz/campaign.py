@@ -170,7 +170,12 @@ class Campaign:
             self._keep(case)
         self._since_probe.append(case)
         verdict = self._verdict(out)
-        if verdict is not None:
+        if verdict is not None and out.missed is not None and _downed(verdict):
+            # Down before this case's prefix was answered: an earlier case may have done it.
+            window = list(self._since_probe)
+            self._since_probe.clear()
+            self._blame(verdict, window)
+        elif verdict is not None:
             self._found(case, verdict, out)
             self._since_probe.clear()
         elif len(self._since_probe) >= PROBE_EVERY:
@@ -216,13 +221,20 @@ class Campaign:
         verdict = self._exited() or self.subject.alive()
         window = list(self._since_probe)
         self._since_probe.clear()
-        if verdict is None or not window:
+        if verdict is not None:
+            self._blame(verdict, window)
+
+    def _blame(self, verdict: Verdict, window: list[TestCase]) -> None:
+        """A crash or a hang seen after the cases of `window`: the finding is the case that
+        brings it about again on a fresh target, the newest first."""
+        if not window:
             return
         # The culprit is among the cases since the last probe: the first one that brings it
         # about again on a fresh target is the finding's (without a restart, the last one).
         culprit = window[-1]
         if self.process is not None:
             self._dirty = True  # each candidate runs on a fresh target
+            self._minimise_until = time.monotonic() + MINIMISE_SECONDS
             for candidate in reversed(window):
                 if self._fires(candidate, verdict):
                     culprit = candidate
@@ -431,3 +443,8 @@ class Campaign:
             )  # fmt: skip
             self.findings[finding.key] = finding
         self.stats.findings = len(self.findings)
+
+
+def _downed(verdict: Verdict) -> bool:
+    """Whether the verdict says the target may be down (a crash or a hang)."""
+    return verdict.oracle in (CRASH, HANG)

@@ -2,11 +2,12 @@
 
 Each control mutation takes a valid `Draft` and changes one part of it: a field's number to a
 boundary value, `Content-Length`'s form, the line endings, a field repeated, left out or huge,
-the target, the method, the version, SETUP's `Transport`, the `Session`, the body, `Nodes`.
-Each data-stream mutation takes a valid datagram (§6) and changes one field: the version, the
-payload count, a payload's length, type or stream, the sequence, the tag, a FLOW's operation or
-value. `bytes` flips, inserts and cuts bytes anywhere; `splice` joins the message with a seed
-from `vectors/` at random points. The kind's name is the state map's column (D-FUZZ-5).
+the target, the method, the version, SETUP's `Transport`, the `Session`, the body, `Nodes`. Each
+data-stream mutation takes a valid datagram (§6) and changes one field: the version, the payload
+count, a payload's length, type or stream, its body's size (its length following), the sequence,
+the tag, a FLOW's operation or value. `bytes` flips, inserts and cuts bytes anywhere; `splice`
+joins the message with a seed from `vectors/` at random points. The kind's name is the state
+map's column (D-FUZZ-5).
 """
 
 from __future__ import annotations
@@ -287,6 +288,23 @@ def flow_operation(data: bytes, rng: random.Random) -> bytes:
     return _field_at(data, body + rng.choice((0, 1)), 1, rng.choice((0, 3, 6, 7, 255)))
 
 
+def payload_body(data: bytes, rng: random.Random) -> bytes:
+    """The first payload's body cut or extended, its length field following it: a DATA or FLOW
+    body of the wrong size in a datagram whose framing holds (R-RCTP-40, R-RCTP-52)."""
+    start = _HEADER.size + _PAYLOAD.size
+    if len(data) < start:
+        return data
+    length = int.from_bytes(data[_HEADER.size + 2 : start], "big")
+    body = data[start : start + length]
+    if body and rng.random() < 0.5:
+        body = body[: rng.randrange(len(body))]
+    else:
+        body += bytes(rng.randrange(256) for _ in range(rng.choice((1, 2, 3, 8))))
+    rest = data[start + length :]
+    head = data[: _HEADER.size + 2] + len(body).to_bytes(2, "big")
+    return head + body + rest
+
+
 def dgram_huge(data: bytes, rng: random.Random) -> bytes:
     return data + b"\x00" * rng.choice((1, 1000, 65507 - len(data)))
 
@@ -300,6 +318,7 @@ DATA: dict[str, Callable[[bytes, random.Random], bytes]] = {
     "payload-type": payload_type,
     "stream-id": stream_id,
     "payload-length": payload_length,
+    "payload-body": payload_body,
     "flow-value": flow_value,
     "flow-operation": flow_operation,
     "dgram-huge": dgram_huge,

@@ -70,7 +70,7 @@ class RctpCases:
     def _step(self, kind: str, cseq: int, rng: random.Random) -> Step:
         if kind.startswith("data-"):
             name = kind.removeprefix("data-")
-            base = self._datagram(rng, flow=name.startswith("flow-"))
+            base = self._datagram(rng, flow=name.startswith("flow-"), data=name == "payload-body")
             data = mutate.DATA[name](base, rng)
             return Step("data", data, kind, tagged=name not in ("tag", "stream-id"))
         draft = rng.choice(self._moves).with_cseq(cseq)
@@ -81,10 +81,11 @@ class RctpCases:
             return Step("control", mutate.splice(draft.render(), seed, rng), kind)
         return Step("control", mutate.CONTROL[kind](draft, rng).render(), kind)
 
-    def _datagram(self, rng: random.Random, flow: bool = False) -> bytes:
+    def _datagram(self, rng: random.Random, flow: bool = False, data: bool = False) -> bytes:
         """A valid datagram of the session's stream (stream 1 and tag 0 until sent: the
         executor fills in the session's, `Step.tagged`); a FLOW request when `flow`, whose last
-        field (an interval, a timeout) is what the FLOW mutations change."""
+        field (an interval, a timeout) is what the FLOW mutations change; DATA most often when
+        `data` (a body's size is what its mutation changes)."""
         request = rng.randrange(1 << 16)
         direction = rng.choice((Direction.READ, Direction.WRITE))
         flows = [
@@ -94,7 +95,7 @@ class RctpCases:
         ]
         kind, body, stream = int(PayloadType.FLOW), rng.choice(flows), 1
         data_body = self.robot.stream_body()
-        if not flow and data_body is not None and rng.random() < 0.4:
+        if not flow and data_body is not None and rng.random() < (0.8 if data else 0.4):
             kind, body = int(PayloadType.DATA), data_body
         if kind == int(PayloadType.FLOW) and body == flows[2]:
             stream = 0  # a heartbeat is the session's (D-RCTP-22)
