@@ -29,8 +29,8 @@ CAMPAIGNS: list[tuple[str, str | None, str | None, int, tuple[str, ...]]] = [
     ("rctp_server", "bad-data-leak", "leak", 40, ("--leak-rss", "8")),
     ("rsp_robot", "map-padding-crash", "crash", 40, ()),
     ("rsp_robot", "hello-period-crash", "crash", 40, ()),
-    ("rctp_server", None, None, 15, ()),
-    ("rsp_robot", None, None, 15, ()),
+    ("rctp_server", None, None, 10, ()),
+    ("rsp_robot", None, None, 10, ()),
 ]
 #: Campaigns at once: each mostly waits on its implementation.
 CONCURRENT = 4
