@@ -19,7 +19,7 @@ from typing import Any, Protocol
 
 from rcmlconf.fuzz.findings import Finding
 from rcmlconf.fuzz.minimise import minimise
-from rcmlconf.fuzz.monitor import LeakWatch, TargetProcess
+from rcmlconf.fuzz.monitor import LeakWatch, TargetNotReady, TargetProcess
 from rcmlconf.fuzz.oracles import CRASH, HANG, LEAK, Verdict
 from rcmlconf.fuzz.rctp_exec import Outcome
 from rcmlconf.fuzz.statemap import StateMap
@@ -39,6 +39,10 @@ MINIMISE_SHARE, MINIMISE_SECONDS = 0.2, 60.0
 EXIT_SETTLE = 0.25
 #: A resource sample of the target every this many cases (--target-command).
 SAMPLE_EVERY = 10
+
+
+class _TargetLost(Exception):
+    """A restart under --target-command failed: the campaign cannot go on."""
 
 
 class Subject(Protocol):
@@ -117,7 +121,10 @@ class Campaign:
         last_tick = 0.0
         while self.stopped is None and not self._spent(started, first):
             case = self._next_case()
-            self._one(case)
+            try:
+                self._one(case)
+            except _TargetLost as lost:
+                self.stopped = str(lost)
             self.stats.elapsed = before + time.monotonic() - started
             self._pace(started, first)
             if self.stats.elapsed - last_tick >= 1.0:
@@ -275,26 +282,16 @@ class Campaign:
             or verdict.oracle not in (CRASH, HANG)
             or (out is not None and self.subject.alive() is None)
         )
-        self._recover(verdict)
-        minimised, last = case, out
-        if can_rerun:
-            slow = verdict.oracle == HANG or "no answer" in verdict.text
-            tries = HANG_TRIES if slow else TRIES
-            share = (self.budget.seconds or MINIMISE_SECONDS / MINIMISE_SHARE) * MINIMISE_SHARE
-            self._minimise_until = time.monotonic() + min(share, MINIMISE_SECONDS)
-            minimised = minimise(case, lambda c: self._fires_again(c, verdict), tries)
-            self._minimise_until += self.subject.wait * RERUNS * 4
-            stable = self._stability(minimised, verdict)
-            if stable[0] == 0 and minimised != case:
-                # The smaller case does not fire again: keep the one that did, if it does.
-                whole = self._stability(case, verdict)
-                if whole[0] > 0:
-                    minimised, stable = case, whole
-            last = self._last
-            if self._dirty:
-                self._restart()
-        else:
-            stable = (0, 0)
+        lost: _TargetLost | None = None
+        minimised, last, stable = case, out, (0, 0)
+        try:
+            self._recover(verdict)
+            if can_rerun:
+                minimised, last, stable = self._rerun(case, verdict)
+        except _TargetLost as error:
+            # The finding as seen: neither minimised nor re-run. The campaign ends after it.
+            lost, can_rerun = error, False
+            minimised, last, stable = case, out, (0, 0)
         finding = Finding(
             number=len(self.findings) + 1,
             verdict=verdict,
@@ -312,13 +309,37 @@ class Campaign:
         if existing is not None:
             existing.count += 1
             self._seen[early] = existing
-            return
-        self.findings[finding.key] = finding
-        self._seen[early] = finding
-        self.stats.findings = len(self.findings)
-        finding.write(self.out)
+        else:
+            self.findings[finding.key] = finding
+            self._seen[early] = finding
+            self.stats.findings = len(self.findings)
+            finding.write(self.out)
+        if lost is not None:
+            raise lost
         if self.process is None and verdict.oracle in (CRASH, HANG) and self.subject.alive():
             self.stopped = "the target no longer answers; give --target-command to restart it"
+
+    def _rerun(
+        self, case: TestCase, verdict: Verdict
+    ) -> tuple[TestCase, Outcome | None, tuple[int, int]]:
+        """Minimise a finding's case and re-run it (D-FUZZ-6): the case kept, its last run and
+        how many of its re-runs fired."""
+        slow = verdict.oracle == HANG or "no answer" in verdict.text
+        tries = HANG_TRIES if slow else TRIES
+        share = (self.budget.seconds or MINIMISE_SECONDS / MINIMISE_SHARE) * MINIMISE_SHARE
+        self._minimise_until = time.monotonic() + min(share, MINIMISE_SECONDS)
+        minimised = minimise(case, lambda c: self._fires_again(c, verdict), tries)
+        self._minimise_until += self.subject.wait * RERUNS * 4
+        stable = self._stability(minimised, verdict)
+        if stable[0] == 0 and minimised != case:
+            # The smaller case does not fire again: keep the one that did, if it does.
+            whole = self._stability(case, verdict)
+            if whole[0] > 0:
+                minimised, stable = case, whole
+        last = self._last
+        if self._dirty:
+            self._restart()
+        return minimised, last, stable
 
     def _output(self) -> dict[str, Any] | None:
         if self.process is None:
@@ -380,8 +401,13 @@ class Campaign:
             self._restart()
 
     def _restart(self) -> None:
+        """Start the target again. One that does not start ends the campaign (`_TargetLost`):
+        the findings so far are kept, and the report says why it stopped."""
         assert self.process is not None
-        self.process.restart()
+        try:
+            self.process.restart()
+        except TargetNotReady as error:
+            raise _TargetLost(f"the target could not be restarted: {error}") from None
         self._dirty = False
         self.stats.restarts += 1
         if self.leaks is not None:

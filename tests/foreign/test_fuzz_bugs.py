@@ -13,7 +13,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from support.processes import COMMAND, free_port
+from support.processes import COMMAND, lasting_port
 
 FOREIGN = Path(__file__).resolve().parent
 #: Each budget ends well within this.
@@ -39,10 +39,17 @@ CONCURRENT = 4
 def campaign(
     folder: str, bug: str | None, seconds: int, out: Path, options: tuple[str, ...] = ()
 ) -> dict[str, Any]:
-    port = free_port()
+    port = lasting_port()  # restarted on it: no socket of the fuzzer's may take it meanwhile
     main = FOREIGN / folder / "main.py"
     if folder == "rctp_server":
-        started = [sys.executable, str(main), "--port", str(port), "--http-port", str(free_port())]
+        started = [
+            sys.executable,
+            str(main),
+            "--port",
+            str(port),
+            "--http-port",
+            str(lasting_port()),
+        ]
         target = ["--target", f"127.0.0.1:{port}", "--rcml", str(FOREIGN / folder / "robot.rcml")]
     else:
         started = [sys.executable, str(main), "--port", str(port)]

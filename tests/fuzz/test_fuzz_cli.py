@@ -5,11 +5,13 @@ no finding; a campaign resumes."""
 from __future__ import annotations
 
 import json
+import shlex
 import subprocess
+import sys
 from pathlib import Path
 
 import jsonschema
-from support.processes import COMMAND
+from support.processes import COMMAND, free_port
 
 import rcmlconf.fuzz
 from rcmlconf.conformance.targets import REFERENCE_RMODEL
@@ -83,6 +85,36 @@ def test_the_reference_robot_gives_no_finding(tmp_path: Path) -> None:
     assert report["settings"]["target"]["role"] == "robot"
     assert report["states_reached"] == 5
     assert report["cases"] > 10
+
+
+def test_a_target_that_cannot_be_restarted_ends_the_campaign_with_its_findings(
+    tmp_path: Path,
+) -> None:
+    """The target dies 2 s in (a crash finding); its restart exits before it listens. The
+    campaign stops there, and still writes the finding and the report (exit 1, not 2)."""
+    foreign = Path(__file__).resolve().parents[1] / "foreign" / "rctp_server"
+    port = free_port()
+    server = shlex.join(
+        [sys.executable, str(foreign / "main.py"), "--port", str(port), "--http-port",
+         str(free_port())]
+    )  # fmt: skip
+    mark = tmp_path / "started"
+    script = f"test -e {mark} && exit 3; touch {mark}; (sleep 2; kill $$) & exec {server}"
+    out = tmp_path / "run"
+    done = fuzz(
+        "--target", f"127.0.0.1:{port}", "--rcml", str(foreign / "robot.rcml"),
+        "--target-command", shlex.join(["sh", "-c", script]), "--seconds", "30",
+        "--out", str(out),
+    )  # fmt: skip
+    assert done.returncode == 1, done.stderr
+    assert "Traceback" not in done.stderr
+    report = json.loads((out / "report.json").read_text())
+    valid(report, "fuzz-report.schema.json")
+    assert "could not be restarted" in report["stopped"]
+    assert "exited with status 3" in report["stopped"]
+    assert [f["oracle"] for f in report["findings"]] == ["crash"]
+    assert (out / report["findings"][0]["file"]).exists()
+    assert report["seconds"] < 20
 
 
 def test_usage_errors_exit_2_with_one_line(tmp_path: Path) -> None:

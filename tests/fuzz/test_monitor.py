@@ -18,6 +18,7 @@ from typing import TypeVar
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from support.processes import free_port, lasting_port
 
 from rcmlconf.fuzz.monitor import (
     Exit,
@@ -142,13 +143,6 @@ def command(tmp_path: Path, source: str, *args: object) -> str:
     program = tmp_path / f"target_{len(list(tmp_path.glob('target_*.py')))}.py"
     program.write_text(source)
     return shlex.join([sys.executable, str(program), *map(str, args)])
-
-
-def free_port(kind: socket.SocketKind = socket.SOCK_STREAM) -> int:
-    with socket.socket(socket.AF_INET, kind) as probe:
-        probe.bind(("127.0.0.1", 0))
-        port: int = probe.getsockname()[1]
-        return port
 
 
 def until(look: Callable[[], T | None], within: float = BOUND) -> T:
@@ -279,7 +273,7 @@ def test_a_command_that_cannot_start(tmp_path: Path) -> None:
 
 
 def test_a_crash_is_told_and_restart_counts(tmp_path: Path) -> None:
-    port = free_port()
+    port = lasting_port()
     target = TargetProcess(command(tmp_path, CRASH_ON_ASK, port), ready=("127.0.0.1", port, "tcp"))
     with target:
         for restarts in (1, 2):
