@@ -39,7 +39,9 @@ def learn_data_stream(
     try:
         request_transport = parse_transport(asked or "")
     except ValueTextError as exc:
-        if kind:  # a stream access's Transport the server cannot read: 461 is due
+        client_part = _client_part(asked or "")
+        if kind and client_part is None:
+            # A stream access's Transport the server cannot read: 461 is due.
             findings.add(
                 Severity.ERROR,
                 "R-RCTP-38",
@@ -50,7 +52,7 @@ def learn_data_stream(
             )
         if transport is None:
             return
-        request_transport = Transport()
+        request_transport = client_part or Transport()
     if transport is None or None in (transport.server_port, transport.tag, transport.stream):
         findings.add(
             Severity.ERROR,
@@ -93,3 +95,22 @@ def _access_kind(ctx: Context, path: str) -> bool | None:
         return None
     node = rcml.node(path)
     return isinstance(node, AccessNode) and node.type is AccessType.STREAM
+
+
+#: The Transport parameters a server gives in its answer: in a SETUP they mean nothing, and a
+#: server may ignore them or refuse a bad one with 461 (D-RCTP-18).
+_SERVER_PARTS = ("server_port", "tag", "stream")
+
+
+def _client_part(asked: str) -> Transport | None:
+    """The SETUP's Transport with the server's own parameters left out, or None when even
+    that does not read."""
+    kept = [
+        part
+        for part in asked.split(";")
+        if part.partition("=")[0].strip(" \t").lower() not in _SERVER_PARTS
+    ]
+    try:
+        return parse_transport(";".join(kept))
+    except ValueTextError:
+        return None

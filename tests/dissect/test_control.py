@@ -504,12 +504,14 @@ def test_an_answer_may_echo_the_cseq_of_a_request_that_cannot_be_framed() -> Non
     assert not dissected.findings("R-RCTP-3")
 
 
-def _setup_answered_200(path: str) -> Any:
-    """SETUP of `path` with an unreadable Transport, answered 200 without one, judged with the
-    reference robot's RCML."""
+def _setup_answered_200(path: str, asked: str = "udp;mode=sideways", given: str = "") -> Any:
+    """SETUP of `path` with the Transport `asked` (by default one a server cannot read),
+    answered 200 with the Transport `given` (by default none), judged with the reference
+    robot's RCML."""
     flow = TcpFlow(CLIENT, SERVER).handshake()
-    setup = f"SETUP {path} RCTP/2.0\r\nCSeq: 2\r\n{SESSION}Transport: udp;tag=zz\r\n\r\n"
-    answer = f"RCTP/2.0 200 OK\r\nCSeq: 2\r\n{SESSION}\r\n"
+    setup = f"SETUP {path} RCTP/2.0\r\nCSeq: 2\r\n{SESSION}Transport: {asked}\r\n\r\n"
+    answered = f"Transport: {given}\r\n" if given else ""
+    answer = f"RCTP/2.0 200 OK\r\nCSeq: 2\r\n{SESSION}{answered}\r\n"
     for who, text in (CONNECT, CONNECTED, ("c", setup), ("s", answer)):
         flow.send(CLIENT if who == "c" else SERVER, wire(text))
     return dissect(pcap(flow.frames), Options(rcml=load_robot(REFERENCE_RCML)))
@@ -522,6 +524,17 @@ def test_an_event_access_setup_names_no_data_stream() -> None:
     # The same on SETUP of a stream access: 461 was due (R-RCTP-38).
     found = _setup_answered_200("/drive/wheels").findings("R-RCTP-38")
     assert any("461 is due" in text for text in found)
+
+
+def test_a_server_may_ignore_its_own_transport_parameters_in_a_setup() -> None:
+    """D-RCTP-18: server_port, tag and stream are the server's to give. A bad one in a SETUP
+    may be ignored (found by fuzz: `stream=0`); a bad client_port may not."""
+    given = "udp;client_port=5000;server_port=7331;tag=0badcafe;mode=both;stream=1"
+    for asked in ("stream=0", "tag=zz", "server_port=0;stream=999"):
+        ignored = _setup_answered_200("/drive/wheels", f"udp;client_port=5000;{asked}", given)
+        assert not ignored.findings("R-RCTP-38"), asked
+    bad_port = _setup_answered_200("/drive/wheels", "udp;client_port=0;mode=both", given)
+    assert any("461 is due" in text for text in bad_port.findings("R-RCTP-38"))
 
 
 def test_a_server_may_serve_a_cseq_out_of_order() -> None:
