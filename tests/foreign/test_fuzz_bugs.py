@@ -20,15 +20,18 @@ FOREIGN = Path(__file__).resolve().parent
 BOUND = 180
 
 #: (folder, bug, oracle, seconds, options): bugs a short campaign must find; None: the correct
-#: implementation, which must give no finding. A leak of 1 MiB a bad DATA shows in a short
-#: campaign only below the default 50 MiB: --leak-rss is the user's option for that.
+#: implementation, which must give no finding. With seed 1 each bug fires within its first few
+#: cases; the rest of a budget is for minimising and re-running (a hang costs 5 s a run). A
+#: leak of 1 MiB a bad DATA shows in a short campaign only below the default 50 MiB:
+#: --leak-rss is the user's option for that. The longest go first, so that four lanes end
+#: together.
 CAMPAIGNS: list[tuple[str, str | None, str | None, int, tuple[str, ...]]] = [
-    ("rctp_server", "content-length-sign", "crash", 40, ()),
-    ("rctp_server", "repeated-field-acquired", "violation", 40, ()),
-    ("rctp_server", "flow-top-bit-hang", "hang", 60, ()),
-    ("rctp_server", "bad-data-leak", "leak", 40, ("--leak-rss", "8")),
-    ("rsp_robot", "map-padding-crash", "crash", 40, ()),
-    ("rsp_robot", "hello-period-crash", "crash", 40, ()),
+    ("rctp_server", "flow-top-bit-hang", "hang", 30, ()),
+    ("rctp_server", "bad-data-leak", "leak", 20, ("--leak-rss", "4")),
+    ("rctp_server", "content-length-sign", "crash", 15, ()),
+    ("rctp_server", "repeated-field-acquired", "violation", 15, ()),
+    ("rsp_robot", "map-padding-crash", "crash", 15, ()),
+    ("rsp_robot", "hello-period-crash", "crash", 15, ()),
     ("rctp_server", None, None, 10, ()),
     ("rsp_robot", None, None, 10, ()),
 ]
