@@ -41,6 +41,7 @@ from wire import (
     MAC_LENGTH,
     MAX_PERIOD_MS,
     MIN_PERIOD_MS,
+    NO_MODEL,
     NONCE_LENGTH,
     NONE,
     PERIOD,
@@ -243,6 +244,9 @@ class Robot:
             return []
         header = Header.unpack(data)
         if header.version != VERSION:
+            return []
+        if header.model_id == NO_MODEL:
+            # malformed in every packet, a HELLO too: it names no model to refuse (D-RSP-10)
             return []
         if header.type == HELLO:
             return self.on_hello(header, data, address, now)

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from typing import Any
 
 VERSION = 1
+NO_MODEL = 0  # no model has model ID 0: a packet with it is malformed (D-RSP-10)
 HEADER = struct.Struct(">BHBBHI6sHB")
 assert HEADER.size == 20
 
