@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import json
 import shlex
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import jsonschema
-from support.processes import COMMAND, free_port
+from support.processes import COMMAND, free_port, wait_listening
 
 import rcmlconf.fuzz
 from rcmlconf.conformance.targets import REFERENCE_RMODEL
@@ -115,6 +117,47 @@ def test_a_target_that_cannot_be_restarted_ends_the_campaign_with_its_findings(
     assert [f["oracle"] for f in report["findings"]] == ["crash"]
     assert (out / report["findings"][0]["file"]).exists()
     assert report["seconds"] < 20
+
+
+def test_a_killed_fuzzer_leaves_no_target_behind(tmp_path: Path) -> None:
+    """SIGKILL gives the fuzzer no time to stop its target (a CI job's timeout does that):
+    the target must end by itself, or it keeps its port and the next job cannot start."""
+    foreign = Path(__file__).resolve().parents[1] / "foreign" / "rctp_server"
+    port = free_port()
+    pid_file = tmp_path / "pid"
+    server = shlex.join(
+        [sys.executable, str(foreign / "main.py"), "--port", str(port), "--http-port",
+         str(free_port())]
+    )  # fmt: skip
+    script = f"echo $$ > {pid_file}; exec {server}"
+    fuzzer = subprocess.Popen(
+        [*COMMAND, "fuzz", "--target", f"127.0.0.1:{port}", "--rcml", str(foreign / "robot.rcml"),
+         "--target-command", shlex.join(["sh", "-c", script]), "--seconds", "60",
+         "--out", str(tmp_path / "run")],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )  # fmt: skip
+    try:
+        wait_listening(port, BOUND)  # the fuzzer's cases start once it listens
+        assert fuzzer.poll() is None, "the fuzzer ended early"
+        target = int(pid_file.read_text())
+        fuzzer.send_signal(signal.SIGKILL)
+        fuzzer.wait(BOUND)
+        deadline = time.monotonic() + BOUND
+        while _alive(target):
+            assert time.monotonic() < deadline, "the target outlived its fuzzer"
+            time.sleep(0.05)
+    finally:
+        fuzzer.kill()
+        fuzzer.wait(BOUND)
+
+
+def _alive(pid: int) -> bool:
+    """Whether `pid` runs (a zombie has ended: the init process reaps it)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat[stat.rindex(")") + 2] != "Z"
 
 
 def test_usage_errors_exit_2_with_one_line(tmp_path: Path) -> None:
