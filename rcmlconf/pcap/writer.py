@@ -16,6 +16,7 @@ stream, not bytes spliced together.
 
 from __future__ import annotations
 
+import functools
 import ipaddress
 import struct
 from collections.abc import Iterable
@@ -180,22 +181,32 @@ def _checksum(data: bytes) -> int:
 
 def _ip(source: str, destination: str, protocol: int, body: bytes) -> bytes:
     """An IPv4 or IPv6 packet (its addresses say which) around `body`."""
-    src, dst = ipaddress.ip_address(source), ipaddress.ip_address(destination)
-    if src.version == 6 or dst.version == 6:
+    src, dst = _packed(source, destination)
+    if len(src) == 16:
         header6 = struct.pack("!IHBB", 6 << 28, len(body), protocol, 64)
-        return header6 + _v6(src).packed + _v6(dst).packed + body
+        return header6 + src + dst + body
     header = struct.pack(
-        "!BBHHHBBH4s4s", 0x45, 0, 20 + len(body), 0, 0x4000, 64, protocol, 0, src.packed, dst.packed
+        "!BBHHHBBH4s4s", 0x45, 0, 20 + len(body), 0, 0x4000, 64, protocol, 0, src, dst
     )
     return header[:10] + struct.pack("!H", _checksum(header)) + header[12:] + body
 
 
 def _pseudo(source: str, destination: str, protocol: int, length: int) -> bytes:
     """The pseudo-header of a TCP or UDP checksum: RFC 768/793's for IPv4, RFC 8200's for IPv6."""
+    src, dst = _packed(source, destination)
+    if len(src) == 16:
+        return src + dst + struct.pack("!IxxxB", length, protocol)
+    return src + dst + struct.pack("!BBH", 0, protocol, length)
+
+
+@functools.lru_cache(maxsize=256)
+def _packed(source: str, destination: str) -> tuple[bytes, bytes]:
+    """The two addresses' bytes: 4 each, or 16 each when either is IPv6 (an IPv4 one mapped).
+    Kept: a capture names few addresses, and parsing them cost a third of writing one."""
     src, dst = ipaddress.ip_address(source), ipaddress.ip_address(destination)
     if src.version == 6 or dst.version == 6:
-        return _v6(src).packed + _v6(dst).packed + struct.pack("!IxxxB", length, protocol)
-    return src.packed + dst.packed + struct.pack("!BBH", 0, protocol, length)
+        return _v6(src).packed, _v6(dst).packed
+    return src.packed, dst.packed
 
 
 def _v6(address: ipaddress.IPv4Address | ipaddress.IPv6Address) -> ipaddress.IPv6Address:
