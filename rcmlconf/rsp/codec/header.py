@@ -166,8 +166,9 @@ class HeaderRules:
             return f"packet type {header.type} is none of 1 to {len(SENDERS)}", TYPE_AT
         name = _TYPES[header.type].name
         if (header.session_id == 0) != (header.type in WITHOUT_SESSION):
-            needed = "0" if header.type in WITHOUT_SESSION else "not 0"
-            return f"the session ID of {name} is {needed}, not {header.session_id}", SESSION_AT
+            if header.type in WITHOUT_SESSION:
+                return f"the session ID of {name} is 0, not {header.session_id}", SESSION_AT
+            return f"the session ID of {name} is never 0", SESSION_AT
         if header.buffer not in self._buffers[sender]:
             return f"buffer byte 0x{header.buffer:02x} is not one {name}'s sender gives", BUFFER_AT
         return None
