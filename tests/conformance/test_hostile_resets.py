@@ -90,7 +90,11 @@ def test_a_target_that_stops_taking_connections_is_given_up_on(tmp_path: Path) -
     errors = [r for r in results if r["verdict"] == "error"]
     assert errors, done.stdout
     assert all("connection refused" in r["reason"] for r in errors), done.stdout
-    given_up(done, port, "refused every connection of the 8 cases before, having answered")
+    # A connection made as the listener closes is reset, not refused: on a busy machine the
+    # harness can connect in that moment, so "7 refused, 1 reset" is the same verdict.
+    given_up(done, port, "of the 8 cases before")
+    given_up(done, port, "having answered before: it stopped")
+    assert "refused" in done.stderr, done.stderr
     assert done.returncode != 0
 
 
