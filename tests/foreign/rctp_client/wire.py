@@ -206,7 +206,9 @@ class Parser:
         lengths = msg.all("Content-Length")
         if not lengths:
             return 0
-        if len(lengths) > 1 or not re.fullmatch(r"[0-9]{1,10}", lengths[0]):
+        if len(lengths) > 1:  # D-RCTP-10: twins cannot be framed, even with the same value
+            raise self._fail(400, "Content-Length given more than once")
+        if not re.fullmatch(r"[0-9]{1,10}", lengths[0]):
             raise self._fail(400, "bad Content-Length")
         if int(lengths[0]) > MAX_BODY:
             raise self._fail(413, "Content-Length over the limit")

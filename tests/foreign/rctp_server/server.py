@@ -126,6 +126,7 @@ class Connection:
     async def run(self) -> None:
         try:
             while not self.closed:
+                self.reader.twin_lengths_ok = self._lax_repeats()
                 try:
                     msg = self.reader.next()
                 except wire.FrameError as exc:
@@ -161,6 +162,11 @@ class Connection:
             pass
         finally:
             self.close()
+
+    def _lax_repeats(self) -> bool:
+        """The bug repeated-field-acquired: for a session holding a privilege, repeated
+        fields are not checked, and twin Content-Length values are framed as one."""
+        return bugs.on("repeated-field-acquired") and bool(self.session and self.session.acquired)
 
     def _bug_bare_lf(self) -> None:
         """The bug bare-lf-hang: with a session open, the line scanner waits for the CR."""
@@ -340,8 +346,7 @@ class Connection:
             raise Refuse(505, f"version {m.version} is not supported")
         if cseq is None:
             raise Refuse(400, "a missing or unreadable CSeq")
-        # repeated-field-acquired: the bug skips the check for a session holding a privilege
-        lax = bugs.on("repeated-field-acquired") and bool(self.session and self.session.acquired)
+        lax = self._lax_repeats()
         for name in wire.ONCE:
             if lax and name != "cseq":
                 continue

@@ -97,6 +97,8 @@ class Reader:
 
     def __init__(self, start_limit: int = MAX_START_LINE) -> None:
         self.start_limit = start_limit  # a start line's bytes, without its CRLF
+        # the bug repeated-field-acquired: twin Content-Length values taken as one
+        self.twin_lengths_ok = False
         self.buf = bytearray()
         self._head: Message | None = None
         self._need = 0
@@ -112,7 +114,7 @@ class Reader:
                 self._check_partial()
                 return None
             head = bytes(self.buf[: end + 2])
-            self._head, self._need = _parse_head(head, self.start_limit)
+            self._head, self._need = _parse_head(head, self.start_limit, self.twin_lengths_ok)
             del self.buf[: end + 4]
         if len(self.buf) < self._need:
             return None
@@ -166,7 +168,9 @@ class Reader:
             pos = nl + 1
 
 
-def _parse_head(head: bytes, start_limit: int = MAX_START_LINE) -> tuple[Message, int]:
+def _parse_head(
+    head: bytes, start_limit: int = MAX_START_LINE, twin_lengths_ok: bool = False
+) -> tuple[Message, int]:
     lines = head.split(b"\r\n")[:-1]
     start = lines[0]
     response = start.startswith(b"RCTP/")
@@ -196,15 +200,18 @@ def _parse_head(head: bytes, start_limit: int = MAX_START_LINE) -> tuple[Message
     cseq = _cseq_of(fields)
     if any(k == "transfer-encoding" for k, _ in fields):
         raise FrameError(400, "Transfer-Encoding is not used", cseq, response)
-    lengths = {v for k, v in fields if k == "content-length"}
-    if len(lengths) > 1:
+    lengths = [v for k, v in fields if k == "content-length"]
+    if len(set(lengths)) > 1:
         raise FrameError(400, "Content-Length fields disagree", cseq, response)
     need = 0
     if lengths:
-        text = lengths.pop()
+        text = lengths[0]
         if bugs.on("content-length-sign") and text[:1] in ("+", "-"):
             # the bug: the sign is taken by int(), and a negative length reaches the buffer
             bugs.crash(ValueError(f"negative or signed body length {text!r}"))
+        if len(lengths) > 1 and not twin_lengths_ok:
+            # D-RCTP-10: twins, even equal, cannot be framed (RFC 9112 §6.3 may take them as one)
+            raise FrameError(400, "Content-Length given more than once", cseq, response)
         if not _DIGITS.fullmatch(text):
             raise FrameError(400, "bad Content-Length", cseq, response)
         need = int(text)
