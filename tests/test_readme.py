@@ -43,6 +43,7 @@ NOT_RUN = {
     "rcmlconf fuzz --resume": "a template: the campaign above, resumed",
     "rcmlconf fuzz --model": "a minute of fuzzing; tests/fuzz run the robot with short budgets",
     "rcmlconf fuzz --rsp-target": "a template: the user's robot, started by its own command",
+    "rcmlconf fuzz --role client": "tests/fuzz/test_client_role.py runs it with short budgets",
 }
 
 

@@ -37,6 +37,20 @@ def _wait_options(command: Any) -> Any:
 @click.option("--cases", type=click.IntRange(1), help="Run this many test cases, then stop.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seeds every choice.")
 @click.option(
+    "--state",
+    multiple=True,
+    metavar="NAME",
+    help="Fuzz only in this state (repeatable; states.dot and the report's state map name"
+    " them): all of them by default.",
+)
+@click.option(
+    "--kind",
+    multiple=True,
+    metavar="NAME",
+    help="Begin each case only with this mutation kind (repeatable; the state map's columns):"
+    " all of them by default.",
+)
+@click.option(
     "--out",
     type=click.Path(file_okay=False, path_type=Path),
     default=Path("rcmlconf-fuzz"),
@@ -80,6 +94,13 @@ def fuzz(ctx: click.Context, /, **options: Any) -> None:
     effector driven, a module active, a memory command sent) and sent mutated DOWNLINKs: header
     fields, Device Map bits (past the model's devices too), payloads, lengths.
 
+    With --role client the fuzzer plays the server of the harness's robot (D-FUZZ-8): it starts
+    --client-command for each case on rctp://HOST:PORT/ (--listen), waits until the client's
+    scenario (D-RCTP-31) enters the case's state, and sends a mutated answer, mutated requests
+    of the server's or mutated datagrams; then a BYE. A crash is the client closing while it
+    owes an answer, or its process ending badly before its run did; a hang, an answer owed for
+    5 s. Without --client-command the embedded reference client is fuzzed.
+
     With no target, the embedded reference server is started as a process of its own and
     fuzzed; with --model and no target, the embedded reference robot of that model.
 
@@ -96,6 +117,7 @@ def fuzz(ctx: click.Context, /, **options: Any) -> None:
           --target-command 'my-server --port 7330' --junit fuzz.xml
       rcmlconf fuzz --rsp-target 127.0.0.1:7340 --model cubo.rmodel --seconds 120
       rcmlconf fuzz --model cubo.rmodel --seconds 60     # the embedded reference robot
+      rcmlconf fuzz --role client --listen 7400 --client-command 'my-client --url {url}'
       rcmlconf fuzz --resume run1 --target 127.0.0.1:7330 --rcml robot.rcml --seconds 600
       rcmlconf fuzz replay run1/finding-1.json --target 127.0.0.1:7330 --rcml robot.rcml
     """
@@ -110,11 +132,13 @@ def fuzz(ctx: click.Context, /, **options: Any) -> None:
 
 
 def _check_role(tested: TargetSettings) -> None:
-    if tested.role != "server":
+    if tested.role == "local":
         raise click.UsageError(
-            "rcmlconf fuzz fuzzes RCTP/2.0 servers (--target) and RSP robots (--rsp-target);"
-            " the client and local roles are not fuzzed yet"
+            "rcmlconf fuzz fuzzes RCTP/2.0 servers (--target), RSP robots (--rsp-target) and"
+            " RCTP/2.0 clients (--role client); the local role is not fuzzed yet"
         )
+    if tested.role == "client" and (tested.target or tested.rsp_target):
+        raise click.UsageError("--role client plays the server: leave out --target/--rsp-target")
     if tested.target is not None and tested.rsp_target is not None:
         raise click.UsageError("give --target or --rsp-target: one campaign fuzzes one target")
 

@@ -4,12 +4,14 @@ the reports, exit with the campaign's status."""
 from __future__ import annotations
 
 import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Any, NoReturn
 
 from rcmlconf.cli.console import Output
 from rcmlconf.cli.run_target import fetched_robot
+from rcmlconf.conformance.probes.clients import HARNESS_RCML
 from rcmlconf.conformance.settings import TargetSettings
 from rcmlconf.conformance.targets import REFERENCE_RCML
 from rcmlconf.fuzz.campaign import Budget, Stats
@@ -20,7 +22,10 @@ from rcmlconf.fuzz.launch import (
     campaign_for,
     embedded_command,
     finish,
+    free_pair,
     free_port,
+    played_robot,
+    reference_client,
     replay,
     resume_state,
     started,
@@ -48,6 +53,8 @@ def _reach(
     """The target, the command that starts it (None: it runs already) and the answer wait."""
     command = options.pop("target_command")
     wait = ANSWER_WAIT * options.pop("timeout_scale")
+    if tested.role == "client":
+        return _played(output, tested, command, wait)
     given = tested.target or tested.rsp_target
     if given is not None and tested.faults:
         _fail(output, "--fault is for the embedded reference: leave out --target")
@@ -85,6 +92,38 @@ def _reach(
     return Reached(address=address, robot=robot, site=site, described=described), command, wait
 
 
+def _played(
+    output: Output, tested: TargetSettings, command: str | None, wait: float
+) -> tuple[Reached, str | None, float]:
+    """--role client (D-FUZZ-8): the fuzzer plays the harness's robot at --listen to the
+    client --client-command starts for each case (the embedded reference client without it)."""
+    if command is not None:
+        _fail(output, "--target-command starts a server or a robot; with --role client give"
+              " --client-command 'CMD {url}'")  # fmt: skip
+    listen = tested.listen or ("127.0.0.1", free_pair())
+    client = tested.client_command or reference_client()
+    if "{url}" not in client:
+        _fail(output, "--client-command needs {url}: where the client is to connect")
+    folder = Path(tempfile.mkdtemp(prefix="rcmlconf-fuzz-"))
+    robot_file = played_robot(tested.rcml or HARNESS_RCML, listen, folder)
+    robot = load_robot(robot_file)
+    described: dict[str, Any] = {
+        "role": "client",
+        "listen": f"{listen[0]}:{listen[1]}",
+        "command": client,
+        "embedded": tested.client_command is None,
+    }
+    reached = Reached(
+        address=(listen[0], listen[1]),
+        robot=robot,
+        described=described,
+        client_command=client,
+        played=robot_file,
+        connect_timeout=tested.connect_timeout,
+    )
+    return reached, None, wait
+
+
 def fuzz_target(tested: TargetSettings, options: dict[str, Any]) -> None:
     output = Output()
     reached, command, wait = _reach(output, tested, options)
@@ -107,16 +146,21 @@ def fuzz_target(tested: TargetSettings, options: dict[str, Any]) -> None:
         _fail(output, str(error))
     try:
         with started(command, address, wait, reached.transport) as process:
-            campaign, subject = campaign_for(
-                reached,
-                process=process,
-                out=out,
-                seed=options["seed"],
-                budget=budget,
-                wait=wait,
-                leaks=leaks,
-                progress=progress_for(output),
-            )
+            try:
+                campaign, subject = campaign_for(
+                    reached,
+                    process=process,
+                    out=out,
+                    seed=options["seed"],
+                    budget=budget,
+                    wait=wait,
+                    leaks=leaks,
+                    progress=progress_for(output),
+                    only=options.pop("state"),
+                    only_kinds=options.pop("kind"),
+                )
+            except ValueError as error:
+                _fail(output, str(error))
             problem = subject.alive()
             if problem is not None:
                 _fail(output, f"{address[0]}:{address[1]}: {problem.text}")

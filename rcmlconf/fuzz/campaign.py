@@ -20,7 +20,7 @@ from typing import Any, Protocol
 from rcmlconf.fuzz.findings import Finding
 from rcmlconf.fuzz.minimise import minimise
 from rcmlconf.fuzz.monitor import LeakWatch, TargetNotReady, TargetProcess
-from rcmlconf.fuzz.oracles import CRASH, HANG, LEAK, Verdict
+from rcmlconf.fuzz.oracles import CRASH, HANG, LEAK, VIOLATION, Verdict
 from rcmlconf.fuzz.rctp_exec import Outcome
 from rcmlconf.fuzz.statemap import StateMap
 from rcmlconf.fuzz.steps import TestCase
@@ -104,9 +104,20 @@ class Campaign:
     _seen: dict[tuple[str, str, str, str], Finding] = field(default_factory=dict)
     corpus: list[TestCase] = field(default_factory=list)
     stopped: str | None = None
+    #: --state and --kind: the states fuzzed, and the kinds of their cases' first steps (all of
+    #: them when empty).
+    only: tuple[str, ...] = ()
+    only_kinds: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
-        self.map = StateMap({state: self.cases.kinds(state) for state in self.cases.states})
+        cells = {
+            state: tuple(
+                k for k in self.cases.kinds(state) if not self.only_kinds or k in self.only_kinds
+            )
+            for state in self.cases.states
+            if not self.only or state in self.only
+        }
+        self.map = StateMap({state: kinds for state, kinds in cells.items() if kinds})
         self.rng = random.Random(self.seed)
         self._since_probe: list[TestCase] = []
         self._started = time.monotonic()
@@ -176,9 +187,11 @@ class Campaign:
         if self.map.record(case.state, kind, out.missed is None, tuple(out.statuses)):
             self._keep(case)
         self._since_probe.append(case)
-        verdict = self._verdict(out)
-        if verdict is not None and out.missed is not None and _downed(verdict):
-            # Down before this case's prefix was answered: an earlier case may have done it.
+        self._previous = case
+        verdict, probed = self._verdict(out)
+        if verdict is not None and (out.missed is not None or probed) and _downed(verdict):
+            # Down before this case's prefix was answered, or found down by the probe: an
+            # earlier case may have done it.
             window = list(self._since_probe)
             self._since_probe.clear()
             self._blame(verdict, window)
@@ -194,16 +207,24 @@ class Campaign:
         ):
             self.leaks.add(self.process.usage())
 
-    def _verdict(self, out: Outcome) -> Verdict | None:
+    def _verdict(self, out: Outcome) -> tuple[Verdict | None, bool]:
         """The oracles on one run: the process's exit first, then the case's own judgement,
-        then, when the case ended oddly, a liveness probe."""
+        then, when the case ended oddly, a liveness probe; and whether the probe gave it.
+
+        An answer that did not come while the connection stayed open is a violation only if
+        the target still answers a new connection: a target that answers nothing hangs (an
+        earlier case may have hung it, D-FUZZ-4)."""
         verdict = self.subject.judge(out)
+        probed = False
         odd = out.end != "open" or out.missed is not None or verdict is not None
-        if verdict is None and odd:
-            verdict = self.subject.alive()
+        silent = verdict is not None and verdict.oracle == VIOLATION and out.unanswered is not None
+        if odd and (verdict is None or silent):
+            found = self.subject.alive()
+            if found is not None:
+                verdict, probed = found, True
         # Any finding may be a crash seen from outside (a close without an answer): give the
         # process a moment to be seen exiting. A case with no finding costs no wait.
-        return self._exited(settle=verdict is not None) or verdict
+        return self._exited(settle=verdict is not None) or verdict, probed
 
     def _exited(self, settle: bool = False) -> Verdict | None:
         """The process's exit as a crash (--target-command). `settle`: the case looked like
@@ -235,17 +256,24 @@ class Campaign:
         """A crash or a hang seen after the cases of `window`: the finding is the case that
         brings it about again on a fresh target, the newest first."""
         if not window:
-            return
+            # It went down with no case since the probe that found it alive (a timer of its
+            # own, a signal): the finding keeps the last case run, which may not bring it back.
+            if self._previous is None:
+                return
+            window = [self._previous]
         # The culprit is among the cases since the last probe: the first one that brings it
         # about again on a fresh target is the finding's (without a restart, the last one).
         culprit = window[-1]
         if self.process is not None:
             self._dirty = True  # each candidate runs on a fresh target
             self._minimise_until = time.monotonic() + MINIMISE_SECONDS
-            for candidate in reversed(window):
-                if self._fires(candidate, verdict):
-                    culprit = candidate
-                    break
+            try:
+                for candidate in reversed(window):
+                    if self._fires(candidate, verdict):
+                        culprit = candidate
+                        break
+            except _TargetLost:
+                pass  # it does not come back: `_found` keeps the newest case as seen, and stops
         self._found(culprit, verdict, None)
 
     def _final_probe(self) -> None:
@@ -276,7 +304,7 @@ class Campaign:
             known.count += 1
             self._recover(verdict)
             return
-        output = self._output()
+        output = self._output() or (out.process_output() if out is not None else None)
         can_rerun = (
             self.process is not None
             or verdict.oracle not in (CRASH, HANG)
@@ -350,6 +378,8 @@ class Campaign:
         return {"exit": exit.text(), "status": exit.status, "stderr_tail": exit.stderr_tail}
 
     _last: Outcome | None = None
+    #: The last case run, whatever its verdict.
+    _previous: TestCase | None = None
     _minimise_until: float = 0.0
 
     #: The last run brought the target down: restart it before the next (--target-command).
@@ -370,7 +400,10 @@ class Campaign:
         settle = found is not None or verdict.oracle == CRASH
         found = self._exited(settle=settle) or found
         self._last = out
-        self._dirty = found is not None and found.oracle in (CRASH, HANG)
+        # Without a process to restart (a client started for each case), nothing is left dirty.
+        self._dirty = (
+            self.process is not None and found is not None and found.oracle in (CRASH, HANG)
+        )
         same = found is not None and found.oracle == verdict.oracle
         if same and verdict.oracle not in (CRASH, HANG):
             same = found is not None and found.rule == verdict.rule

@@ -5,6 +5,7 @@ under --target-command, or the embedded reference), the subject, and what is wri
 from __future__ import annotations
 
 import json
+import re
 import shlex
 import socket
 import sys
@@ -16,6 +17,8 @@ from typing import Any
 
 from rcmlconf.conformance.targets import REFERENCE_RCML
 from rcmlconf.fuzz.campaign import Budget, Campaign, Cases, Stats, Subject
+from rcmlconf.fuzz.client_cases import ClientCases
+from rcmlconf.fuzz.client_target import CASE_PATH, ClientTarget
 from rcmlconf.fuzz.findings import load_finding
 from rcmlconf.fuzz.monitor import LeakWatch, TargetProcess
 from rcmlconf.fuzz.oracles import CRASH, HANG, Verdict
@@ -45,6 +48,11 @@ class Reached:
     model: RobotModel | None = None
     #: What the reports say the target is.
     described: dict[str, Any]
+    #: --role client (D-FUZZ-8): the command that starts the client for each case, the played
+    #: robot's RCML as served, and how long a case waits for the client to connect.
+    client_command: str | None = None
+    played: Path | None = None
+    connect_timeout: float = 10.0
 
     @property
     def transport(self) -> str:
@@ -69,6 +77,23 @@ def free_port(host: str = "127.0.0.1") -> int:
         return port
 
 
+def free_pair(host: str = "127.0.0.1") -> int:
+    """A port P free on TCP and UDP whose P + 1 is free on TCP: a played server's RCTP, data
+    stream and files (D-RCTP-29)."""
+    for _ in range(100):
+        port = free_port(host)
+        if port >= 65535:
+            continue
+        try:
+            with socket.socket() as tcp, socket.socket(type=socket.SOCK_DGRAM) as udp:
+                tcp.bind((host, port + 1))
+                udp.bind((host, port))
+        except OSError:
+            continue
+        return port
+    raise OSError(f"no two free ports in a row on {host}")
+
+
 @contextmanager
 def started(
     command: str | None, address: Address, wait: float, transport: str = "tcp"
@@ -85,7 +110,34 @@ def started(
         process.stop()
 
 
+def reference_client() -> str:
+    """The embedded reference client, as a process of its own: `{url}` is the case URL."""
+    return shlex.join([sys.executable, "-m", "rcmlconf", "client", "{url}", "scenario"])
+
+
+def played_robot(harness: Path, listen: Address, folder: Path) -> Path:
+    """The robot the fuzzer plays to a client (D-RCTP-31's harness robot), its `site` the case
+    URL of `client_target.CASE_PATH`, written into `folder` as it is served."""
+    text = harness.read_text(encoding="utf-8")
+    site = f'site="rctp://{listen[0]}:{listen[1]}{CASE_PATH}"'
+    text = re.sub(r'\bsite="[^"]*"', site, text, count=1)
+    path = folder / harness.name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
 def subject_for(reached: Reached, wait: float) -> Subject:
+    if reached.client_command is not None:
+        assert reached.robot is not None
+        assert reached.played is not None
+        return ClientTarget(
+            reached.played,
+            reached.robot,
+            reached.address,
+            reached.client_command,
+            wait=wait,
+            connect_timeout=reached.connect_timeout,
+        )
     if reached.model is not None:
         return RspTarget(reached.address, reached.model, wait)
     assert reached.robot is not None
@@ -102,14 +154,30 @@ def campaign_for(
     wait: float,
     leaks: LeakWatch | None,
     progress: Callable[[Stats], None],
+    only: tuple[str, ...] = (),
+    only_kinds: tuple[str, ...] = (),
 ) -> tuple[Campaign, Subject]:
-    subject = subject_for(reached, wait)
+    """The campaign and its subject. Raises ValueError, before anything starts, for a state in
+    `only` (--state) the target has not, or a kind in `only_kinds` (--kind) none of them has."""
     cases: Cases
-    if reached.model is not None:
+    if reached.client_command is not None:
+        assert reached.robot is not None
+        cases = ClientCases(robot_paths(reached.robot))
+    elif reached.model is not None:
         cases = RspCases(reached.model, rsp_seeds(reached.model.model_id))
     else:
         assert reached.robot is not None
         cases = RctpCases(robot_paths(reached.robot, reached.site), control_seeds())
+    unknown = [state for state in only if state not in cases.states]
+    if unknown:
+        states = ", ".join(cases.states)
+        raise ValueError(f"--state {unknown[0]!r}: this target's states are {states}")
+    kinds = {kind for state in only or cases.states for kind in cases.kinds(state)}
+    strange = [kind for kind in only_kinds if kind not in kinds]
+    if strange:
+        shown = ", ".join(sorted(kinds))
+        raise ValueError(f"--kind {strange[0]!r}: the kinds of those states are {shown}")
+    subject = subject_for(reached, wait)
     campaign = Campaign(
         subject,
         cases,
@@ -120,6 +188,8 @@ def campaign_for(
         process=process,
         leaks=leaks if process is not None else None,
         progress=progress,
+        only=only,
+        only_kinds=only_kinds,
     )
     return campaign, subject
 

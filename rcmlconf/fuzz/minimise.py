@@ -8,6 +8,7 @@ is a real run, so the search is bounded by `tries`.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from typing import TypeVar
 
 from rcmlconf.fuzz.steps import Step, TestCase
@@ -57,11 +58,11 @@ def minimise(case: TestCase, fires: Callable[[TestCase], bool], tries: int = TRI
         step = steps[index]
 
         def with_bytes(kept: list[int], index: int = index, step: Step = step) -> bool:
-            changed = Step(step.channel, bytes(kept), step.kind, step.tagged)
+            changed = replace(step, data=bytes(kept))
             trial = [*steps[:index], changed, *steps[index + 1 :]]
             return fires(case.with_steps(tuple(trial)))
 
         if len(step.data) <= 512:  # ddmin over a huge field costs more runs than it saves
             kept = ddmin(list(step.data), with_bytes, budget)
-            steps[index] = Step(step.channel, bytes(kept), step.kind, step.tagged)
+            steps[index] = replace(step, data=bytes(kept))
     return case.with_steps(tuple(steps))

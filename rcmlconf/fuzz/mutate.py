@@ -132,10 +132,13 @@ def transport(draft: Draft, rng: random.Random) -> Draft:
 
 
 def session(draft: Draft, rng: random.Random) -> Draft:
+    """The `Session` field broken, or its timeout at an edge (D-RCTP-11)."""
     own = SESSION.decode()
+    if rng.random() < 0.4:
+        return _set_field(draft, "Session", f"{own};timeout={_pick(rng, NUMBERS)}")
     forms = (
-        "", "x", own + "x", own + ";timeout=0", own + ";timeout=-1", own + ";timeout=4294967296",
-        own[:-1], own.upper(), own + " ", "0" * 100, own + ";" + own,
+        "", "x", own + "x", own[:-1], own.upper(), own + " ", "0" * 100, own + ";" + own,
+        own + ";timeout", own + ";TIMEOUT=60", own + ";timeout=60;timeout=1",
     )  # fmt: skip
     return _set_field(draft, "Session", _pick(rng, forms))
 
@@ -192,6 +195,25 @@ CONTROL: dict[str, Callable[[Draft, random.Random], Draft]] = {
     "body": body,
     "nodes": nodes,
 }
+
+
+#: Status codes at the edges: the classes' ends, none, three digits that are no class.
+_STATUSES = ("0", "99", "100", "199", "201", "299", "300", "400", "404", "455", "500", "600",
+             "999", "2000", "20", "-200", "2OO", "", "200 ")  # fmt: skip
+
+
+def status(draft: Draft, rng: random.Random) -> Draft:
+    """An answer's status code (`rctp_drafts.answer` keeps it where a request's target is)."""
+    return replace(draft, target=_pick(rng, _STATUSES))
+
+
+#: The mutations of an answer the fuzzer plays to a client (D-FUZZ-8), by kind.
+ANSWER: dict[str, Callable[[Draft, random.Random], Draft]] = {
+    kind: CONTROL[kind]
+    for kind in ("cseq", "content-length", "line-ending", "field-repeat", "field-missing",
+                 "field-huge", "fields-many", "session", "body", "transport")
+}  # fmt: skip
+ANSWER["status"] = status
 
 
 def flip_bytes(data: bytes, rng: random.Random) -> bytes:

@@ -86,17 +86,23 @@ class RctpCases:
         executor fills in the session's, `Step.tagged`); a FLOW request when `flow`, whose last
         field (an interval, a timeout) is what the FLOW mutations change; DATA most often when
         `data` (a body's size is what its mutation changes)."""
-        request = rng.randrange(1 << 16)
-        direction = rng.choice((Direction.READ, Direction.WRITE))
-        flows = [
-            encode_flow(IntervalSet(request, direction, 100_000)),
-            encode_flow(TimeoutSet(request, direction, 10_000_000)),
-            encode_flow(HeartbeatRequest(request, rng.randrange(1 << 64))),
-        ]
-        kind, body, stream = int(PayloadType.FLOW), rng.choice(flows), 1
+        body, stream = flow_request(rng)
+        kind = int(PayloadType.FLOW)
         data_body = self.robot.stream_body()
         if not flow and data_body is not None and rng.random() < (0.8 if data else 0.4):
-            kind, body = int(PayloadType.DATA), data_body
-        if kind == int(PayloadType.FLOW) and body == flows[2]:
-            stream = 0  # a heartbeat is the session's (D-RCTP-22)
+            kind, body, stream = int(PayloadType.DATA), data_body, 1
         return push_datagram(rng.randrange(1 << 16), 0, 0, [(kind, body, stream)])
+
+
+def flow_request(rng: random.Random) -> tuple[bytes, int]:
+    """A valid FLOW request's body, and its stream: a set-interval or a set-timeout of stream 1,
+    whose last field is what the FLOW mutations change, or a heartbeat, the session's (stream 0,
+    D-RCTP-22)."""
+    request = rng.randrange(1 << 16)
+    direction = rng.choice((Direction.READ, Direction.WRITE))
+    flows = [
+        (encode_flow(IntervalSet(request, direction, 100_000)), 1),
+        (encode_flow(TimeoutSet(request, direction, 10_000_000)), 1),
+        (encode_flow(HeartbeatRequest(request, rng.randrange(1 << 64))), 0),
+    ]
+    return rng.choice(flows)

@@ -42,6 +42,13 @@ class Draft:
         return eol.join(head) + eol + eol + self.body
 
 
+def answer(status: int, reason: str, fields: Fields, body: bytes = b"") -> Draft:
+    """An answer as a Draft (D-FUZZ-8): a status line's version, status and reason stand where
+    a request line's method, target and version do, so one renderer and the field mutations
+    serve both."""
+    return Draft(VERSION, str(status), fields, body, version=reason)
+
+
 def _session(draft: Draft) -> Draft:
     return replace(draft, fields=(*draft.fields, ("Session", SESSION.decode())))
 

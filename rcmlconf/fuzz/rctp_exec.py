@@ -13,6 +13,7 @@ import select
 import socket
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 from rcmlconf.errors import ValueTextError
 from rcmlconf.fuzz.owed import UNFRAMED, Owed
@@ -56,6 +57,10 @@ class Outcome:
     def due(self) -> list[str]:
         """The owed answers that never came."""
         return self.owed.requests[len(self.statuses) :]
+
+    def process_output(self) -> dict[str, Any] | None:
+        """How a process started for this run alone ended (a client's, D-FUZZ-8); None here."""
+        return None
 
 
 class _Session:

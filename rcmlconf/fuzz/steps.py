@@ -5,6 +5,11 @@ sent: `{session}` becomes the session's ID (D-RCTP-11) and `{client_port}` the f
 port; a data-stream step marked `tagged` gets the session's tag (D-RCTP-18) in bytes 4 to 8,
 and its first payload's stream byte, where the template says 1, the stream's ID.
 So a finding replays against a target that picks other IDs (D-FUZZ-6).
+
+Played to a client (D-FUZZ-8), `{cseq}` is the `CSeq` the played server gives the message (the
+client's request's, in an answer; the next of its own, in a request of its own) and
+`{transport}` the `Transport` its SETUP answer gives; a request of the server's keeps the valid
+request its mutation began from (`origin`), which the played server's core sends in its place.
 """
 
 from __future__ import annotations
@@ -17,6 +22,9 @@ Channel = Literal["control", "data"]
 SESSION = b"{session}"
 #: Where the fuzzer's own UDP port goes (SETUP's Transport, D-RCTP-19).
 CLIENT_PORT = b"{client_port}"
+#: Played to a client (D-FUZZ-8): where the message's CSeq goes, and the SETUP answer's Transport.
+CSEQ = b"{cseq}"
+TRANSPORT = b"{transport}"
 #: The step kind of what a valid prefix sends (D-FUZZ-1).
 PREFIX = "prefix"
 
@@ -29,21 +37,29 @@ class Step:
     kind: str = PREFIX
     #: A data-stream step whose tag field is the session's (the fuzzer's mutation left it).
     tagged: bool = False
+    #: Played to a client: the valid request of the server's this step's mutation began from.
+    origin: bytes = b""
 
     def to_json(self) -> dict[str, Any]:
-        return {
+        item = {
             "channel": self.channel,
             "kind": self.kind,
             "tagged": self.tagged,
             "hex": self.data.hex(),
         }
+        if self.origin:
+            item["origin_hex"] = self.origin.hex()
+        return item
 
     @classmethod
     def from_json(cls, item: dict[str, Any]) -> Step:
         channel = item["channel"]
         if channel not in ("control", "data"):
             raise ValueError(f"step channel {channel!r} is not control or data")
-        return cls(channel, bytes.fromhex(item["hex"]), str(item["kind"]), bool(item["tagged"]))
+        origin = bytes.fromhex(item.get("origin_hex", ""))
+        return cls(
+            channel, bytes.fromhex(item["hex"]), str(item["kind"]), bool(item["tagged"]), origin
+        )
 
 
 @dataclass(frozen=True, slots=True)

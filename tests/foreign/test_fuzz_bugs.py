@@ -1,6 +1,7 @@
 """`rcmlconf fuzz` finds the robustness bugs planted in the implementations of tests/foreign/
 (`--bug NAME`), with a fixed seed and a short budget, as a user runs it: the fuzzer starts the
-implementation itself (--target-command) and keeps its exit status and stderr.
+implementation itself (--target-command; a client for each case, --client-command) and keeps
+its exit status and stderr.
 """
 
 from __future__ import annotations
@@ -32,41 +33,48 @@ CAMPAIGNS: list[tuple[str, str | None, str | None, int, tuple[str, ...]]] = [
     ("rctp_server", "repeated-field-acquired", "violation", 15, ()),
     ("rsp_robot", "map-padding-crash", "crash", 15, ()),
     ("rsp_robot", "hello-period-crash", "crash", 15, ()),
-    ("rctp_server", None, None, 10, ()),
+    ("rctp_server", None, None, 15, ()),
     ("rsp_robot", None, None, 10, ()),
-]
+    # A client case is a process of its own running D-RCTP-31's scenario: 3 cases a second,
+    # where a server takes 100. Each campaign is focused on its bug's state and kind.
+    ("rctp_client", "flow-top-bit-hang", "hang", 40, ("--state", "stream playing", "--kind",
+     "data-flow-value", "--timeout-scale", "0.4")),
+    ("rctp_client", None, None, 20, ()),
+    ("rctp_client", "session-timeout-crash", "crash", 15, ("--state", "connecting", "--kind",
+     "answer-session")),
+    ("rctp_client", "bad-push-crash", "crash", 15, ("--state", "event playing", "--kind",
+     "push-body")),
+    ("rctp_client", "stray-stop-200", "violation", 15, ("--state", "event playing", "--kind",
+     "push-target")),
+]  # fmt: skip
 #: Campaigns at once: each mostly waits on its implementation.
 CONCURRENT = 4
+
+
+def target_options(folder: str, bug: str | None) -> list[str]:
+    """How `rcmlconf fuzz` reaches the folder's implementation, which it starts itself."""
+    main = FOREIGN / folder / "main.py"
+    planted = ["--bug", bug] if bug is not None else []
+    if folder == "rctp_client":  # started for each case on the case's URL (D-FUZZ-8)
+        client = [sys.executable, str(main), "--url", "{url}", *planted]
+        return ["--role", "client", "--client-command", shlex.join(client)]
+    port = lasting_port()  # restarted on it: no socket of the fuzzer's may take it meanwhile
+    started = [sys.executable, str(main), "--port", str(port), *planted]
+    if folder == "rctp_server":
+        started += ["--http-port", str(lasting_port())]
+        robot = ["--target", f"127.0.0.1:{port}", "--rcml", str(FOREIGN / folder / "robot.rcml")]
+    else:
+        robot = ["--rsp-target", f"127.0.0.1:{port}", "--model"]
+        robot.append(str(FOREIGN / folder / "robot.rmodel"))
+    return [*robot, "--target-command", shlex.join(started)]
 
 
 def campaign(
     folder: str, bug: str | None, seconds: int, out: Path, options: tuple[str, ...] = ()
 ) -> dict[str, Any]:
-    port = lasting_port()  # restarted on it: no socket of the fuzzer's may take it meanwhile
-    main = FOREIGN / folder / "main.py"
-    if folder == "rctp_server":
-        started = [
-            sys.executable,
-            str(main),
-            "--port",
-            str(port),
-            "--http-port",
-            str(lasting_port()),
-        ]
-        target = ["--target", f"127.0.0.1:{port}", "--rcml", str(FOREIGN / folder / "robot.rcml")]
-    else:
-        started = [sys.executable, str(main), "--port", str(port)]
-        target = [
-            "--rsp-target",
-            f"127.0.0.1:{port}",
-            "--model",
-            str(FOREIGN / folder / "robot.rmodel"),
-        ]
-    if bug is not None:
-        started += ["--bug", bug]
     done = subprocess.run(
-        [*COMMAND, "fuzz", *target, "--target-command", shlex.join(started), "--seconds",
-         str(seconds), "--seed", "1", "--out", str(out), *options],
+        [*COMMAND, "fuzz", *target_options(folder, bug), "--seconds", str(seconds), "--seed",
+         "1", "--out", str(out), *options],
         capture_output=True, text=True, timeout=BOUND, check=False,
     )  # fmt: skip
     assert done.returncode in (0, 1), done.stderr

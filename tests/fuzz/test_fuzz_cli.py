@@ -12,29 +12,10 @@ import sys
 import time
 from pathlib import Path
 
-import jsonschema
+from support.fuzzing import BOUND, fuzz, valid
 from support.processes import COMMAND, free_port, wait_listening
 
-import rcmlconf.fuzz
 from rcmlconf.conformance.targets import REFERENCE_RMODEL
-
-#: Every command here ends well within this (the budgets are seconds).
-BOUND = 120
-
-
-SCHEMAS = Path(rcmlconf.fuzz.__file__).parent
-
-
-def valid(document: object, schema: str) -> None:
-    """`document` is what the package's JSON Schema `schema` says."""
-    rules = json.loads((SCHEMAS / schema).read_text())
-    jsonschema.Draft202012Validator(rules).validate(document)
-
-
-def fuzz(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [*COMMAND, "fuzz", *args], capture_output=True, text=True, timeout=BOUND, check=False
-    )
 
 
 def test_the_reference_gives_no_finding_and_every_file_is_written(tmp_path: Path) -> None:
@@ -161,9 +142,20 @@ def _alive(pid: int) -> bool:
 
 
 def test_usage_errors_exit_2_with_one_line(tmp_path: Path) -> None:
-    done = fuzz("--role", "client", "--out", str(tmp_path))
+    done = fuzz("--role", "local", "--out", str(tmp_path))
     assert done.returncode == 2
     assert "not fuzzed yet" in done.stderr
+    for wrong, said in [
+        (("--role", "client", "--target", "127.0.0.1:1"), "leave out --target"),
+        (("--role", "client", "--client-command", "my-client"), "needs {url}"),
+        (("--role", "client", "--target-command", "x"), "--client-command"),
+        (("--state", "nowhere"), "--state 'nowhere': this target's states are connected,"),
+        (("--kind", "nothing"), "--kind 'nothing': the kinds of those states are"),
+    ]:
+        done = fuzz(*wrong, "--seconds", "1", "--out", str(tmp_path))
+        assert done.returncode == 2, (wrong, done.stderr)
+        assert said in done.stderr, (wrong, done.stderr)
+        assert "Traceback" not in done.stderr
     bad = tmp_path / "finding.json"
     bad.write_text("{}")
     replayed = fuzz("replay", str(bad))

@@ -12,8 +12,9 @@ steps = st.builds(
     Step,
     st.sampled_from(["control", "data"]),
     st.binary(max_size=40),
-    st.sampled_from(["prefix", "cseq", "bytes", "data-tag"]),
+    st.sampled_from(["prefix", "cseq", "bytes", "data-tag", "push-body"]),
     st.booleans(),
+    st.binary(max_size=20),  # a client's step's origin (D-FUZZ-8)
 )
 cases = st.builds(
     TestCase,
