@@ -44,6 +44,7 @@ NOT_RUN = {
     "rcmlconf fuzz --model": "a minute of fuzzing; tests/fuzz run the robot with short budgets",
     "rcmlconf fuzz --rsp-target": "a template: the user's robot, started by its own command",
     "rcmlconf fuzz --role client": "tests/fuzz/test_client_role.py runs it with short budgets",
+    "rcmlconf fuzz --role local": "tests/foreign/test_fuzz_bugs.py runs it with short budgets",
 }
 
 

@@ -42,7 +42,7 @@ COMMANDS = {
     "fuzz": (
         "rcmlconf.cli.fuzz",
         "fuzz",
-        "Fuzz an RCTP/2.0 server through its states; each finding minimised, replayable.",
+        "Fuzz a peer of any role through its states; each finding minimised, replayable.",
     ),
     "local": (
         "rcmlconf.cli.local",

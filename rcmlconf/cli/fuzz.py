@@ -82,7 +82,8 @@ def _wait_options(command: Any) -> Any:
 @click.option("--junit", type=click.Path(dir_okay=False, path_type=Path))
 @click.pass_context
 def fuzz(ctx: click.Context, /, **options: Any) -> None:
-    """Fuzz an RCTP/2.0 server or an RSP robot through its states; keep each finding minimised.
+    """Fuzz an RCTP/2.0 server or client, or an RSP robot or local system, through its states;
+    keep each finding minimised.
 
     Each test case drives the target to a state with valid requests (a session, a privilege,
     a stream set up or playing, an event access playing, a session closing), sends mutated
@@ -101,6 +102,13 @@ def fuzz(ctx: click.Context, /, **options: Any) -> None:
     owes an answer, or its process ending badly before its run did; a hang, an answer owed for
     5 s. Without --client-command the embedded reference client is fuzzed.
 
+    With --role local the fuzzer plays a robot of --model (D-FUZZ-9) to the RSP local system
+    --client-command starts for each case, {url} being the robot's HOST:PORT (--listen): it
+    mutates the WELCOME, or the UPLINKs, ACKs and BYEs once the local system is welcomed or has
+    taken a memory event. A crash is its process ending badly before its run did; a hang, 5 s
+    without a packet from it. Without --client-command the embedded reference local system is
+    fuzzed (`rcmlconf local --scenario`).
+
     With no target, the embedded reference server is started as a process of its own and
     fuzzed; with --model and no target, the embedded reference robot of that model.
 
@@ -118,6 +126,7 @@ def fuzz(ctx: click.Context, /, **options: Any) -> None:
       rcmlconf fuzz --rsp-target 127.0.0.1:7340 --model cubo.rmodel --seconds 120
       rcmlconf fuzz --model cubo.rmodel --seconds 60     # the embedded reference robot
       rcmlconf fuzz --role client --listen 7400 --client-command 'my-client --url {url}'
+      rcmlconf fuzz --role local --model robot.rmodel --client-command 'my-local {url}'
       rcmlconf fuzz --resume run1 --target 127.0.0.1:7330 --rcml robot.rcml --seconds 600
       rcmlconf fuzz replay run1/finding-1.json --target 127.0.0.1:7330 --rcml robot.rcml
     """
@@ -132,13 +141,10 @@ def fuzz(ctx: click.Context, /, **options: Any) -> None:
 
 
 def _check_role(tested: TargetSettings) -> None:
-    if tested.role == "local":
+    if tested.role != "server" and (tested.target or tested.rsp_target):
         raise click.UsageError(
-            "rcmlconf fuzz fuzzes RCTP/2.0 servers (--target), RSP robots (--rsp-target) and"
-            " RCTP/2.0 clients (--role client); the local role is not fuzzed yet"
+            f"--role {tested.role} plays the other side: leave out --target/--rsp-target"
         )
-    if tested.role == "client" and (tested.target or tested.rsp_target):
-        raise click.UsageError("--role client plays the server: leave out --target/--rsp-target")
     if tested.target is not None and tested.rsp_target is not None:
         raise click.UsageError("give --target or --rsp-target: one campaign fuzzes one target")
 

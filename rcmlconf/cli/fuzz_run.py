@@ -26,6 +26,7 @@ from rcmlconf.fuzz.launch import (
     free_port,
     played_robot,
     reference_client,
+    reference_local,
     replay,
     resume_state,
     started,
@@ -55,6 +56,8 @@ def _reach(
     wait = ANSWER_WAIT * options.pop("timeout_scale")
     if tested.role == "client":
         return _played(output, tested, command, wait)
+    if tested.role == "local":
+        return _played_robot(output, tested, command, wait)
     given = tested.target or tested.rsp_target
     if given is not None and tested.faults:
         _fail(output, "--fault is for the embedded reference: leave out --target")
@@ -119,6 +122,38 @@ def _played(
         described=described,
         client_command=client,
         played=robot_file,
+        connect_timeout=tested.connect_timeout,
+    )
+    return reached, None, wait
+
+
+def _played_robot(
+    output: Output, tested: TargetSettings, command: str | None, wait: float
+) -> tuple[Reached, str | None, float]:
+    """--role local (D-FUZZ-9): the fuzzer plays a robot of --model at --listen to the local
+    system --client-command starts for each case (the embedded reference's without it)."""
+    if command is not None:
+        _fail(output, "--target-command starts a server or a robot; with --role local give"
+              " --client-command 'CMD {url}'")  # fmt: skip
+    if tested.model is None:
+        _fail(output, "--role local needs --model: the robot the fuzzer plays")
+    local = tested.client_command or reference_local(tested.model)
+    if "{url}" not in local:
+        _fail(output, "--client-command needs {url}: where the local system is to send")
+    listen = tested.listen or ("127.0.0.1", free_port())
+    model = load_robot_model(tested.model)
+    described: dict[str, Any] = {
+        "role": "local",
+        "listen": f"{listen[0]}:{listen[1]}",
+        "command": local,
+        "model": str(tested.model),
+        "embedded": tested.client_command is None,
+    }
+    reached = Reached(
+        address=(listen[0], listen[1]),
+        model=model,
+        described=described,
+        client_command=local,
         connect_timeout=tested.connect_timeout,
     )
     return reached, None, wait

@@ -112,6 +112,13 @@ _REFUSED = (KeyError, TypeError, ValueError, EncodeError, Backlog)
 )
 @psk_option
 @click.option(
+    "--scenario",
+    is_flag=True,
+    help="Run the conformance scenario of a local system once (specs/rsp.md D-RSP-24), as the"
+    " embedded reference runs it for `rcmlconf run --role local`; the other options but"
+    " --psk-file are left aside. Exit 0 once the run ends.",
+)
+@click.option(
     "--format",
     "format_",
     type=click.Choice(["text", "json"]),
@@ -130,6 +137,7 @@ def local(
     duration: float | None,
     encryption: str,
     psk_file: Path | None,
+    scenario: bool,
     format_: str,
 ) -> None:
     """Open an RSP session with a robot of MODEL.rmodel and drive it as the paper's simulacrum
@@ -152,9 +160,16 @@ def local(
           --write leftWheel speed=200 --write rightWheel speed=150 \\
           --watch position --duration 5
       rcmlconf local cubo.rmodel --robot 127.0.0.1 --issue irFire code=7 --duration 1
+      rcmlconf local cubo.rmodel --robot 127.0.0.1:17340 --scenario   # D-RSP-24, once
     """
     output = Output()
     model = load_or_exit(output, "local", model_path, load_robot_model)
+    if scenario:
+        from rcmlconf.conformance.probes.local_scenario import reference_local
+
+        key = read_psk(psk_file, set())
+        asyncio.run(reference_local(model, key, robot))
+        sys.exit(0)
     chosen = ENCRYPTIONS[encryption]
     psk = read_psk(psk_file, {chosen})
     plan = _Plan(model, writes, activates, watches, issues)

@@ -49,6 +49,9 @@ class Subject(Protocol):
     role: str
     #: D-FUZZ-4's bound on an answer, --timeout-scale applied.
     wait: float
+    #: Each case starts a target of its own (a client's or local system's process): nothing
+    #: an earlier case did carries over to it.
+    fresh: bool
 
     def run(self, case: TestCase) -> Outcome: ...
     def judge(self, out: Outcome) -> Verdict | None: ...
@@ -189,9 +192,10 @@ class Campaign:
         self._since_probe.append(case)
         self._previous = case
         verdict, probed = self._verdict(out)
-        if verdict is not None and (out.missed is not None or probed) and _downed(verdict):
-            # Down before this case's prefix was answered, or found down by the probe: an
-            # earlier case may have done it.
+        before = not self.subject.fresh and (out.missed is not None or probed or not out.statuses)
+        if verdict is not None and before and _downed(verdict):
+            # Down before this case's prefix was answered, before it answered anything, or
+            # found down by the probe: an earlier case may have done it.
             window = list(self._since_probe)
             self._since_probe.clear()
             self._blame(verdict, window)
@@ -307,6 +311,7 @@ class Campaign:
         output = self._output() or (out.process_output() if out is not None else None)
         can_rerun = (
             self.process is not None
+            or self.subject.fresh
             or verdict.oracle not in (CRASH, HANG)
             or (out is not None and self.subject.alive() is None)
         )

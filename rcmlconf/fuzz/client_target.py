@@ -12,12 +12,12 @@ import shlex
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from rcmlconf.fuzz.client_cases import entries
 from rcmlconf.fuzz.client_played import PlayedServer, Seen
-from rcmlconf.fuzz.monitor import Exit, TargetNotReady, TargetProcess
+from rcmlconf.fuzz.monitor import TargetNotReady, TargetProcess
 from rcmlconf.fuzz.oracles import CRASH, HANG, Verdict, violation
+from rcmlconf.fuzz.per_case import StartedOutcome
 from rcmlconf.fuzz.rctp_exec import FRAMING_SHARE, Address, Outcome
 from rcmlconf.fuzz.rctp_robot import robot_paths
 from rcmlconf.fuzz.steps import TestCase
@@ -37,26 +37,17 @@ CASE_PATH = "/"
 
 
 @dataclass(slots=True)
-class ClientOutcome(Outcome):
-    state: str = ""
-    #: How the client's process ended by itself (None: it ran until the fuzzer stopped it).
-    exit: Exit | None = None
-    may_end: str | None = None
+class ClientOutcome(StartedOutcome):
     #: The server's requests still unanswered when the case ended, for people.
     owing: list[str] = field(default_factory=list)
     #: The fuzzer closed the connection first (the probe answered, or a message it took amiss).
     we_closed: bool = False
     refused_framing: bool = False
 
-    def process_output(self) -> dict[str, Any] | None:
-        exit = self.exit
-        if exit is None:
-            return None
-        return {"exit": exit.text(), "status": exit.status, "stderr_tail": exit.stderr_tail}
-
 
 class ClientTarget:
     role = "client"
+    fresh = True
 
     def __init__(
         self,

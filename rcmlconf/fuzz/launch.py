@@ -20,6 +20,8 @@ from rcmlconf.fuzz.campaign import Budget, Campaign, Cases, Stats, Subject
 from rcmlconf.fuzz.client_cases import ClientCases
 from rcmlconf.fuzz.client_target import CASE_PATH, ClientTarget
 from rcmlconf.fuzz.findings import load_finding
+from rcmlconf.fuzz.local_cases import LocalCases
+from rcmlconf.fuzz.local_target import LocalTarget
 from rcmlconf.fuzz.monitor import LeakWatch, TargetProcess
 from rcmlconf.fuzz.oracles import CRASH, HANG, Verdict
 from rcmlconf.fuzz.rctp_cases import RctpCases
@@ -48,8 +50,9 @@ class Reached:
     model: RobotModel | None = None
     #: What the reports say the target is.
     described: dict[str, Any]
-    #: --role client (D-FUZZ-8): the command that starts the client for each case, the played
-    #: robot's RCML as served, and how long a case waits for the client to connect.
+    #: --role client (D-FUZZ-8) and local (D-FUZZ-9): the command that starts the client or
+    #: local system for each case, the played robot's RCML as served (a client's), and how long
+    #: a case waits for it to connect.
     client_command: str | None = None
     played: Path | None = None
     connect_timeout: float = 10.0
@@ -115,6 +118,13 @@ def reference_client() -> str:
     return shlex.join([sys.executable, "-m", "rcmlconf", "client", "{url}", "scenario"])
 
 
+def reference_local(model: Path) -> str:
+    """The embedded reference local system running D-RSP-24's scenario, as a process of its
+    own: `{url}` is the played robot's address."""
+    words = [sys.executable, "-m", "rcmlconf", "local", str(model), "--robot", "{url}"]
+    return shlex.join([*words, "--scenario"])
+
+
 def played_robot(harness: Path, listen: Address, folder: Path) -> Path:
     """The robot the fuzzer plays to a client (D-RCTP-31's harness robot), its `site` the case
     URL of `client_target.CASE_PATH`, written into `folder` as it is served."""
@@ -127,6 +137,14 @@ def played_robot(harness: Path, listen: Address, folder: Path) -> Path:
 
 
 def subject_for(reached: Reached, wait: float) -> Subject:
+    if reached.client_command is not None and reached.model is not None:
+        return LocalTarget(
+            reached.model,
+            reached.address,
+            reached.client_command,
+            wait=wait,
+            connect_timeout=reached.connect_timeout,
+        )
     if reached.client_command is not None:
         assert reached.robot is not None
         assert reached.played is not None
@@ -160,7 +178,9 @@ def campaign_for(
     """The campaign and its subject. Raises ValueError, before anything starts, for a state in
     `only` (--state) the target has not, or a kind in `only_kinds` (--kind) none of them has."""
     cases: Cases
-    if reached.client_command is not None:
+    if reached.client_command is not None and reached.model is not None:
+        cases = LocalCases(reached.model, rsp_seeds(reached.model.model_id))
+    elif reached.client_command is not None:
         assert reached.robot is not None
         cases = ClientCases(robot_paths(reached.robot))
     elif reached.model is not None:

@@ -11,6 +11,7 @@ from rcmlconf.rcml.model import RcmlDocument
 
 class RctpTarget:
     role = "server"
+    fresh = False
 
     def __init__(self, address: Address, robot: RcmlDocument, site: str, wait: float) -> None:
         self.address = address

@@ -13,10 +13,11 @@ from __future__ import annotations
 import random
 from collections.abc import Callable
 
+from rcmlconf.errors import ProtocolError
 from rcmlconf.fuzz import mutate
 from rcmlconf.fuzz.steps import Step, TestCase
 from rcmlconf.rsp.codec import Encryption, PacketType, Welcome, codec_for
-from rcmlconf.rsp.codec.bodies import Packet
+from rcmlconf.rsp.codec.bodies import MapBody, Packet, map_body
 from rcmlconf.rsp.codec.header import (
     BUFFER_AT,
     ENCRYPTION_AT,
@@ -50,6 +51,7 @@ FILLED = {
     "rsp-last-received": (LAST_AT, 2),
 }
 _SESSION = 1
+_MAPPED = frozenset({PacketType.DOWNLINK, PacketType.UPLINK, PacketType.ACK})
 
 
 def _first(model: RobotModel, kind: DeviceKind) -> Device | None:
@@ -131,18 +133,13 @@ class RspCases:
         for state, found in made.items():
             if found or state == "welcomed":
                 self.bases[state] = found or every
-        self._kinds = (
-            "rsp-version", "rsp-model", "rsp-encryption", "rsp-type", *FILLED, "rsp-buffer",
-            "rsp-map-bits", "rsp-map-past-model", "rsp-truncate", "rsp-trailing", "rsp-payload",
-            "rsp-repeat", "bytes", "splice",
-        )  # fmt: skip
 
     @property
     def states(self) -> tuple[str, ...]:
         return tuple(self.bases)
 
     def kinds(self, state: str) -> tuple[str, ...]:
-        return HELLO_KINDS if state == IDLE else self._kinds
+        return HELLO_KINDS if state == IDLE else packet_kinds()
 
     def make(self, state: str, kind: str, rng: random.Random, count: int = 1) -> TestCase:
         steps = []
@@ -153,55 +150,119 @@ class RspCases:
 
     def _mutated(self, state: str, kind: str, rng: random.Random) -> bytes:
         bases = self.bases[state] or [bytes(HEADER_SIZE)]
-        data = rng.choice(bases)
-        size = self.model.map_size
-        body = HEADER_SIZE
-        simple = {
-            "rsp-version": (VERSION_AT, 1),
-            "rsp-model": (MODEL_AT, 2),
-            "rsp-encryption": (ENCRYPTION_AT, 1),
-            "rsp-type": (TYPE_AT, 1),
-            "rsp-buffer": (BUFFER_AT, 1),
-            **FILLED,
-        }
-        if kind in simple:
-            return _header(*simple[kind], rng)(data)
-        if kind == "rsp-hello-period":  # the last two bytes of a HELLO without MAC
-            period = rng.choice((0, 1, 2, 4, 5, 9, 10, 10000, 10001, 65535))
-            return data[:-2] + period.to_bytes(2, "big")
-        if kind == "rsp-hello-nonce":
-            return (
-                data[:body]
-                + bytes(rng.randrange(256) for _ in range(NONCE_SIZE))
-                + data[body + NONCE_SIZE :]
-            )
-        if kind == "rsp-map-bits":
-            at = body + rng.randrange(max(size, 1))
-            return (
-                data[:at] + bytes([data[at] ^ (1 << rng.randrange(8))]) + data[at + 1 :]
-                if at < len(data)
-                else data
-            )
-        if kind == "rsp-map-past-model":
-            padding = 8 * size - len(self.model.devices)
-            if padding <= 0 or len(data) < body + size:
-                return data + b"\x00"
-            bit = len(self.model.devices) + rng.randrange(padding)
-            at = body + bit // 8
-            return data[:at] + bytes([data[at] | (0x80 >> bit % 8)]) + data[at + 1 :]
-        if kind == "rsp-truncate":
-            return data[: rng.randrange(len(data))]
-        if kind == "rsp-trailing":
-            return data + bytes(rng.randrange(256) for _ in range(rng.choice((1, 2, 7, 300))))
-        if kind == "rsp-payload":
-            start = body + size
-            if start >= len(data):
-                return data + b"\xff"
-            at = rng.randrange(start, len(data))
-            return data[:at] + bytes([rng.choice((0, 0xFF, 0x7F, 0x80))]) + data[at + 1 :]
-        if kind == "rsp-repeat":
-            return data + data[body:]
-        if kind == "bytes":
-            return mutate.flip_bytes(data, rng)
-        seed = rng.choice(self.seeds) if self.seeds else data
-        return mutate.splice(data, seed, rng)
+        return packet_mutated(self.model, self.seeds, rng.choice(bases), kind, rng)
+
+
+def packet_kinds() -> tuple[str, ...]:
+    """The mutations of a packet in a session (D-FUZZ-3), a robot's or a local system's."""
+    return (
+        "rsp-version", "rsp-model", "rsp-encryption", "rsp-type", *FILLED, "rsp-buffer",
+        "rsp-map-bits", "rsp-map-past-model", "rsp-truncate", "rsp-trailing", "rsp-payload",
+        "rsp-occurrence-id", "rsp-repeat", "bytes", "splice",
+    )  # fmt: skip
+
+
+def packet_mutated(
+    model: RobotModel, seeds: list[bytes], data: bytes, kind: str, rng: random.Random
+) -> bytes:
+    """`data`, a valid packet of `model`, with the one part `kind` names changed (D-FUZZ-3);
+    `seeds`: packets to splice it with."""
+    size = model.map_size
+    body = HEADER_SIZE
+    simple = {
+        "rsp-version": (VERSION_AT, 1),
+        "rsp-model": (MODEL_AT, 2),
+        "rsp-encryption": (ENCRYPTION_AT, 1),
+        "rsp-type": (TYPE_AT, 1),
+        "rsp-buffer": (BUFFER_AT, 1),
+        **FILLED,
+    }
+    if kind in simple:
+        return _header(*simple[kind], rng)(data)
+    if kind == "rsp-hello-period":  # the last two bytes of a HELLO without MAC
+        period = rng.choice((0, 1, 2, 4, 5, 9, 10, 10000, 10001, 65535))
+        return data[:-2] + period.to_bytes(2, "big")
+    if kind == "rsp-hello-nonce":
+        return (
+            data[:body]
+            + bytes(rng.randrange(256) for _ in range(NONCE_SIZE))
+            + data[body + NONCE_SIZE :]
+        )
+    if kind == "rsp-map-bits":
+        at = body + rng.randrange(max(size, 1))
+        return (
+            data[:at] + bytes([data[at] ^ (1 << rng.randrange(8))]) + data[at + 1 :]
+            if at < len(data)
+            else data
+        )
+    if kind == "rsp-map-past-model":
+        padding = 8 * size - len(model.devices)
+        if padding <= 0 or len(data) < body + size:
+            return data + b"\x00"
+        bit = len(model.devices) + rng.randrange(padding)
+        at = body + bit // 8
+        return data[:at] + bytes([data[at] | (0x80 >> bit % 8)]) + data[at + 1 :]
+    if kind == "rsp-truncate":
+        return data[: rng.randrange(len(data))]
+    if kind == "rsp-trailing":
+        return data + bytes(rng.randrange(256) for _ in range(rng.choice((1, 2, 7, 300))))
+    if kind == "rsp-payload":  # after the Device Map, or the header where there is none
+        start = body + (size if len(data) > TYPE_AT and data[TYPE_AT] in _MAPPED else 0)
+        if start >= len(data):
+            return data + b"\xff"
+        at = rng.randrange(start, len(data))
+        return data[:at] + bytes([rng.choice((0, 0xFF, 0x7F, 0x80))]) + data[at + 1 :]
+    if kind == "rsp-occurrence-id":
+        return _occurrence_id(model, data, rng)
+    if kind == "rsp-repeat":
+        return data + data[body:]
+    if kind == "bytes":
+        return mutate.flip_bytes(data, rng)
+    seed = rng.choice(seeds) if seeds else data
+    return mutate.splice(data, seed, rng)
+
+
+def filled(data: bytes, kind: str, last: bytes | None, index: int, peer_last: int) -> bytes:
+    """A step sent `index` packets after `last`, the sender's newest valid packet: its session
+    ID, sequence number and stamp follow `last`'s, its last received number is `peer_last`,
+    but for the field `kind` changed (`FILLED`)."""
+    if last is None or len(data) < LAST_AT + 2:
+        return data
+    sequence = (int.from_bytes(last[SEQUENCE_AT : SEQUENCE_AT + 2], "big") + index) % 65536
+    stamp = int.from_bytes(last[TIMESTAMP_AT : TIMESTAMP_AT + 4], "big")
+    fields = {
+        "rsp-sequence": sequence.to_bytes(2, "big"),
+        "rsp-timestamp": ((stamp + index) % (1 << 32)).to_bytes(4, "big"),
+        "rsp-session": last[SESSION_AT : SESSION_AT + 6],
+        "rsp-last-received": peer_last.to_bytes(2, "big"),
+    }
+    out = bytearray(data)
+    for name, (at, size) in FILLED.items():
+        if name != kind:
+            out[at : at + size] = fields[name]
+    return bytes(out)
+
+
+def _occurrence_id(model: RobotModel, data: bytes, rng: random.Random) -> bytes:
+    """One occurrence's ID (or an acknowledged one's) moved to an edge of the ID space: 0, just
+    behind, half the space ahead (D-RSP-16's edge of new), the last ID; `data` as it was when
+    it holds none."""
+    codec = codec_for(model)
+    try:
+        header, packet_body = codec.pull_packet(data)
+    except ProtocolError:
+        return data
+    if not isinstance(packet_body, MapBody):
+        return data
+    items = list(packet_body.items)
+    with_ids = [index for index, item in enumerate(items) if item.id is not None]
+    if not with_ids:
+        return data
+    index = rng.choice(with_ids)
+    space = 1 << (8 * model.id_length)
+    given = items[index].id or 0
+    half = space // 2
+    edges = (0, (given - 1) % space, (given - 2) % space, (given + half) % space,
+             (given + half - 1) % space, space - 1)  # fmt: skip
+    items[index] = items[index]._replace(id=rng.choice(edges))
+    return codec.push_packet(Packet(header, map_body(tuple(items))))

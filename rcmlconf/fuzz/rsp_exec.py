@@ -15,12 +15,12 @@ import time
 
 from rcmlconf.errors import ProtocolError
 from rcmlconf.fuzz.rctp_exec import Address, Outcome
-from rcmlconf.fuzz.rsp_cases import FILLED, IDLE, drive
+from rcmlconf.fuzz.rsp_cases import IDLE, drive, filled
 from rcmlconf.fuzz.steps import TestCase
 from rcmlconf.pcap.writer import Payload
 from rcmlconf.rsp.codec import Bye, ByeReason, PacketType, codec_for
 from rcmlconf.rsp.codec.bodies import Packet
-from rcmlconf.rsp.codec.header import LAST_AT, SEQUENCE_AT, SESSION_AT, TIMESTAMP_AT, TYPE_AT
+from rcmlconf.rsp.codec.header import LAST_AT, SEQUENCE_AT, TYPE_AT
 from rcmlconf.rsp.model import RobotModel
 from rcmlconf.rsp.session import events
 from rcmlconf.rsp.session.local import LocalEndpoint
@@ -174,22 +174,7 @@ class _Session:
 
     def _filled(self, data: bytes, kind: str, index: int) -> bytes:
         """The step with the live session's header fields, but the one `kind` changed."""
-        last = self.last_sent
-        if last is None or len(data) < LAST_AT + 2:
-            return data
-        sequence = (int.from_bytes(last[SEQUENCE_AT : SEQUENCE_AT + 2], "big") + index) % 65536
-        stamp = int.from_bytes(last[TIMESTAMP_AT : TIMESTAMP_AT + 4], "big")
-        fields = {
-            "rsp-sequence": sequence.to_bytes(2, "big"),
-            "rsp-timestamp": ((stamp + index) % (1 << 32)).to_bytes(4, "big"),
-            "rsp-session": last[SESSION_AT : SESSION_AT + 6],
-            "rsp-last-received": self.robot_sequence.to_bytes(2, "big"),
-        }
-        filled = bytearray(data)
-        for name, (at, size) in FILLED.items():
-            if name != kind:
-                filled[at : at + size] = fields[name]
-        return bytes(filled)
+        return filled(data, kind, self.last_sent, index, self.robot_sequence)
 
     def _bye(self, index: int, after: int | None = None) -> bytes:
         """BYE (reason 0) numbered on from the session's packets, or from `after`."""

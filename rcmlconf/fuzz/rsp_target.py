@@ -17,6 +17,7 @@ from rcmlconf.rsp.model import RobotModel
 
 class RspTarget:
     role = "robot"
+    fresh = False
 
     def __init__(self, address: Address, model: RobotModel, wait: float) -> None:
         self.address = address
