@@ -12,6 +12,7 @@ the mutated bytes. What the session saw is kept for the judgement (`Seen`).
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import threading
 import time
 from collections.abc import Callable
@@ -32,6 +33,7 @@ from rcmlconf.rctp.errors import LocalProtocolError, RemoteProtocolError
 from rcmlconf.rctp.fields import parse_session
 from rcmlconf.rctp.messages import Request, Response
 from rcmlconf.rctp.reader import MessageReader
+from rcmlconf.rctp.states import StreamState
 from rcmlconf.rctp.targets import parse_target
 from rcmlconf.reference.drivers import choose_driver
 from rcmlconf.reference.server.adapter import ReferenceServer, ServerSettings
@@ -39,6 +41,7 @@ from rcmlconf.reference.server.robot import Robot
 from rcmlconf.reference.server.session import ServerSession
 
 T = TypeVar("T")
+PLAYING = StreamState.PLAYING
 #: Header fields of a datagram the played server fills in (D-FUZZ-8), unless the step's
 #: mutation changed them: sequence, tag and timestamp (bytes 2 to 16), stream (byte 17).
 _KEPT = {"data-sequence": (2, 4), "data-tag": (4, 8)}
@@ -64,7 +67,6 @@ class Seen:
     #: The client answered 400, 413, 414 or 431: it found a message unframeable (D-RCTP-10).
     refused_framing: bool = False
     payloads: list[Payload] = field(default_factory=list)
-    probe: Request | None = None
 
 
 def _framed(data: bytes) -> Request | Response | None:
@@ -164,7 +166,7 @@ class PlayedSession(ServerSession):
         entry = self.seen.entry
         if request.method != entry.method:
             return False
-        if entry.method == "GO" and self.conn.streams.get(entry.path or "") is None:
+        if entry.method == "GO" and self.conn.streams.get(entry.path or "") is not PLAYING:
             return False  # GO refused: the access does not play
         if entry.path is None:
             return True
@@ -252,10 +254,8 @@ class PlayedSession(ServerSession):
         """D-FUZZ-8's liveness probe: a BYE of the server's, which ends the run once answered."""
         if self.finished or self.seen.may_end is not None:
             return
-        try:
-            self.seen.probe = self.conn.send_request("BYE", "*", [("Reason", "shutdown")], now=now)
-        except (ProtocolError, LocalProtocolError):
-            return
+        with contextlib.suppress(ProtocolError, LocalProtocolError):
+            self.conn.send_request("BYE", "*", [("Reason", "shutdown")], now=now)
 
     def _record(self, transport: str, source: Address, destination: Address, data: bytes) -> None:
         if len(self.seen.payloads) < 10_000:
