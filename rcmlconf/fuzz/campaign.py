@@ -39,6 +39,8 @@ MINIMISE_SHARE, MINIMISE_SECONDS = 0.2, 60.0
 EXIT_SETTLE = 0.25
 #: A resource sample of the target every this many cases (--target-command).
 SAMPLE_EVERY = 10
+#: The most points of the report's timeline.
+TIMELINE = 2000
 
 
 class _TargetLost(Exception):
@@ -84,10 +86,18 @@ class Stats:
     fired: int = 0
     restarts: int = 0
     states: int = 0
+    #: (seconds, cases, states reached, findings) about once a second, thinned by half past
+    #: TIMELINE points: the report's `timeline`, states over time.
+    timeline: list[tuple[float, int, int, int]] = field(default_factory=list)
 
     @property
     def rate(self) -> float:
         return self.cases / self.elapsed if self.elapsed > 0 else 0.0
+
+    def mark(self) -> None:
+        self.timeline.append((round(self.elapsed, 2), self.cases, self.states, self.findings))
+        if len(self.timeline) > TIMELINE:
+            self.timeline = [*self.timeline[:-1:2], self.timeline[-1]]
 
 
 @dataclass
@@ -144,12 +154,14 @@ class Campaign:
             if self.stats.elapsed - last_tick >= 1.0:
                 last_tick = self.stats.elapsed
                 self.stats.states = self.map.states_reached
+                self.stats.mark()
                 self.progress(self.stats)
         if self.stopped is None:
             self._final_probe()
         self._judge_leak()
         self.stats.elapsed = before + time.monotonic() - started
         self.stats.states = self.map.states_reached
+        self.stats.mark()
         return self.stats
 
     def _past_end(self) -> bool:

@@ -32,6 +32,7 @@ def report(
         "states_reached": states.states_reached,
         "stopped": stopped,
         "state_map": states.table(),
+        "timeline": [list(point) for point in stats.timeline],
         "findings": [
             {
                 "file": f"{f.name}.json",

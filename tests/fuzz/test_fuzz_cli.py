@@ -27,6 +27,7 @@ def test_the_reference_gives_no_finding_and_every_file_is_written(tmp_path: Path
     assert report["findings"] == []
     assert report["cases"] > 20
     assert report["states_reached"] == 7
+    assert report["timeline"][-1][1:3] == [report["cases"], 7]  # the end: every case, state
     assert {"state.json", "states.dot"} <= {p.name for p in out.iterdir()}
     assert 'failures="0"' in (tmp_path / "f.xml").read_text()
     # --resume goes on from the state: the count of cases grows.
