@@ -175,6 +175,11 @@ def fuzz_target(tested: TargetSettings, options: dict[str, Any]) -> None:
         max_memory=options.pop("max_memory"),
     )
     leaks = LeakWatch(rss_limit=options.pop("leak_rss") * 2**20, fd_limit=options.pop("leak_fds"))
+    #: --state and --kind: where the campaign puts its effort (empty: everywhere).
+    focus: dict[str, tuple[str, ...]] = {
+        "states": options.pop("state"),
+        "kinds": options.pop("kind"),
+    }
     try:
         state = resume_state(out)
     except ValueError as error:
@@ -191,8 +196,8 @@ def fuzz_target(tested: TargetSettings, options: dict[str, Any]) -> None:
                     wait=wait,
                     leaks=leaks,
                     progress=progress_for(output),
-                    only=options.pop("state"),
-                    only_kinds=options.pop("kind"),
+                    only=focus["states"],
+                    only_kinds=focus["kinds"],
                 )
             except ValueError as error:
                 _fail(output, str(error))
@@ -208,7 +213,8 @@ def fuzz_target(tested: TargetSettings, options: dict[str, Any]) -> None:
                 campaign.stopped = "interrupted"
             finally:
                 subject.close()
-            document = finish(campaign, {"seed": options["seed"], "target": reached.described})
+            settings = {"seed": options["seed"], "target": reached.described}
+            document = finish(campaign, {**settings, **{k: list(v) for k, v in focus.items()}})
     except (TargetNotReady, TargetCommandError) as error:
         _fail(output, str(error))
     write_reports(document, options["json_file"], options["junit"])

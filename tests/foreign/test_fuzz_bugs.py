@@ -38,7 +38,7 @@ CAMPAIGNS: list[tuple[str, str | None, str | None, int, tuple[str, ...]]] = [
     ("rsp_robot", None, None, 10, ()),
     # A client case is a process of its own running D-RCTP-31's scenario: 3 cases a second,
     # where a server takes 100. Each campaign is focused on its bug's state and kind.
-    ("rctp_client", "flow-top-bit-hang", "hang", 45, ("--state", "stream playing", "--kind",
+    ("rctp_client", "flow-top-bit-hang", "hang", 60, ("--state", "stream playing", "--kind",
      "data-flow-value", "--timeout-scale", "0.4")),
     ("rctp_client", None, None, 10, ()),
     ("rctp_client", "session-timeout-crash", "crash", 10, ("--state", "connecting", "--kind",

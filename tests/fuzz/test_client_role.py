@@ -40,6 +40,10 @@ def test_a_planted_crash_is_found_kept_with_its_stderr_and_replayed(tmp_path: Pa
     )  # fmt: skip
     assert done.returncode == 1, done.stderr
     report = json.loads((out / "report.json").read_text())
+    assert (report["settings"]["states"], report["settings"]["kinds"]) == (
+        ["connecting"],
+        ["answer-session"],
+    )
     crashes = [f for f in report["findings"] if f["oracle"] == "crash"]
     assert crashes, report["findings"]
     finding = json.loads((out / crashes[0]["file"]).read_text())
