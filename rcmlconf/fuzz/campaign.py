@@ -402,10 +402,12 @@ class Campaign:
     #: The last run brought the target down: restart it before the next (--target-command).
     _dirty: bool = False
 
-    def _fires(self, case: TestCase, verdict: Verdict) -> bool:
+    def _fires(self, case: TestCase, verdict: Verdict, *, rerun: bool = False) -> bool:
         """Run `case` on a live target: does the same oracle fire, for the same requirement?
-        Past the budget's end, no more runs: the finding keeps what it has."""
-        if self._past_end() or time.monotonic() > self._minimise_until:
+        Past the budget's end, or the minimiser's share of it, no more runs but a re-run's
+        (D-FUZZ-6): the finding keeps what it has."""
+        late = self._past_end() or time.monotonic() > self._minimise_until
+        if late and not rerun:
             return False
         if self._dirty and self.process is not None:
             self._restart()
@@ -434,14 +436,11 @@ class Campaign:
         return verdict.oracle not in (CRASH, HANG) or self._fires(case, verdict)
 
     def _stability(self, case: TestCase, verdict: Verdict) -> tuple[int, int]:
-        """Of RERUNS runs of `case` (fewer past the budget's end), how many fire."""
-        runs = fired = 0
-        for _ in range(RERUNS):
-            if self._past_end():
-                break
-            runs += 1
-            fired += self._fires(case, verdict)
-        return fired, runs
+        """Of RERUNS runs of `case`, how many fire. They are made past the budget's end too
+        (D-FUZZ-6): a finding found late still says whether it reproduces, and that costs at
+        most RERUNS runs of it."""
+        fired = sum(self._fires(case, verdict, rerun=True) for _ in range(RERUNS))
+        return fired, RERUNS
 
     def _recover(self, verdict: Verdict) -> None:
         """Restart a target that exited, or that a crash or a hang left (--target-command)."""

@@ -33,7 +33,7 @@ CAMPAIGNS: list[tuple[str, str | None, str | None, int, tuple[str, ...]]] = [
     ("rctp_server", "content-length-sign", "crash", 15, ()),
     ("rctp_server", "repeated-field-acquired", "violation", 15, ()),
     ("rsp_robot", "map-padding-crash", "crash", 15, ()),
-    ("rsp_robot", "hello-period-crash", "crash", 15, ()),
+    ("rsp_robot", "hello-period-crash", "crash", 25, ()),
     ("rctp_server", None, None, 10, ()),
     ("rsp_robot", None, None, 10, ()),
     # A client case is a process of its own running D-RCTP-31's scenario: 3 cases a second,
