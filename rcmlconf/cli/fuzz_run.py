@@ -3,6 +3,7 @@ the reports, exit with the campaign's status."""
 
 from __future__ import annotations
 
+import os
 import sys
 import tempfile
 import time
@@ -46,6 +47,11 @@ REMOTE_RATE = 200.0
 def _fail(output: Output, text: str, status: int = 2) -> NoReturn:
     output.problem("fuzz", text)
     sys.exit(status)
+
+
+def _listen_failed(output: Output, address: tuple[str, int], error: OSError) -> NoReturn:
+    reason = os.strerror(error.errno) if error.errno else str(error)
+    _fail(output, f"cannot listen on {address[0]}:{address[1]} (--listen): {reason}")
 
 
 def _reach(
@@ -201,6 +207,8 @@ def fuzz_target(tested: TargetSettings, options: dict[str, Any]) -> None:
                 )
             except ValueError as error:
                 _fail(output, str(error))
+            except OSError as error:  # the played side's port (--role client or local)
+                _listen_failed(output, address, error)
             problem = subject.alive()
             if problem is not None:
                 _fail(output, f"{address[0]}:{address[1]}: {problem.text}")
@@ -248,7 +256,10 @@ def replay_finding(path: Path, tested: TargetSettings, options: dict[str, Any]) 
     reached, command, wait = _reach(output, tested, options)
     try:
         with started(command, reached.address, wait, reached.transport) as process:
-            subject = subject_for(reached, wait)
+            try:
+                subject = subject_for(reached, wait)
+            except OSError as error:  # the played side's port (--role client or local)
+                _listen_failed(output, reached.address, error)
             try:
                 verdict = replay(path, subject, process)
             except FindingFileError as error:

@@ -64,8 +64,13 @@ class LocalTarget:
         self.connect_timeout = connect_timeout
         address = f"{listen[0]}:{listen[1]}"
         self.command = shlex.join(w.replace("{url}", address) for w in shlex.split(command))
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(listen)
+        family = socket.AF_INET6 if ":" in listen[0] else socket.AF_INET
+        self.sock = socket.socket(family, socket.SOCK_DGRAM)
+        try:
+            self.sock.bind(listen)
+        except OSError:
+            self.sock.close()
+            raise
         self.sock.setblocking(False)
 
     def run(self, case: TestCase) -> Outcome:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import shlex
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -160,6 +161,16 @@ def test_usage_errors_exit_2_with_one_line(tmp_path: Path) -> None:
         assert done.returncode == 2, (wrong, done.stderr)
         assert said in done.stderr, (wrong, done.stderr)
         assert "Traceback" not in done.stderr
+    with socket.socket() as taken, socket.socket(type=socket.SOCK_DGRAM) as datagrams:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        datagrams.bind(("127.0.0.1", port))
+        for role in (["--role", "client"], ["--role", "local", "--model", str(REFERENCE_RMODEL)]):
+            done = fuzz(*role, "--listen", f"127.0.0.1:{port}", "--out", str(tmp_path))
+            assert done.returncode == 2, (role, done.stderr)
+            assert f"cannot listen on 127.0.0.1:{port} (--listen): " in done.stderr, done.stderr
+            assert "internal error" not in done.stderr
     bad = tmp_path / "finding.json"
     bad.write_text("{}")
     replayed = fuzz("replay", str(bad))
