@@ -107,7 +107,7 @@ class LocalTarget:
             text = f"the local system's process {exit.text()} in {out.state}, its run not ended"
             return Verdict(CRASH, "D-RSP-24", text)
         if out.unanswered is not None and out.may_end is None:
-            return Verdict(HANG, "R-RSP-20", out.unanswered)
+            return Verdict(HANG, "R-RSP-42", out.unanswered)
         if out.may_end is not None:
             return None
         return violation(out.payloads, out.ours, None, self.listen[1], model=self.model)
@@ -150,7 +150,7 @@ class _PlayedRun:
             out.missed = f"the local system did not reach {self.case.state}"
             out.exit = self.process.exited()
             return
-        # The probe: a local system sends every T (D-RSP-13); within the wait it sends again.
+        # The probe: a local system sends every T (R-RSP-42); within the wait it sends again.
         self.heard_since = False
         until = time.monotonic() + target.wait
         while not self.heard_since and not out.ended and time.monotonic() < until:
