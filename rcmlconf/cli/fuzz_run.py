@@ -101,31 +101,44 @@ def _reach(
     return Reached(address=address, robot=robot, site=site, described=described), command, wait
 
 
+def _per_case_command(
+    output: Output, tested: TargetSettings, command: str | None, embedded: str, where: str
+) -> str:
+    """--client-command, which starts the implementation under test for each case (`embedded`,
+    the reference's, without it); --target-command has no place beside it."""
+    if command is not None:
+        _fail(output, f"--target-command starts a server or a robot; with --role {tested.role}"
+              " give --client-command 'CMD {url}'")  # fmt: skip
+    started = tested.client_command or embedded
+    if "{url}" not in started:
+        _fail(output, f"--client-command needs {{url}}: where the {where}")
+    return started
+
+
+def _described(tested: TargetSettings, listen: tuple[str, int], started: str) -> dict[str, Any]:
+    """What the reports say a target started for each case is."""
+    return {
+        "role": tested.role,
+        "listen": f"{listen[0]}:{listen[1]}",
+        "command": started,
+        "embedded": tested.client_command is None,
+    }
+
+
 def _played(
     output: Output, tested: TargetSettings, command: str | None, wait: float
 ) -> tuple[Reached, str | None, float]:
     """--role client (D-FUZZ-8): the fuzzer plays the harness's robot at --listen to the
     client --client-command starts for each case (the embedded reference client without it)."""
-    if command is not None:
-        _fail(output, "--target-command starts a server or a robot; with --role client give"
-              " --client-command 'CMD {url}'")  # fmt: skip
+    client = _per_case_command(output, tested, command, reference_client(), "client is to connect")
     listen = tested.listen or ("127.0.0.1", free_pair())
-    client = tested.client_command or reference_client()
-    if "{url}" not in client:
-        _fail(output, "--client-command needs {url}: where the client is to connect")
     folder = Path(tempfile.mkdtemp(prefix="rcmlconf-fuzz-"))
     robot_file = played_robot(tested.rcml or HARNESS_RCML, listen, folder)
     robot = load_robot(robot_file)
-    described: dict[str, Any] = {
-        "role": "client",
-        "listen": f"{listen[0]}:{listen[1]}",
-        "command": client,
-        "embedded": tested.client_command is None,
-    }
     reached = Reached(
         address=(listen[0], listen[1]),
         robot=robot,
-        described=described,
+        described=_described(tested, listen, client),
         client_command=client,
         played=robot_file,
         connect_timeout=tested.connect_timeout,
@@ -138,27 +151,17 @@ def _played_robot(
 ) -> tuple[Reached, str | None, float]:
     """--role local (D-FUZZ-9): the fuzzer plays a robot of --model at --listen to the local
     system --client-command starts for each case (the embedded reference's without it)."""
-    if command is not None:
-        _fail(output, "--target-command starts a server or a robot; with --role local give"
-              " --client-command 'CMD {url}'")  # fmt: skip
     if tested.model is None:
         _fail(output, "--role local needs --model: the robot the fuzzer plays")
-    local = tested.client_command or reference_local(tested.model)
-    if "{url}" not in local:
-        _fail(output, "--client-command needs {url}: where the local system is to send")
+    local = _per_case_command(
+        output, tested, command, reference_local(tested.model), "local system is to send"
+    )
     listen = tested.listen or ("127.0.0.1", free_port())
     model = load_robot_model(tested.model)
-    described: dict[str, Any] = {
-        "role": "local",
-        "listen": f"{listen[0]}:{listen[1]}",
-        "command": local,
-        "model": str(tested.model),
-        "embedded": tested.client_command is None,
-    }
     reached = Reached(
         address=(listen[0], listen[1]),
         model=model,
-        described=described,
+        described={**_described(tested, listen, local), "model": str(tested.model)},
         client_command=local,
         connect_timeout=tested.connect_timeout,
     )

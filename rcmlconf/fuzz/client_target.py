@@ -8,16 +8,15 @@ nothing to restart; `alive` has nothing to probe between cases.
 
 from __future__ import annotations
 
-import shlex
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from rcmlconf.fuzz.client_cases import entries
 from rcmlconf.fuzz.client_played import PlayedServer, Seen
-from rcmlconf.fuzz.monitor import TargetNotReady, TargetProcess
+from rcmlconf.fuzz.monitor import TargetProcess
 from rcmlconf.fuzz.oracles import CRASH, HANG, Verdict, violation
-from rcmlconf.fuzz.per_case import StartedOutcome
+from rcmlconf.fuzz.per_case import StartedOutcome, exit_after_run, run_started, with_url
 from rcmlconf.fuzz.rctp_exec import FRAMING_SHARE, Address, Outcome
 from rcmlconf.fuzz.rctp_robot import robot_paths
 from rcmlconf.fuzz.steps import TestCase
@@ -29,8 +28,6 @@ SCENARIO = 15.0
 #: Between the steps and the probe: time for the client to take the data stream's steps, which
 #: the probe on the control connection could otherwise overtake.
 PROBE_DELAY = 0.1
-#: How long a client whose session ended has to exit by itself before it is stopped.
-EXIT_GRACE = 1.0
 POLL = 0.005
 #: The case URL's path: one case runs at a time, so all share it (D-RCTP-31).
 CASE_PATH = "/"
@@ -64,29 +61,19 @@ class ClientTarget:
         self.wait = wait
         self.connect_timeout = connect_timeout
         self.url = f"rctp://{listen[0]}:{listen[1]}{CASE_PATH}"
-        words = [word.replace("{url}", self.url) for word in shlex.split(command)]
-        self.command = shlex.join(words)
+        self.command = with_url(command, self.url)
         self.entries = entries(robot_paths(robot))
         self.played = PlayedServer(rcml, robot, listen[0], listen[1])
 
     def run(self, case: TestCase) -> Outcome:
         seen = Seen(case, self.entries[case.state])
         self.played.expect(seen)
-        process = TargetProcess(self.command, ready=None, kept=4096)
         out = ClientOutcome(state=case.state)
         out.ours = {self.listen}
         try:
-            process.start()
-        except TargetNotReady as error:
-            out.missed = str(error)
-            self.played.forget()
-            return out
-        try:
-            self._follow(seen, process, out)
+            run_started(self.command, out, lambda process: self._follow(seen, process, out))
         finally:
-            exit = process.stop()
             self.played.forget()
-        out.exit = out.exit or exit
         out.payloads = list(seen.payloads)
         out.statuses = list(seen.statuses)
         out.may_end = seen.may_end
@@ -116,10 +103,7 @@ class ClientTarget:
         out.end = "closed" if seen.client_closed else "open"
         out.we_closed = not seen.client_closed
         out.owing = list(seen.unanswered)
-        ended = time.monotonic() + EXIT_GRACE
-        while process.exited() is None and time.monotonic() < ended:
-            time.sleep(POLL)
-        out.exit = process.exited()
+        out.exit = exit_after_run(process)
 
     def judge(self, out: Outcome) -> Verdict | None:
         assert isinstance(out, ClientOutcome)

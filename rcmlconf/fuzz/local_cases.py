@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import random
 
-from rcmlconf.fuzz.rsp_cases import packet_kinds, packet_mutated
+from rcmlconf.fuzz.rsp_cases import packet_kinds, packet_mutated, zeros
 from rcmlconf.fuzz.steps import Step, TestCase
 from rcmlconf.rsp.codec import PacketType
 from rcmlconf.rsp.codec.header import TYPE_AT
@@ -26,10 +26,6 @@ from rcmlconf.rsp.session.robot import RobotEndpoint
 HELLO, WELCOMED, MEMORY_EVENT = "hello", "welcomed", "memory event taken"
 _PEER = ("127.0.0.1", 1)
 _REQUESTED = (DeviceKind.SENSOR, DeviceKind.MONITOR, DeviceKind.EVENT, DeviceKind.MEMORY_EVENT)
-
-
-def _zeros(fields: tuple[object, ...]) -> dict[str, object]:
-    return {f.name: f.zero() for f in fields}  # type: ignore[attr-defined]
 
 
 def offline_packets(model: RobotModel) -> dict[PacketType, list[bytes]]:
@@ -55,16 +51,16 @@ def offline_packets(model: RobotModel) -> dict[PacketType, list[bytes]]:
         if device.kind is DeviceKind.MODULE or device.kind in _REQUESTED:
             local.set_active(device.name, True)
         elif device.kind in (DeviceKind.COMMAND, DeviceKind.MEMORY_COMMAND):
-            local.issue(device.name, _zeros(device.fields))  # type: ignore[arg-type]
+            local.issue(device.name, zeros(device))
     for _ in range(6):
         now += model.period
         local.handle_timer(now)
         pump()
         for device in model.devices:
             if device.kind in (DeviceKind.SENSOR, DeviceKind.MONITOR):
-                robot.set_state(device.name, _zeros(device.fields))  # type: ignore[arg-type]
+                robot.set_state(device.name, zeros(device))
             elif device.kind in (DeviceKind.EVENT, DeviceKind.MEMORY_EVENT):
-                robot.occur(device.name, _zeros(device.fields))  # type: ignore[arg-type]
+                robot.occur(device.name, zeros(device))
         robot.handle_timer(now)
         pump()
     robot.close(now)

@@ -11,18 +11,17 @@ from __future__ import annotations
 
 import contextlib
 import select
-import shlex
 import socket
 import time
 from dataclasses import dataclass
 
 from rcmlconf.errors import ProtocolError
 from rcmlconf.fuzz.local_cases import HELLO, MEMORY_EVENT, WELCOMED
-from rcmlconf.fuzz.monitor import TargetNotReady, TargetProcess
+from rcmlconf.fuzz.monitor import TargetProcess
 from rcmlconf.fuzz.oracles import CRASH, HANG, Verdict, violation
-from rcmlconf.fuzz.per_case import StartedOutcome
+from rcmlconf.fuzz.per_case import StartedOutcome, exit_after_run, run_started, with_url
 from rcmlconf.fuzz.rctp_exec import Address, Outcome
-from rcmlconf.fuzz.rsp_cases import filled
+from rcmlconf.fuzz.rsp_cases import filled, zeros
 from rcmlconf.fuzz.steps import TestCase
 from rcmlconf.pcap.writer import Payload
 from rcmlconf.rsp.codec import Bye, PacketType, codec_for
@@ -34,8 +33,6 @@ from rcmlconf.rsp.session.robot import RobotEndpoint
 
 #: D-RSP-24's run lasts 10 s after WELCOME; a local system not in the state by then will not be.
 SCENARIO = 10.0
-#: How long a local system whose run ended has to exit by itself before it is stopped.
-EXIT_GRACE = 1.0
 
 
 @dataclass(slots=True)
@@ -63,7 +60,7 @@ class LocalTarget:
         self.wait = wait
         self.connect_timeout = connect_timeout
         address = f"{listen[0]}:{listen[1]}"
-        self.command = shlex.join(w.replace("{url}", address) for w in shlex.split(command))
+        self.command = with_url(command, address)
         family = socket.AF_INET6 if ":" in listen[0] else socket.AF_INET
         self.sock = socket.socket(family, socket.SOCK_DGRAM)
         try:
@@ -77,17 +74,7 @@ class LocalTarget:
         self._drain()
         out = LocalOutcome(state=case.state)
         out.ours = {self.listen}
-        process = TargetProcess(self.command, ready=None, kept=4096)
-        try:
-            process.start()
-        except TargetNotReady as error:
-            out.missed = str(error)
-            return out
-        try:
-            _PlayedRun(self, case, process, out).run()
-        finally:
-            exit = process.stop()
-        out.exit = out.exit or exit
+        run_started(self.command, out, lambda process: _PlayedRun(self, case, process, out).run())
         return out
 
     def _drain(self) -> None:
@@ -164,10 +151,7 @@ class _PlayedRun:
             self.robot.close(self._now())  # the robot's BYE ends the run (D-RSP-24)
             self._flush()
             out.ended = True
-        ended = time.monotonic() + EXIT_GRACE
-        while self.process.exited() is None and time.monotonic() < ended:
-            time.sleep(0.005)
-        out.exit = self.process.exited()
+        out.exit = exit_after_run(self.process)
 
     def _turn(self) -> None:
         timer = self.robot.get_timer()
@@ -215,8 +199,7 @@ class _PlayedRun:
             if not self.memory_sent:
                 kind = DeviceKind.MEMORY_EVENT
                 device = next(d for d in self.target.model.devices if d.kind is kind)
-                zeros = {f.name: f.zero() for f in device.fields}
-                self.memory_sent = self.robot.occur(device.name, zeros) is not None
+                self.memory_sent = self.robot.occur(device.name, zeros(device)) is not None
             return
         if state in (WELCOMED, MEMORY_EVENT):
             self._steps()

@@ -34,6 +34,7 @@ from rcmlconf.rsp.codec.header import (
 from rcmlconf.rsp.layout import HEADER_SIZE, NONCE_SIZE
 from rcmlconf.rsp.model import Device, DeviceKind, RobotModel
 from rcmlconf.rsp.session.local import LocalEndpoint
+from rcmlconf.values import Value
 
 #: The states of a session with a robot (D-FUZZ-2), each what the local system has done;
 #: "idle": no session yet, and the steps are HELLOs.
@@ -58,7 +59,8 @@ def _first(model: RobotModel, kind: DeviceKind) -> Device | None:
     return next((d for d in model.devices if d.kind is kind), None)
 
 
-def _zeros(device: Device) -> dict[str, object]:
+def zeros(device: Device) -> dict[str, Value]:
+    """Each field of `device` at its zero value (D-RSP-20)."""
     return {f.name: f.zero() for f in device.fields}
 
 
@@ -75,11 +77,11 @@ def drive(endpoint: LocalEndpoint, model: RobotModel, state: str) -> bool:
     if device is None:
         return False
     if kind is DeviceKind.EFFECTOR:
-        endpoint.write(device.name, _zeros(device))  # type: ignore[arg-type]
+        endpoint.write(device.name, zeros(device))
     elif kind is DeviceKind.MODULE:
         endpoint.set_active(device.name, True)
     else:
-        endpoint.issue(device.name, _zeros(device))  # type: ignore[arg-type]
+        endpoint.issue(device.name, zeros(device))
     return True
 
 
