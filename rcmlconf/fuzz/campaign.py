@@ -232,7 +232,8 @@ class Campaign:
         earlier case may have hung it, D-FUZZ-4)."""
         verdict = self.subject.judge(out)
         probed = False
-        odd = out.end != "open" or out.missed is not None or verdict is not None
+        # D-FUZZ-1: a close that answers the fuzzer's own FIN ("finished") is how a case ends.
+        odd = out.end not in ("open", "finished") or out.missed is not None or verdict is not None
         silent = verdict is not None and verdict.oracle == VIOLATION and out.unanswered is not None
         if odd and (verdict is None or silent):
             found = self.subject.alive()

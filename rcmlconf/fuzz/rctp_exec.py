@@ -44,7 +44,8 @@ class Outcome:
     owed: Owed = field(default_factory=Owed)
     #: Answers to the fuzzer's requests, in order: their status codes.
     statuses: list[int] = field(default_factory=list)
-    #: "open", "closed" or "reset" as the case ended; "refused": no connection at all.
+    #: "open", "closed" or "reset" as the case ended; "refused": no connection at all;
+    #: "finished": the target closed after the fuzzer's own FIN (D-FUZZ-1's end of a case).
     end: str = "open"
     #: An owed answer that did not come within the wait while the connection stayed open.
     unanswered: str | None = None
@@ -137,9 +138,11 @@ class _Exchange:
         self.sent: list[Request | None] = []
         self._sent_reader = MessageReader()
         self.read = 0
+        self.last_channel = "control"
 
     def run(self, case: TestCase) -> None:
         out = self.out
+        self.last_channel = (case.steps or case.prefix)[-1].channel
         for step in case.prefix:
             self._send(step)
             self._answers(len(out.owed.requests))
@@ -217,9 +220,17 @@ class _Exchange:
             self._wait_once(left)
 
     def _drain(self) -> None:
-        """What comes after the last step: extra answers, the server's requests, a close. The
-        control connection's silence for IDLE ends it; the data stream's datagrams are read
-        meanwhile but do not keep it going (a playing stream never falls silent)."""
+        """What comes after the last step: extra answers, the server's requests, a close.
+
+        D-FUZZ-1: where the last step went on the control connection and what was sent frames
+        whole, the fuzzer sends its FIN, and the target's close ends the case at once
+        ("finished"). Otherwise, or where the target leaves the connection open, the control
+        connection's silence for IDLE ends it; the data stream's datagrams are read meanwhile
+        but do not keep it going (a playing stream never falls silent)."""
+        finishing = self._may_finish()
+        if finishing:
+            with contextlib.suppress(OSError):
+                self.sock.shutdown(socket.SHUT_WR)
         last = time.monotonic()
         end = last + 10 * IDLE
         while self.out.end == "open" and not self.out.garbled:
@@ -229,6 +240,14 @@ class _Exchange:
                 return
             if self._wait_once(left) == "tcp":
                 last = time.monotonic()
+        if finishing and self.out.end == "closed":
+            self.out.end = "finished"
+
+    def _may_finish(self) -> bool:
+        """Whether the case may end with the fuzzer's FIN: its last step was a control step,
+        and every byte sent frames whole, so the FIN cuts no request short."""
+        whole = self._sent_reader.buffered == 0 and None not in self.sent
+        return self.last_channel == "control" and whole
 
     def _wait_once(self, timeout: float) -> str | None:
         """One wait for either socket: which one had something ("tcp" first), None: neither."""

@@ -31,9 +31,11 @@ CAMPAIGNS: list[tuple[str, str | None, str | None, int, tuple[str, ...]]] = [
     ("rctp_server", "flow-top-bit-hang", "hang", 40, ("--timeout-scale", "0.4")),
     ("rctp_server", "bad-data-leak", "leak", 20, ("--leak-rss", "4")),
     ("rctp_server", "content-length-sign", "crash", 15, ()),
-    ("rctp_server", "repeated-field-acquired", "violation", 15, ()),
+    ("rctp_server", "repeated-field-acquired", "violation", 20, ()),
     ("rsp_robot", "map-padding-crash", "crash", 15, ()),
-    ("rsp_robot", "hello-period-crash", "crash", 25, ()),
+    # A robot's case lasts its session's periods: 8 cases a second. Focused on the HELLO, whose
+    # seven kinds are all tried.
+    ("rsp_robot", "hello-period-crash", "crash", 20, ("--state", "idle")),
     ("rctp_server", None, None, 10, ()),
     ("rsp_robot", None, None, 10, ()),
     # A client case is a process of its own running D-RCTP-31's scenario: 3 cases a second,
