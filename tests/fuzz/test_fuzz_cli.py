@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import shlex
+import shutil
 import signal
 import socket
 import subprocess
@@ -30,6 +31,8 @@ def test_the_reference_gives_no_finding_and_every_file_is_written(tmp_path: Path
     assert report["states_reached"] == 7
     assert report["timeline"][-1][1:3] == [report["cases"], 7]  # the end: every case, state
     assert {"state.json", "states.dot"} <= {p.name for p in out.iterdir()}
+    if shutil.which("dot"):  # Graphviz (.ci/run installs it): the map drawn too
+        assert (out / "states.png").read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
     assert 'failures="0"' in (tmp_path / "f.xml").read_text()
     # --resume goes on from the state: the count of cases grows.
     again = fuzz("--cases", "10", "--resume", str(out))
