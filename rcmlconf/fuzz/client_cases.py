@@ -5,7 +5,7 @@ The client's own requests take it to the state (D-RCTP-31), so a case's prefix i
 name. Its steps are the answer to the request that enters the state, mutated (`answer-*`
 kinds); requests of the server's, mutated (`push-*`: a data-change WRITE of the event access,
 STOP, BYE); and, where the stream plays, datagrams of the server's, mutated (`data-*`: DATA of
-the stream and FLOW requests).
+the stream and FLOW requests, and the answer to the client's next heartbeat).
 """
 
 from __future__ import annotations
@@ -19,12 +19,16 @@ from rcmlconf.fuzz.rctp_drafts import Draft, answer
 from rcmlconf.fuzz.rctp_robot import RobotPaths
 from rcmlconf.fuzz.steps import CSEQ, SESSION, TRANSPORT, Step, TestCase
 from rcmlconf.rctp.bodies import ValuesCodec
-from rcmlconf.rctp.datastream.flow import Direction
+from rcmlconf.rctp.datastream.flow import Direction, HeartbeatAck, encode_flow
 from rcmlconf.rctp.datastream.packets import PayloadType, push_datagram
 from rcmlconf.rctp.datastream.values import stream_codec
 from rcmlconf.rctp.messages import VALUES_TYPE
 
 ANSWER, PUSH, DATA = "answer-", "push-", "data-"
+#: The kinds of a step held for the client's next heartbeat, which it answers (D-FUZZ-8).
+HEARTBEAT_KINDS = frozenset(DATA + name for name in mutate.HEARTBEAT_ACK)
+#: A heartbeat ACK whose request id and T1 the played server fills in from the request.
+_ACK = HeartbeatAck(0, 0, 0, 0)
 _SESSION, _CSEQ = SESSION.decode(), CSEQ.decode()
 
 
@@ -70,7 +74,7 @@ class ClientCases:
         kinds = [ANSWER + name for name in mutate.ANSWER]
         kinds += [PUSH + name for name in (*mutate.CONTROL, "bytes")]
         if state == "stream playing":
-            kinds += [DATA + name for name in mutate.DATA]
+            kinds += [DATA + name for name in (*mutate.DATA, *mutate.HEARTBEAT_ACK)]
         return tuple(kinds)
 
     def make(self, state: str, kind: str, rng: random.Random, count: int = 1) -> TestCase:
@@ -86,6 +90,9 @@ class ClientCases:
         if kind.startswith(ANSWER):
             name = kind.removeprefix(ANSWER)
             return Step("control", mutate.ANSWER[name](self._answers[state], rng).render(), kind)
+        if kind.startswith(DATA) and kind.removeprefix(DATA) in mutate.HEARTBEAT_ACK:
+            body = mutate.HEARTBEAT_ACK[kind.removeprefix(DATA)](encode_flow(_ACK), rng)
+            return Step("data", push_datagram(0, 0, 0, [(int(PayloadType.FLOW), body, 0)]), kind)
         if kind.startswith(DATA):
             name = kind.removeprefix(DATA)
             data = mutate.DATA[name](self._datagram(rng, flow=name.startswith("flow-")), rng)

@@ -21,14 +21,22 @@ from pathlib import Path
 from typing import TypeVar
 
 from rcmlconf.errors import ProtocolError, ValueTextError
-from rcmlconf.fuzz.client_cases import ANSWER, Entry
+from rcmlconf.fuzz.client_cases import ANSWER, DATA, HEARTBEAT_KINDS, Entry
+from rcmlconf.fuzz.mutate import T1_AT, T2_AT
 from rcmlconf.fuzz.owed import FRAMING_STATUSES
 from rcmlconf.fuzz.steps import CSEQ, SESSION, TRANSPORT, Step, TestCase
 from rcmlconf.pcap.writer import Payload
 from rcmlconf.rcml.model import RcmlDocument
 from rcmlconf.rctp.connection import RequestReceived, ResponseReceived
 from rcmlconf.rctp.datastream.endpoint import Address
-from rcmlconf.rctp.datastream.flow import Direction, IntervalGet
+from rcmlconf.rctp.datastream.flow import Direction, HeartbeatAck, IntervalGet
+from rcmlconf.rctp.datastream.packets import (
+    HEADER,
+    PAYLOAD_HEADER,
+    FlowPayload,
+    body_offsets,
+    pull_packet,
+)
 from rcmlconf.rctp.errors import LocalProtocolError, RemoteProtocolError
 from rcmlconf.rctp.fields import parse_session
 from rcmlconf.rctp.messages import Request, Response
@@ -89,6 +97,8 @@ class PlayedSession(ServerSession):
         self.us = us
         self._out = bytearray()
         self._datagrams: list[bytes] = []
+        #: Steps that answer the client's next heartbeats (D-FUZZ-8), oldest first.
+        self._acks: list[Step] = []
         #: The client's messages read again, for the answers the core cannot match to a request.
         self._theirs: MessageReader | None = MessageReader()
 
@@ -139,7 +149,7 @@ class PlayedSession(ServerSession):
 
     def datagrams_to_send(self, now: float) -> tuple[list[bytes], Address | None]:
         datagrams, peer = super().datagrams_to_send(now)
-        datagrams = [*self._datagrams, *datagrams]
+        datagrams = [*self._datagrams, *map(self._answer_heartbeat, datagrams)]
         self._datagrams.clear()
         if peer is not None:
             for datagram in datagrams:
@@ -200,6 +210,9 @@ class PlayedSession(ServerSession):
         return data
 
     def _send(self, step: Step, now: float) -> None:
+        if step.kind in HEARTBEAT_KINDS:
+            self._acks.append(step)  # sent in place of the ACK of the client's next heartbeat
+            return
         if step.channel == "data":
             self._send_datagram(step, now)
             return
@@ -249,6 +262,27 @@ class PlayedSession(ServerSession):
         if step.tagged and len(data) >= 18 and data[17] == 1:
             data[17] = stream
         self._datagrams.append(bytes(data))
+
+    def _answer_heartbeat(self, datagram: bytes) -> bytes:
+        """The datagram with the ACK of the client's heartbeat swapped for the oldest held
+        step's, the request's id and T1 filled in (T1's bits flipped by `heartbeat-echo`)."""
+        if not self._acks:
+            return datagram
+        try:
+            packet = pull_packet(datagram)
+        except ProtocolError:
+            return datagram
+        for payload, at in zip(packet.payloads, body_offsets(packet), strict=True):
+            if isinstance(payload, FlowPayload) and isinstance(payload.flow, HeartbeatAck):
+                step = self._acks.pop(0)
+                body = bytearray(step.data[HEADER.size + PAYLOAD_HEADER.size :])
+                body[2:T1_AT] = payload.flow.request_id.to_bytes(2, "big")
+                t1 = payload.flow.t1
+                if step.kind == DATA + "heartbeat-echo":
+                    t1 ^= int.from_bytes(body[T1_AT:T2_AT], "big")
+                body[T1_AT:T2_AT] = t1.to_bytes(8, "big")
+                return datagram[:at] + bytes(body) + datagram[at + len(body) :]
+        return datagram
 
     def send_probe(self, now: float) -> None:
         """D-FUZZ-8's liveness probe: a BYE of the server's, which ends the run once answered."""

@@ -331,6 +331,32 @@ def dgram_huge(data: bytes, rng: random.Random) -> bytes:
     return data + b"\x00" * rng.choice((1, 1000, 65507 - len(data)))
 
 
+#: Where a heartbeat ACK's times lie in its FLOW body (D-RCTP-22): T1, T2, T3 of 8 bytes each.
+T1_AT, T2_AT, T3_AT = 4, 12, 20
+
+
+def heartbeat_times(body: bytes, rng: random.Random) -> bytes:
+    """A heartbeat ACK's T2 and T3 (R-RCTP-48) at an edge of 64 bits, half the time with T3
+    just before T2: an answer that left before its request arrived."""
+    t2 = _edge(rng, 64) or 1
+    t3 = t2 - 1 if rng.random() < 0.5 else _edge(rng, 64)
+    return body[:T2_AT] + t2.to_bytes(8, "big") + t3.to_bytes(8, "big")
+
+
+def heartbeat_echo(body: bytes, rng: random.Random) -> bytes:
+    """The bits of T1 the ACK flips (never none): the played server sends the request's T1
+    with them flipped, an ACK that does not echo it (R-RCTP-48)."""
+    flipped = rng.choice((1, 1 << 63, (1 << 64) - 1, 1 << rng.randrange(64)))
+    return body[:T1_AT] + flipped.to_bytes(8, "big") + body[T2_AT:]
+
+
+#: The mutations of the played server's answer to a client's heartbeat (D-FUZZ-8), on its
+#: FLOW body: the times, or T1's echo.
+HEARTBEAT_ACK: dict[str, Callable[[bytes, random.Random], bytes]] = {
+    "heartbeat-times": heartbeat_times,
+    "heartbeat-echo": heartbeat_echo,
+}
+
 #: The data-stream mutations, by kind; `tag` is the one that changes the session's tag.
 DATA: dict[str, Callable[[bytes, random.Random], bytes]] = {
     "dgram-version": dgram_version,

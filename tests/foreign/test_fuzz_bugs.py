@@ -49,6 +49,8 @@ CAMPAIGNS: list[tuple[str, str | None, str | None, int, tuple[str, ...]]] = [
      "push-body")),
     ("rctp_client", "stray-stop-200", "violation", 12, ("--state", "event playing", "--kind",
      "push-target")),
+    ("rctp_client", "heartbeat-ack-crash", "crash", 12, ("--state", "stream playing", "--kind",
+     "data-heartbeat-times")),
     # A local system's case is a process too (D-FUZZ-9), 3 to 10 cases a second.
     ("rsp_local", "old-memory-event-hang", "hang", 30, ("--state", "memory event taken",
      "--kind", "rsp-occurrence-id", "--timeout-scale", "0.4")),
