@@ -56,6 +56,14 @@ BUGS: dict[str, tuple[str, str, str, str]] = {
         "each DATA payload for a playing stream that does not decode as the stream's"
         " writable values (any length off) keeps 1 MiB",
     ),
+    "stop-pending-crash": (
+        "crash",
+        "stop unanswered",
+        "control",
+        "a request naming a stream access (GO, PAUSE, STOP, SETUP, ACQUIRE, RELEASE of its"
+        " path) while the server's own STOP of that stream, sent for its receive timeout"
+        " (R-RCTP-45), is still unanswered, kills the process",
+    ),
 }
 
 HANG_SECONDS = 30.0

@@ -33,6 +33,7 @@ ALLOW = {
     "inner-data": ("ACQUIRE", "RELEASE"),
 }
 VALUES = "application/rctp-values"
+STREAM_METHODS = ("GO", "PAUSE", "STOP", "SETUP", "ACQUIRE", "RELEASE")  # stop-pending-crash
 
 
 class Refuse(Exception):
@@ -182,6 +183,17 @@ class Connection:
         if set_up and len(text) > 1 and text.startswith("0"):
             bugs.crash(ValueError(f"invalid literal for int() with base 0: {text!r}"))
 
+    def _bug_stop_pending(self, msg: wire.Message) -> None:
+        """The bug stop-pending-crash: a request naming a stream whose timeout STOP is still
+        unanswered goes to the stream's answer slot, which the STOP in flight holds, and fails."""
+        sess = self.session
+        if msg.method not in STREAM_METHODS or sess is None or sess.state != "open":
+            return
+        path = wire.parse_target(msg.target)
+        for method, cseq, target in self.outstanding:
+            if method == "STOP" and target == path:
+                bugs.crash(KeyError(f"{path}: slot taken by the unanswered STOP (CSeq {cseq})"))
+
     async def _linger(self) -> None:
         """Half-close, then read and drop until the peer closes (at most BYE_WAIT seconds)."""
         try:
@@ -317,6 +329,8 @@ class Connection:
         self.flush()
 
     def on_request(self, msg: wire.Message) -> None:
+        if bugs.on("stop-pending-crash"):
+            self._bug_stop_pending(msg)
         cseqs = msg.all("cseq")
         cseq = wire.parse_cseq(cseqs[0]) if len(cseqs) == 1 else None
         if self.session is not None and self.session.state == "open":
