@@ -14,7 +14,8 @@ boofuzz runs at its fastest documented settings:
 boofuzz has no oracle but "the connection failed": it reads answers and judges none.
 
 `rcmlconf fuzz` runs a whole campaign (`Campaign.run`): states, oracles, the state map, the
-corpus, liveness probes. Goal: at least 3 times boofuzz's cases a second.
+corpus, liveness probes; every state but `stop unanswered`, which waits out a receive timeout
+(bench/fuzz_speed.py). Goal: at least 3 times boofuzz's cases a second.
 
     pip install boofuzz   # not a dependency of rcmlconf: the anchor only
     python bench/fuzz_vs_boofuzz.py [--cases 300] [--rounds 3] [--json]

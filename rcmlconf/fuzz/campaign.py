@@ -196,10 +196,12 @@ class Campaign:
             self._probe()  # it died after the case before had been judged: find which one
             if self.process.exited() is not None:
                 self._restart()
+        began = time.monotonic()
         out = self.subject.run(case)
+        took = time.monotonic() - began
         self.stats.cases += 1
         kind = case.kinds[0] if case.kinds else "none"
-        if self.map.record(case.state, kind, out.missed is None, tuple(out.statuses)):
+        if self.map.record(case.state, kind, out.missed is None, tuple(out.statuses), took):
             self._keep(case)
         self._since_probe.append(case)
         self._previous = case

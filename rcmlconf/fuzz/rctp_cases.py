@@ -11,7 +11,7 @@ import random
 from collections.abc import Sequence
 
 from rcmlconf.fuzz import mutate
-from rcmlconf.fuzz.rctp_drafts import STATES, Draft, moves, prefix
+from rcmlconf.fuzz.rctp_drafts import STATES, STOP_UNANSWERED, Draft, moves, prefix
 from rcmlconf.fuzz.rctp_robot import RobotPaths
 from rcmlconf.fuzz.steps import Step, TestCase
 from rcmlconf.rctp.datastream.flow import (
@@ -28,7 +28,10 @@ BYTES, SPLICE = "bytes", "splice"
 CONTROL_KINDS = (*mutate.CONTROL, BYTES, SPLICE)
 DATA_KINDS = tuple(f"data-{name}" for name in mutate.DATA)
 #: The states with a data stream to send on.
-STREAM_STATES = frozenset({"stream ready", "playing"})
+STREAM_STATES = frozenset({"stream ready", "playing", STOP_UNANSWERED})
+#: D-FUZZ-2: the receive timeout asked for before the server's STOP, at the least (the
+#: conformance cases' shortest, so that one the server takes is quick to wait out).
+SHORTEST_TIMEOUT = 0.3
 
 
 class RctpCases:
@@ -60,6 +63,8 @@ class RctpCases:
         steps = tuple(
             Step("control", d.with_cseq(n).render()) for n, d in enumerate(drafts, start=1)
         )
+        if state == STOP_UNANSWERED:
+            steps += (self._timeout_request(rng),)
         cseq = len(drafts) + 1
         made: list[Step] = []
         for index in range(count):
@@ -80,6 +85,16 @@ class RctpCases:
             seed = rng.choice(self.seeds)
             return Step("control", mutate.splice(draft.render(), seed, rng), kind)
         return Step("control", mutate.CONTROL[kind](draft, rng).render(), kind)
+
+    def _timeout_request(self, rng: random.Random) -> Step:
+        """D-FUZZ-2: FLOW set-timeout of the stream's write direction, whose receiver is the
+        server, to twice its writeInterval and at least SHORTEST_TIMEOUT (D-RCTP-22)."""
+        assert self.robot.stream is not None
+        interval = self.robot.stream.write_interval or 0.0
+        micros = round(max(2 * interval, SHORTEST_TIMEOUT) * 1e6)
+        body = encode_flow(TimeoutSet(rng.randrange(1 << 16), Direction.WRITE, micros))
+        datagram = push_datagram(rng.randrange(1 << 16), 0, 0, [(int(PayloadType.FLOW), body, 1)])
+        return Step("data", datagram, tagged=True)
 
     def _datagram(self, rng: random.Random, flow: bool = False, data: bool = False) -> bytes:
         """A valid datagram of the session's stream (stream 1 and tag 0 until sent: the

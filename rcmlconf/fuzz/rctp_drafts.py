@@ -62,9 +62,21 @@ def _transport(robot: RobotPaths) -> str:
     return f"udp;client_port={CLIENT_PORT.decode()};mode={mode}"
 
 
+#: D-FUZZ-2: a playing stream the server has sent STOP of, for its receive timeout, and whose
+#: STOP the fuzzer leaves unanswered.
+STOP_UNANSWERED = "stop unanswered"
 #: The states a valid prefix reaches on a server (D-FUZZ-2), in the order they build on each
 #: other.
-STATES = ("connected", "session", "acquired", "stream ready", "playing", "event playing", "closing")
+STATES = (
+    "connected",
+    "session",
+    "acquired",
+    "stream ready",
+    "playing",
+    STOP_UNANSWERED,
+    "event playing",
+    "closing",
+)
 
 
 def prefix(state: str, robot: RobotPaths) -> list[Draft] | None:
@@ -78,6 +90,9 @@ def prefix(state: str, robot: RobotPaths) -> list[Draft] | None:
         return [connect]
     if state == "acquired":
         return [connect, _session(Draft("ACQUIRE", "/"))]
+    if state == STOP_UNANSWERED:
+        # Only a stream the server receives on has a receive timeout to end it (R-RCTP-45).
+        return prefix("playing", robot) if robot.stream_writes else None
     if state in ("stream ready", "playing"):
         if stream is None:
             return None

@@ -3,7 +3,8 @@ back, and how the connection ended (D-FUZZ-1, D-FUZZ-4).
 
 Blocking sockets and `select`, one connection a case: the fuzzer waits for nothing but the
 target, so it runs as fast as the target answers. The fuzzer plays a client as a client must
-(R-RCTP-24): the server's own requests (WRITE, STOP, BYE) are answered 200.
+(R-RCTP-24): the server's own requests (WRITE, STOP, BYE) are answered 200, but for the STOP
+that D-FUZZ-2's `stop unanswered` leaves unanswered.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from typing import Any
 
 from rcmlconf.errors import ValueTextError
 from rcmlconf.fuzz.owed import UNFRAMED, Owed
+from rcmlconf.fuzz.rctp_drafts import STOP_UNANSWERED
 from rcmlconf.fuzz.steps import CLIENT_PORT, SESSION, Step, TestCase
 from rcmlconf.pcap.writer import Payload
 from rcmlconf.rctp.errors import RemoteProtocolError
@@ -139,6 +141,9 @@ class _Exchange:
         self._sent_reader = MessageReader()
         self.read = 0
         self.last_channel = "control"
+        #: D-FUZZ-2's `stop unanswered`: the server's STOP is held, not answered.
+        self.hold_stop = False
+        self.stop_held = False
 
     def run(self, case: TestCase) -> None:
         out = self.out
@@ -152,6 +157,8 @@ class _Exchange:
             if not out.statuses or out.statuses[-1] != 200:
                 out.missed = f"the prefix's request was answered {out.statuses[-1:] or 'nothing'}"
                 return
+        if case.state == STOP_UNANSWERED and not self._await_stop():
+            return
         for step in case.steps:
             self._send(step)
             if step.channel == "control":
@@ -159,6 +166,20 @@ class _Exchange:
             if out.end != "open" or out.unanswered or out.garbled:
                 return
         self._drain()
+
+    def _await_stop(self) -> bool:
+        """D-FUZZ-2: the server's STOP for the stream's receive timeout (R-RCTP-45), within the
+        wait; it stays unanswered. False (the prefix missed) when it does not come."""
+        self.hold_stop = True
+        deadline = time.monotonic() + self.runner.wait
+        while not self.stop_held and self.out.end == "open" and not self.out.garbled:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                break
+            self._wait_once(left)
+        if not self.stop_held:
+            self.out.missed = f"no STOP for the receive timeout within {self.runner.wait:g} s"
+        return self.stop_held
 
     # -- sending --
 
@@ -305,6 +326,9 @@ class _Exchange:
 
     def _own_request(self, request: Request) -> None:
         """R-RCTP-24: a client answers the server's WRITE, STOP and BYE 200."""
+        if self.hold_stop and request.method == "STOP" and not self.stop_held:
+            self.stop_held = True  # D-FUZZ-2: left unanswered
+            return
         cseq = request.headers.get("CSeq") or "0"
         answer = (
             f"RCTP/2.0 200 OK\r\nCSeq: {cseq}\r\nSession: {self.session.session.decode()}\r\n\r\n"

@@ -3,8 +3,10 @@ where it should go next.
 
 Each cell counts the test cases that reached a state (its prefix answered as it should) and
 then sent a kind of mutation there. The next cell is drawn with weight 1 / (1 + count), so
-effort goes where the map is thin, as AFLNet favours the states it has exercised least. A
-state whose prefix keeps failing is tried less, never dropped: a target may refuse it only now.
+effort goes where the map is thin, as AFLNet favours the states it has exercised least. Effort
+is time: a state whose cases take longer on average than the quickest state's (its prefix waits
+out a timer) is drawn as many times less. A state whose prefix keeps failing is tried less,
+never dropped: a target may refuse it only now.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import itertools
 import random
 import shutil
 import subprocess
-from collections import Counter
+from collections import Counter, defaultdict
 from pathlib import Path
 from typing import Any
 
@@ -29,25 +31,44 @@ class StateMap:
         #: Findings fired per cell: a cell that keeps firing a known finding is drawn less.
         self.fired: Counter[tuple[str, str]] = Counter()
         self.fired_kinds: Counter[str] = Counter()
+        #: Cases run per state, reached or not, and the seconds they took.
+        self.runs: Counter[str] = Counter()
+        self.spent: dict[str, float] = defaultdict(float)
 
     def pick(self, rng: random.Random) -> tuple[str, str]:
         cells = [(s, k) for s, kinds in self.kinds.items() for k in kinds]
+        slower = self._slower()
         weights = [
             1.0
             / (1 + self.reached[cell])
             / (1 + self.missed[cell[0]] / 10)
             / (1 + 4 * self.fired[cell] + self.fired_kinds[cell[1]])
+            / slower.get(cell[0], 1.0)
             for cell in cells
         ]
         return rng.choices(cells, weights)[0]
+
+    def _slower(self) -> dict[str, float]:
+        """How many times longer each state's cases take on average than the quickest state's
+        (1 at the least, and for a state not yet run)."""
+        means = {state: self.spent[state] / n for state, n in self.runs.items() if n}
+        quickest = min((mean for mean in means.values() if mean > 0), default=0.0)
+        if not quickest:
+            return {}
+        return {state: max(1.0, mean / quickest) for state, mean in means.items()}
 
     def found(self, state: str, kind: str) -> None:
         """A finding fired in this cell: draw it, and its kind elsewhere, less from now on."""
         self.fired[(state, kind)] += 1
         self.fired_kinds[kind] += 1
 
-    def record(self, state: str, kind: str, reached: bool, statuses: tuple[int, ...]) -> bool:
-        """Count a case; True when its answers were new in that state (the corpus keeps it)."""
+    def record(
+        self, state: str, kind: str, reached: bool, statuses: tuple[int, ...], seconds: float = 0.0
+    ) -> bool:
+        """Count a case that took `seconds`; True when its answers were new in that state (the
+        corpus keeps it)."""
+        self.runs[state] += 1
+        self.spent[state] += seconds
         if not reached:
             self.missed[state] += 1
             return False
@@ -107,6 +128,7 @@ class StateMap:
             "reached": [[s, k, n] for (s, k), n in sorted(self.reached.items())],
             "missed": dict(self.missed),
             "seen": [[s, list(codes)] for s, codes in sorted(self.seen)],
+            "spent": {state: [n, round(self.spent[state], 6)] for state, n in self.runs.items()},
         }
 
     def load(self, item: dict[str, Any]) -> None:
@@ -114,3 +136,6 @@ class StateMap:
             self.reached[(str(state), str(kind))] += int(count)
         self.missed.update({str(k): int(v) for k, v in item["missed"].items()})
         self.seen |= {(str(s), tuple(int(c) for c in codes)) for s, codes in item["seen"]}
+        for state, (runs, seconds) in item.get("spent", {}).items():  # absent before it was kept
+            self.runs[str(state)] += int(runs)
+            self.spent[str(state)] += float(seconds)

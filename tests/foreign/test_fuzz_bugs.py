@@ -32,6 +32,8 @@ CAMPAIGNS: list[tuple[str, str | None, str | None, int, tuple[str, ...]]] = [
     ("rctp_server", "bad-data-leak", "leak", 20, ("--leak-rss", "4")),
     ("rctp_server", "content-length-sign", "crash", 15, ()),
     ("rctp_server", "repeated-field-acquired", "violation", 20, ()),
+    # Its state's cases wait out a receive timeout (0.3 s): focused on it.
+    ("rctp_server", "stop-pending-crash", "crash", 12, ("--state", "stop unanswered")),
     ("rsp_robot", "map-padding-crash", "crash", 15, ()),
     # A robot's case lasts its session's periods: 8 cases a second. Focused on the HELLO, whose
     # seven kinds are all tried.

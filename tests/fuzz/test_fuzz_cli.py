@@ -28,8 +28,8 @@ def test_the_reference_gives_no_finding_and_every_file_is_written(tmp_path: Path
     valid(report, "fuzz-report.schema.json")
     assert report["findings"] == []
     assert report["cases"] > 20
-    assert report["states_reached"] == 7
-    assert report["timeline"][-1][1:3] == [report["cases"], 7]  # the end: every case, state
+    assert report["states_reached"] == 8
+    assert report["timeline"][-1][1:3] == [report["cases"], 8]  # the end: every case, state
     assert {"state.json", "states.dot"} <= {p.name for p in out.iterdir()}
     if shutil.which("dot"):  # Graphviz (.ci/run installs it): the map drawn too
         assert (out / "states.png").read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
