@@ -4,8 +4,9 @@ where it should go next.
 Each cell counts the test cases that reached a state (its prefix answered as it should) and
 then sent a kind of mutation there. The next cell is drawn with weight 1 / (1 + count), so
 effort goes where the map is thin, as AFLNet favours the states it has exercised least. Effort
-is time: a state whose cases take longer on average than the quickest state's (its prefix waits
-out a timer) is drawn as many times less. A state whose prefix keeps failing is tried less,
+is time: a state whose cases take longer than the quickest state's (its prefix waits out a
+timer), by the median of its last cases, is drawn as many times less; a rare slow case (a
+hang) does not move a median. A state whose prefix keeps failing is tried less,
 never dropped: a target may refuse it only now.
 """
 
@@ -14,10 +15,14 @@ from __future__ import annotations
 import itertools
 import random
 import shutil
+import statistics
 import subprocess
-from collections import Counter, defaultdict
+from collections import Counter, defaultdict, deque
 from pathlib import Path
 from typing import Any
+
+#: How many of each state's last case times the map keeps, for their median.
+TIMES_KEPT = 50
 
 
 class StateMap:
@@ -31,9 +36,8 @@ class StateMap:
         #: Findings fired per cell: a cell that keeps firing a known finding is drawn less.
         self.fired: Counter[tuple[str, str]] = Counter()
         self.fired_kinds: Counter[str] = Counter()
-        #: Cases run per state, reached or not, and the seconds they took.
-        self.runs: Counter[str] = Counter()
-        self.spent: dict[str, float] = defaultdict(float)
+        #: The seconds the last cases of each state took, reached or not.
+        self.took: dict[str, deque[float]] = defaultdict(lambda: deque(maxlen=TIMES_KEPT))
 
     def pick(self, rng: random.Random) -> tuple[str, str]:
         cells = [(s, k) for s, kinds in self.kinds.items() for k in kinds]
@@ -49,13 +53,13 @@ class StateMap:
         return rng.choices(cells, weights)[0]
 
     def _slower(self) -> dict[str, float]:
-        """How many times longer each state's cases take on average than the quickest state's
-        (1 at the least, and for a state not yet run)."""
-        means = {state: self.spent[state] / n for state, n in self.runs.items() if n}
-        quickest = min((mean for mean in means.values() if mean > 0), default=0.0)
+        """How many times longer each state's cases take than the quickest state's, by their
+        medians (1 at the least, and for a state not yet run)."""
+        medians = {state: statistics.median(times) for state, times in self.took.items() if times}
+        quickest = min((median for median in medians.values() if median > 0), default=0.0)
         if not quickest:
             return {}
-        return {state: max(1.0, mean / quickest) for state, mean in means.items()}
+        return {state: max(1.0, median / quickest) for state, median in medians.items()}
 
     def found(self, state: str, kind: str) -> None:
         """A finding fired in this cell: draw it, and its kind elsewhere, less from now on."""
@@ -67,8 +71,7 @@ class StateMap:
     ) -> bool:
         """Count a case that took `seconds`; True when its answers were new in that state (the
         corpus keeps it)."""
-        self.runs[state] += 1
-        self.spent[state] += seconds
+        self.took[state].append(seconds)
         if not reached:
             self.missed[state] += 1
             return False
@@ -128,7 +131,7 @@ class StateMap:
             "reached": [[s, k, n] for (s, k), n in sorted(self.reached.items())],
             "missed": dict(self.missed),
             "seen": [[s, list(codes)] for s, codes in sorted(self.seen)],
-            "spent": {state: [n, round(self.spent[state], 6)] for state, n in self.runs.items()},
+            "took": {state: [round(t, 6) for t in times] for state, times in self.took.items()},
         }
 
     def load(self, item: dict[str, Any]) -> None:
@@ -136,6 +139,5 @@ class StateMap:
             self.reached[(str(state), str(kind))] += int(count)
         self.missed.update({str(k): int(v) for k, v in item["missed"].items()})
         self.seen |= {(str(s), tuple(int(c) for c in codes)) for s, codes in item["seen"]}
-        for state, (runs, seconds) in item.get("spent", {}).items():  # absent before it was kept
-            self.runs[str(state)] += int(runs)
-            self.spent[str(state)] += float(seconds)
+        for state, times in item.get("took", {}).items():  # absent before it was kept
+            self.took[str(state)].extend(float(t) for t in times)
