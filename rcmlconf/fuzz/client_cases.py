@@ -90,7 +90,7 @@ class ClientCases:
         if kind.startswith(ANSWER):
             name = kind.removeprefix(ANSWER)
             return Step("control", mutate.ANSWER[name](self._answers[state], rng).render(), kind)
-        if kind.startswith(DATA) and kind.removeprefix(DATA) in mutate.HEARTBEAT_ACK:
+        if kind in HEARTBEAT_KINDS:
             body = mutate.HEARTBEAT_ACK[kind.removeprefix(DATA)](encode_flow(_ACK), rng)
             return Step("data", push_datagram(0, 0, 0, [(int(PayloadType.FLOW), body, 0)]), kind)
         if kind.startswith(DATA):

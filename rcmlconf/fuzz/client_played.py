@@ -22,7 +22,7 @@ from typing import TypeVar
 
 from rcmlconf.errors import ProtocolError, ValueTextError
 from rcmlconf.fuzz.client_cases import ANSWER, DATA, HEARTBEAT_KINDS, Entry
-from rcmlconf.fuzz.mutate import T1_AT, T2_AT
+from rcmlconf.fuzz.mutate import ID_AT, T1_AT, T2_AT
 from rcmlconf.fuzz.owed import FRAMING_STATUSES
 from rcmlconf.fuzz.steps import CSEQ, SESSION, TRANSPORT, Step, TestCase
 from rcmlconf.pcap.writer import Payload
@@ -276,7 +276,7 @@ class PlayedSession(ServerSession):
             if isinstance(payload, FlowPayload) and isinstance(payload.flow, HeartbeatAck):
                 step = self._acks.pop(0)
                 body = bytearray(step.data[HEADER.size + PAYLOAD_HEADER.size :])
-                body[2:T1_AT] = payload.flow.request_id.to_bytes(2, "big")
+                body[ID_AT:T1_AT] = payload.flow.request_id.to_bytes(2, "big")
                 t1 = payload.flow.t1
                 if step.kind == DATA + "heartbeat-echo":
                     t1 ^= int.from_bytes(body[T1_AT:T2_AT], "big")

@@ -331,8 +331,9 @@ def dgram_huge(data: bytes, rng: random.Random) -> bytes:
     return data + b"\x00" * rng.choice((1, 1000, 65507 - len(data)))
 
 
-#: Where a heartbeat ACK's times lie in its FLOW body (D-RCTP-22): T1, T2, T3 of 8 bytes each.
-T1_AT, T2_AT, T3_AT = 4, 12, 20
+#: Where a heartbeat ACK's request id (2 bytes) and times (8 bytes each, T3 last) lie in its
+#: FLOW body (D-RCTP-22).
+ID_AT, T1_AT, T2_AT = 2, 4, 12
 
 
 def heartbeat_times(body: bytes, rng: random.Random) -> bytes:

@@ -140,14 +140,12 @@ class _Exchange:
         self.sent: list[Request | None] = []
         self._sent_reader = MessageReader()
         self.read = 0
-        self.last_channel = "control"
         #: D-FUZZ-2's `stop unanswered`: the server's STOP is held, not answered.
         self.hold_stop = False
         self.stop_held = False
 
     def run(self, case: TestCase) -> None:
         out = self.out
-        self.last_channel = (case.steps or case.prefix)[-1].channel
         for step in case.prefix:
             self._send(step)
             self._answers(len(out.owed.requests))
@@ -165,7 +163,7 @@ class _Exchange:
                 self._answers(len(out.owed.requests))
             if out.end != "open" or out.unanswered or out.garbled:
                 return
-        self._drain()
+        self._drain((case.steps or case.prefix)[-1].channel == "control")
 
     def _await_stop(self) -> bool:
         """D-FUZZ-2: the server's STOP for the stream's receive timeout (R-RCTP-45), within the
@@ -240,15 +238,15 @@ class _Exchange:
                 return
             self._wait_once(left)
 
-    def _drain(self) -> None:
+    def _drain(self, control_last: bool) -> None:
         """What comes after the last step: extra answers, the server's requests, a close.
 
-        D-FUZZ-1: where the last step went on the control connection and what was sent frames
-        whole, the fuzzer sends its FIN, and the target's close ends the case at once
-        ("finished"). Otherwise, or where the target leaves the connection open, the control
-        connection's silence for IDLE ends it; the data stream's datagrams are read meanwhile
-        but do not keep it going (a playing stream never falls silent)."""
-        finishing = self._may_finish()
+        D-FUZZ-1: where the last step went on the control connection (`control_last`) and what
+        was sent frames whole, the fuzzer sends its FIN, and the target's close ends the case
+        at once ("finished"). Otherwise, or where the target leaves the connection open, the
+        control connection's silence for IDLE ends it; the data stream's datagrams are read
+        meanwhile but do not keep it going (a playing stream never falls silent)."""
+        finishing = control_last and self._frames_whole()
         if finishing:
             with contextlib.suppress(OSError):
                 self.sock.shutdown(socket.SHUT_WR)
@@ -264,11 +262,9 @@ class _Exchange:
         if finishing and self.out.end == "closed":
             self.out.end = "finished"
 
-    def _may_finish(self) -> bool:
-        """Whether the case may end with the fuzzer's FIN: its last step was a control step,
-        and every byte sent frames whole, so the FIN cuts no request short."""
-        whole = self._sent_reader.buffered == 0 and None not in self.sent
-        return self.last_channel == "control" and whole
+    def _frames_whole(self) -> bool:
+        """Whether every byte sent frames whole, so that the fuzzer's FIN cuts no request short."""
+        return self._sent_reader.buffered == 0 and None not in self.sent
 
     def _wait_once(self, timeout: float) -> str | None:
         """One wait for either socket: which one had something ("tcp" first), None: neither."""
